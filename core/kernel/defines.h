@@ -1,0 +1,56 @@
+// Host/device portability layer for the shared kernel code.
+//
+// Everything under core/kernel/ is compiled twice: by g++ for the CPU and host
+// backends and by nvcc for the CUDA backend. Only POD structs and free
+// functions live here; every function is marked TANDEM_HD so both compilers
+// emit it. Nothing in this directory may allocate, throw, or use virtuals.
+#pragma once
+
+#include <cstdint>
+
+#if defined(__CUDACC__)
+#define TANDEM_HD __host__ __device__ __forceinline__
+#define TANDEM_DEVICE_COMPILE 1
+#else
+#define TANDEM_HD inline
+#define TANDEM_DEVICE_COMPILE 0
+#endif
+
+#if !TANDEM_DEVICE_COMPILE
+#include <cmath>
+#include <cstring>
+#endif
+
+namespace tandem {
+
+constexpr float kPi = 3.14159265358979323846f;
+constexpr float kTwoPi = 6.28318530717958647692f;
+constexpr float kInvPi = 0.31830988618379067154f;
+constexpr float kInv2Pi = 0.15915494309189533577f;
+constexpr float kInv4Pi = 0.07957747154594766788f;
+constexpr float kFloatMax = 3.402823466e+38f;
+constexpr uint32_t kInvalidIndex = 0xffffffffu;
+
+TANDEM_HD uint32_t float_as_uint(float f) {
+#if TANDEM_DEVICE_COMPILE && defined(__CUDA_ARCH__)
+  return __float_as_uint(f);
+#else
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+#endif
+}
+
+TANDEM_HD float uint_as_float(uint32_t u) {
+#if TANDEM_DEVICE_COMPILE && defined(__CUDA_ARCH__)
+  return __uint_as_float(u);
+#else
+  float f;
+  std::memcpy(&f, &u, sizeof f);
+  return f;
+#endif
+}
+
+TANDEM_HD bool is_finite(float x) { return (float_as_uint(x) & 0x7f800000u) != 0x7f800000u; }
+
+}  // namespace tandem

@@ -1,0 +1,107 @@
+// Environment lighting: a constant colour or an equirectangular HDR map,
+// importance sampled with a piecewise-constant 2D distribution over texels
+// weighted by luminance * sin(theta).
+#pragma once
+
+#include "core/kernel/kernel_data.h"
+#include "core/kernel/sampling.h"
+
+namespace tandem {
+
+TANDEM_HD Vec3 rotate_y(Vec3 d, float angle) {
+  const float c = cosf(angle), s = sinf(angle);
+  return {c * d.x + s * d.z, d.y, -s * d.x + c * d.z};
+}
+
+TANDEM_HD Vec3 env_texel(const KernelData& kd, uint32_t x, uint32_t y) {
+  return xyz(kd.env_texels[y * kd.constants.environment.width + x]);
+}
+
+// Unnormalised density of texel (x, y): the distribution the sampler follows.
+// Shared with the host-side table builder so both use identical numbers.
+TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
+  const KEnvironment& env = kd.constants.environment;
+  const float sin_theta = sinf(kPi * (float(y) + 0.5f) / float(env.height));
+  // A small floor keeps every direction reachable by light sampling.
+  return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
+}
+
+TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
+  const KEnvironment& env = kd.constants.environment;
+  if (!env.has_map) return env.color;
+  const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
+  // Bilinear with horizontal wrap-around and clamped poles.
+  const float x = uv.x * float(env.width) - 0.5f, y = uv.y * float(env.height) - 0.5f;
+  const float x0f = floorf(x), y0f = floorf(y);
+  const float tx = x - x0f, ty = y - y0f;
+  const int w = int(env.width), h = int(env.height);
+  int x0 = int(x0f) % w;
+  if (x0 < 0) x0 += w;
+  const int x1 = (x0 + 1) % w;
+  const int y0 = int(clamp_f(y0f, 0.0f, float(h - 1))), y1 = int(clamp_f(y0f + 1.0f, 0.0f, float(h - 1)));
+  const Vec3 c = env_texel(kd, uint32_t(x0), uint32_t(y0)) * ((1 - tx) * (1 - ty)) +
+                 env_texel(kd, uint32_t(x1), uint32_t(y0)) * (tx * (1 - ty)) +
+                 env_texel(kd, uint32_t(x0), uint32_t(y1)) * ((1 - tx) * ty) +
+                 env_texel(kd, uint32_t(x1), uint32_t(y1)) * (tx * ty);
+  return c * env.color;
+}
+
+// Index i with cdf[i] <= u < cdf[i + 1] in an array of n + 1 entries.
+TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
+  uint32_t lo = 0, hi = n;
+  while (hi - lo > 1) {
+    const uint32_t mid = (lo + hi) / 2;
+    if (cdf[mid] <= u) lo = mid;
+    else hi = mid;
+  }
+  return lo;
+}
+
+// Solid-angle pdf of env_sample returning dir.
+TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
+  const KEnvironment& env = kd.constants.environment;
+  if (!env.has_map) return kInv4Pi;
+  const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
+  const uint32_t x = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
+  const uint32_t y = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
+  // Jacobian of the (u, v) -> direction map at the actual direction.
+  const float sin_theta = sinf(kPi * uv.y);
+  if (!(sin_theta > 0.0f) || !(env.map_integral > 0.0f)) return 0.0f;
+  const float pdf_uv = env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  return pdf_uv / (2.0f * kPi * kPi * sin_theta);
+}
+
+struct EnvSample {
+  Vec3 dir;
+  Vec3 radiance;
+  float pdf;
+};
+
+TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
+  const KEnvironment& env = kd.constants.environment;
+  EnvSample s;
+  if (!env.has_map) {
+    s.dir = sample_uniform_sphere(u1, u2);
+    s.radiance = env.color;
+    s.pdf = kInv4Pi;
+    return s;
+  }
+  const uint32_t y = find_interval(kd.env_marginal_cdf, env.height, u1);
+  const float* row = kd.env_conditional_cdf + y * (env.width + 1);
+  const uint32_t x = find_interval(row, env.width, u2);
+  // Continuous position inside the chosen texel (reuse the leftover of u).
+  const float my0 = kd.env_marginal_cdf[y], my1 = kd.env_marginal_cdf[y + 1];
+  const float mx0 = row[x], mx1 = row[x + 1];
+  const float dy = my1 > my0 ? (u1 - my0) / (my1 - my0) : 0.5f;
+  const float dx = mx1 > mx0 ? (u2 - mx0) / (mx1 - mx0) : 0.5f;
+  const float u = (float(x) + saturate(dx)) / float(env.width);
+  const float v = (float(y) + saturate(dy)) / float(env.height);
+  s.dir = rotate_y(equirect_to_direction(u, v), env.rotation);
+  const float sin_theta = sinf(kPi * v);
+  const float pdf_uv = env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  s.pdf = sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
+  s.radiance = env_radiance(kd, s.dir);
+  return s;
+}
+
+}  // namespace tandem

@@ -1,0 +1,44 @@
+// The one list of arrays that describes a scene to the kernels.
+//
+// TANDEM_KERNEL_ARRAYS is the single source of truth: the host-side
+// KernelScene stores one std::vector per entry, the CUDA backend one device
+// buffer per entry, and KernelData (below) one pointer + count per entry.
+// Adding an array here adds it everywhere; nothing is mirrored by hand.
+#pragma once
+
+#include "core/kernel/types.h"
+
+namespace tandem {
+
+// X(element type, name)
+#define TANDEM_KERNEL_ARRAYS(X)                                                               \
+  X(Vec3, positions)          /* per vertex, object space; padded by one for SSE loads */    \
+  X(Vec3, normals)            /* per vertex, or empty for a mesh without kMeshHasNormals */  \
+  X(Vec4, tangents)           /* per vertex: xyz + handedness w */                           \
+  X(Vec2, uv0)                /* per vertex */                                               \
+  X(Vec2, uv1)                /* per vertex */                                               \
+  X(KTriangle, triangles)     /* per triangle, indices relative to the mesh */               \
+  X(KMesh, meshes)            /* one per BLAS */                                             \
+  X(KInstance, instances)     /* one per TLAS entry */                                       \
+  X(KMaterial, materials)                                                                    \
+  X(KTexture, textures)                                                                      \
+  X(uint32_t, texels)         /* RGBA8 texels of all textures */                             \
+  X(KLight, lights)                                                                          \
+  X(KAliasEntry, light_alias) /* distribution over lights, by power */                       \
+  X(Vec4, env_texels)         /* equirectangular environment, linear RGB */                  \
+  X(float, env_marginal_cdf)  /* height + 1 entries */                                       \
+  X(float, env_conditional_cdf) /* height * (width + 1) entries */
+
+// Read-only view of a scene: pointers into host vectors (CPU and host
+// backends) or device buffers (CUDA backend). Trivially copyable so it can be
+// passed to a kernel by value.
+struct KernelData {
+#define TANDEM_DECLARE_VIEW(T, name) \
+  const T* name;                     \
+  uint32_t name##_count;
+  TANDEM_KERNEL_ARRAYS(TANDEM_DECLARE_VIEW)
+#undef TANDEM_DECLARE_VIEW
+  KernelConstants constants;
+};
+
+}  // namespace tandem

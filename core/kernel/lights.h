@@ -1,0 +1,152 @@
+// Light sampling for next-event estimation. All lights (emissive triangles,
+// punctual lights, environment) live in one list and are picked in O(1) from
+// an alias table built by power, so a scene with thousands of emissive
+// triangles costs the same per sample as one with a single lamp.
+#pragma once
+
+#include "core/kernel/environment.h"
+#include "core/kernel/geometry.h"
+
+namespace tandem {
+
+struct LightSample {
+  Vec3 radiance;  // incident radiance (area/env) or intensity/d^2 (punctual)
+  Vec3 wi;        // unit direction from the shading point to the light
+  Vec3 point;     // sampled point on the light (finite lights)
+  float distance;
+  float pdf;  // solid angle density incl. selection (delta lights: selection probability)
+  bool is_delta;
+  bool at_infinity;
+};
+
+// Picks an entry of an alias table with one uniform number.
+TANDEM_HD uint32_t alias_sample(const KAliasEntry* table, uint32_t n, float u, float* pmf) {
+  const float scaled = u * float(n);
+  uint32_t i = min_u(uint32_t(scaled), n - 1);
+  const float frac = scaled - float(i);
+  if (frac >= table[i].threshold) i = table[i].alias;
+  *pmf = table[i].pdf;
+  return i;
+}
+
+TANDEM_HD Vec3 material_emission(const KernelData& kd, const KMaterial& m, const Vec2 uv[2]) {
+  Vec3 e = m.emission;
+  if (m.emissive_tex.texture >= 0 && !is_black(e)) {
+    const Vec4 t = sample_texture(kd, uint32_t(m.emissive_tex.texture), material_uv(m.emissive_tex, uv));
+    e = e * xyz(t);
+  }
+  return e;
+}
+
+// Power used to pick an emissive triangle. The host table builder and the
+// kernel's MIS both call this, so the selection pmf is known at a BSDF hit
+// without a lookup table.
+TANDEM_HD float triangle_light_power(const KMaterial& m, float area_world) {
+  const float sides = (m.flags & kMaterialDoubleSided) ? 2.0f : 1.0f;
+  return luminance(m.emission) * m.emission_luminance_scale * area_world * sides * kPi;
+}
+
+TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst, uint32_t prim) {
+  const TriangleVertices tv = fetch_triangle(kd, inst.mesh, prim);
+  const Vec3 e1 = transform_vector(inst.object_to_world, tv.p1 - tv.p0);
+  const Vec3 e2 = transform_vector(inst.object_to_world, tv.p2 - tv.p0);
+  return 0.5f * length(cross(e1, e2));
+}
+
+// Density (solid angle, including selection) with which sample_light picks
+// the point `sp_light` on an emissive triangle, seen from distance `dist`
+// along direction `wi` (unit, from the shading point to the light).
+TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi, float dist) {
+  const float total = kd.constants.total_light_power;
+  if (!(total > 0.0f) || !(sp_light.area_world > 0.0f)) return 0.0f;
+  const KMaterial& m = kd.materials[sp_light.material];
+  const float pmf = triangle_light_power(m, sp_light.area_world) / total;
+  const float cos_l = fabsf(dot(wi, sp_light.geometric_normal));
+  if (!(cos_l > 0.0f)) return 0.0f;
+  return pmf * dist * dist / (cos_l * sp_light.area_world);
+}
+
+TANDEM_HD float environment_light_pdf(const KernelData& kd, Vec3 dir) {
+  const uint32_t idx = kd.constants.environment_light_index;
+  if (idx == kInvalidIndex) return 0.0f;
+  return kd.light_alias[idx].pdf * env_pdf(kd, dir);
+}
+
+// Whether a surface emits towards direction w (unit, pointing away from it).
+// Single-sided materials emit from the front face given by the winding.
+TANDEM_HD bool emits_towards(const KMaterial& m, const SurfacePoint& sp, Vec3 w) {
+  return (m.flags & kMaterialDoubleSided) || dot(w, sp.front_normal) > 0.0f;
+}
+
+TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, float u1, float u2,
+                            LightSample* out) {
+  if (kd.lights_count == 0) return false;
+  float pmf;
+  const uint32_t index = alias_sample(kd.light_alias, kd.light_alias_count, u_select, &pmf);
+  if (!(pmf > 0.0f)) return false;
+  const KLight light = kd.lights[index];
+  out->is_delta = false;
+  out->at_infinity = false;
+
+  if (light.type == kLightTriangle) {
+    const Vec2 b = sample_triangle_barycentrics(u1, u2);
+    const Hit h = {0.0f, b.x, b.y, light.instance, light.prim};
+    const SurfacePoint lp = make_surface_point(kd, h);
+    Vec3 d = lp.position - ref;
+    const float dist2 = length_sq(d);
+    if (!(dist2 > 0.0f)) return false;
+    const float dist = sqrtf(dist2);
+    d = d * (1.0f / dist);
+    const KMaterial& m = kd.materials[lp.material];
+    if (!emits_towards(m, lp, -d)) return false;
+    out->pdf = triangle_light_pdf(kd, lp, d, dist);
+    if (!(out->pdf > 0.0f) || !is_finite(out->pdf)) return false;
+    out->radiance = material_emission(kd, m, lp.uv);
+    out->wi = d;
+    out->point = lp.position;
+    out->distance = dist;
+    return true;
+  }
+
+  if (light.type == kLightEnvironment) {
+    const EnvSample es = env_sample(kd, u1, u2);
+    if (!(es.pdf > 0.0f)) return false;
+    out->radiance = es.radiance;
+    out->wi = es.dir;
+    out->pdf = es.pdf * pmf;
+    out->distance = kFloatMax;
+    out->at_infinity = true;
+    return true;
+  }
+
+  out->is_delta = true;
+  out->pdf = pmf;
+  if (light.type == kLightDirectional) {
+    out->wi = -light.direction;
+    out->radiance = light.intensity;
+    out->distance = kFloatMax;
+    out->at_infinity = true;
+    return true;
+  }
+  // Point and spot lights.
+  Vec3 d = light.position - ref;
+  const float dist2 = length_sq(d);
+  if (!(dist2 > 0.0f)) return false;
+  const float dist = sqrtf(dist2);
+  d = d * (1.0f / dist);
+  float falloff = 1.0f;
+  if (light.type == kLightSpot) {
+    const float cd = dot(-d, light.direction);
+    const float range = max_f(light.cos_inner - light.cos_outer, 1e-4f);
+    const float t = saturate((cd - light.cos_outer) / range);
+    falloff = t * t;
+    if (falloff <= 0.0f) return false;
+  }
+  out->radiance = light.intensity * (falloff / dist2);
+  out->wi = d;
+  out->point = light.position;
+  out->distance = dist;
+  return true;
+}
+
+}  // namespace tandem

@@ -1,0 +1,82 @@
+// Warps from the unit square to common domains, with their densities.
+// Each warp has a chi-square test in tests/kernel_sampling_test.cpp.
+#pragma once
+
+#include "core/kernel/math.h"
+
+namespace tandem {
+
+// Shirley-Chiu concentric mapping of the unit square to the unit disk.
+TANDEM_HD Vec2 sample_disk_concentric(float u1, float u2) {
+  const float a = 2.0f * u1 - 1.0f;
+  const float b = 2.0f * u2 - 1.0f;
+  if (a == 0.0f && b == 0.0f) return {0.0f, 0.0f};
+  float r, phi;
+  if (a * a > b * b) {
+    r = a;
+    phi = (kPi / 4.0f) * (b / a);
+  } else {
+    r = b;
+    phi = (kPi / 2.0f) - (kPi / 4.0f) * (a / b);
+  }
+  return {r * cosf(phi), r * sinf(phi)};
+}
+
+// Cosine-weighted hemisphere around +z; pdf = cos(theta) / pi.
+TANDEM_HD Vec3 sample_cosine_hemisphere(float u1, float u2) {
+  const Vec2 d = sample_disk_concentric(u1, u2);
+  const float z = safe_sqrt(1.0f - d.x * d.x - d.y * d.y);
+  return {d.x, d.y, z};
+}
+TANDEM_HD float pdf_cosine_hemisphere(float cos_theta) {
+  return cos_theta > 0.0f ? cos_theta * kInvPi : 0.0f;
+}
+
+// Uniform direction on the unit sphere; pdf = 1 / (4 pi).
+TANDEM_HD Vec3 sample_uniform_sphere(float u1, float u2) {
+  const float z = 1.0f - 2.0f * u1;
+  const float r = safe_sqrt(1.0f - z * z);
+  const float phi = kTwoPi * u2;
+  return {r * cosf(phi), r * sinf(phi), z};
+}
+
+// Uniform point on a triangle, returned as barycentrics (b1, b2) with
+// b0 = 1 - b1 - b2. Uses the low-distortion square-to-triangle map of Heitz
+// (2019) so stratification of (u1, u2) carries over to the triangle.
+TANDEM_HD Vec2 sample_triangle_barycentrics(float u1, float u2) {
+  float b0, b1;
+  if (u2 > u1) {
+    b0 = u1 * 0.5f;
+    b1 = u2 - b0;
+  } else {
+    b1 = u2 * 0.5f;
+    b0 = u1 - b1;
+  }
+  return {b1, 1.0f - b0 - b1};
+}
+
+// Power heuristic (beta = 2) for multiple importance sampling; written so
+// very large pdfs (near-specular lobes) do not overflow.
+TANDEM_HD float mis_power_heuristic(float pdf_a, float pdf_b) {
+  if (!(pdf_a > 0.0f)) return 0.0f;
+  if (!(pdf_b > 0.0f) || !is_finite(pdf_b)) return 1.0f;
+  if (!is_finite(pdf_a)) return 1.0f;
+  const float r = pdf_b / pdf_a;
+  return 1.0f / (1.0f + r * r);
+}
+
+// Equirectangular (latitude-longitude) mapping with +y up. u = 0.5 looks down
+// -z, matching the usual HDRI orientation used by glTF viewers.
+TANDEM_HD Vec2 direction_to_equirect(Vec3 d) {
+  const float u = atan2f(d.x, -d.z) * kInv2Pi + 0.5f;
+  const float v = acosf(clamp_f(d.y, -1.0f, 1.0f)) * kInvPi;
+  return {u - floorf(u), v};
+}
+TANDEM_HD Vec3 equirect_to_direction(float u, float v) {
+  const float phi = (u - 0.5f) * kTwoPi;
+  const float theta = v * kPi;
+  const float s = sinf(theta);
+  return {s * sinf(phi), cosf(theta), -s * cosf(phi)};
+}
+
+}  // namespace tandem

@@ -1,0 +1,196 @@
+// Plain-old-data records shared by every backend. Layouts are fixed with
+// static_asserts because the CUDA backend copies these arrays byte for byte.
+#pragma once
+
+#include "core/kernel/math.h"
+
+namespace tandem {
+
+struct Ray {
+  Vec3 origin;
+  float tmin;
+  Vec3 dir;
+  float tmax;
+};
+
+// Result of a closest-hit query. instance == kInvalidIndex means a miss.
+// (u, v) are the barycentrics of vertices 1 and 2 (Embree convention).
+struct Hit {
+  float t;
+  float u, v;
+  uint32_t instance;
+  uint32_t prim;
+};
+TANDEM_HD bool hit_valid(const Hit& h) { return h.instance != kInvalidIndex; }
+TANDEM_HD Hit make_miss() { return {kFloatMax, 0.0f, 0.0f, kInvalidIndex, kInvalidIndex}; }
+
+// Triangle record: vertex indices relative to its mesh's vertex_offset, and
+// the material it uses. 16 bytes so Embree can read it as a strided UINT3.
+struct KTriangle {
+  uint32_t v0, v1, v2;
+  uint32_t material;
+};
+static_assert(sizeof(KTriangle) == 16, "GPU layout");
+
+enum KMeshFlags : uint32_t {
+  kMeshHasNormals = 1u << 0,
+  kMeshHasTangents = 1u << 1,
+  kMeshHasUv0 = 1u << 2,
+  kMeshHasUv1 = 1u << 3,
+  kMeshHasAlphaTest = 1u << 4,  // some triangle uses MASK/BLEND: run the alpha test
+  kMeshHasEmission = 1u << 5,
+};
+
+struct KMesh {
+  uint32_t vertex_offset;
+  uint32_t vertex_count;
+  uint32_t triangle_offset;
+  uint32_t triangle_count;
+  uint32_t flags;
+  uint32_t pad[3];
+};
+static_assert(sizeof(KMesh) == 32, "GPU layout");
+
+struct KInstance {
+  Mat34 object_to_world;
+  Mat34 world_to_object;
+  uint32_t mesh;
+  uint32_t flags;
+  // Sign of the determinant: mirrored instances flip triangle winding.
+  float handedness;
+  float pad;
+};
+static_assert(sizeof(KInstance) == 112, "GPU layout");
+
+enum KWrapMode : uint32_t { kWrapRepeat = 0, kWrapClamp = 1, kWrapMirror = 2 };
+enum KTextureFlags : uint32_t {
+  kTextureSrgb = 1u << 0,     // decode RGB from sRGB on fetch (alpha stays linear)
+  kTextureNearest = 1u << 1,  // magnification filter NEAREST
+};
+
+// An RGBA8 texture stored in the texels array starting at texel_offset.
+struct KTexture {
+  uint32_t width, height;
+  uint32_t texel_offset;
+  uint32_t flags;
+  uint32_t wrap_s, wrap_t;
+  uint32_t pad[2];
+};
+static_assert(sizeof(KTexture) == 32, "GPU layout");
+
+// A material's reference to a texture: which texture, which UV set, and the
+// KHR_texture_transform as a 2x3 matrix (uv' = M * (u, v, 1)).
+struct KTextureRef {
+  int32_t texture;  // -1: none
+  uint32_t uv_set;
+  float m[6];
+};
+static_assert(sizeof(KTextureRef) == 32, "GPU layout");
+
+enum KAlphaMode : uint32_t { kAlphaOpaque = 0, kAlphaMask = 1, kAlphaBlend = 2 };
+enum KMaterialFlags : uint32_t { kMaterialDoubleSided = 1u << 0 };
+
+// glTF metallic-roughness material with the extensions Tandem supports
+// (emissive_strength, transmission, ior, specular). Factors are already
+// multiplied out (emission = emissiveFactor * emissiveStrength).
+struct KMaterial {
+  Vec4 base_color;  // linear RGB + alpha
+  Vec3 emission;
+  float metallic;
+  Vec3 specular_color;  // KHR_materials_specular specularColorFactor
+  float roughness;      // perceptual roughness; GGX alpha = roughness^2
+  float transmission;
+  float ior;
+  float specular;  // KHR_materials_specular specularFactor (0: pure Lambert)
+  float alpha_cutoff;
+  uint32_t alpha_mode;
+  uint32_t flags;
+  float normal_scale;
+  float emission_luminance_scale;  // mean luminance of the emissive texture (1 if none)
+  KTextureRef base_color_tex;
+  KTextureRef metallic_roughness_tex;
+  KTextureRef normal_tex;
+  KTextureRef emissive_tex;
+  KTextureRef transmission_tex;
+};
+static_assert(sizeof(KMaterial) == 80 + 5 * 32, "GPU layout");
+
+enum KLightType : uint32_t {
+  kLightTriangle = 0,
+  kLightPoint = 1,
+  kLightSpot = 2,
+  kLightDirectional = 3,
+  kLightEnvironment = 4,
+};
+
+// One entry of the light list. Triangle lights reference (instance, prim);
+// punctual lights carry their world-space frame.
+struct KLight {
+  uint32_t type;
+  uint32_t instance;
+  uint32_t prim;
+  float pad0;
+  Vec3 position;
+  float cos_inner;  // spot: cos of inner cone angle
+  Vec3 direction;   // spot/directional: direction the light travels
+  float cos_outer;
+  Vec3 intensity;  // point/spot: W/sr; directional: W/m^2 (colour already applied)
+  float pad1;
+};
+static_assert(sizeof(KLight) == 64, "GPU layout");
+
+// Walker alias table entry for O(1) sampling of a discrete distribution.
+struct KAliasEntry {
+  float threshold;  // keep this entry when u < threshold
+  uint32_t alias;
+  float pdf;  // probability of this entry itself
+  float pad;
+};
+static_assert(sizeof(KAliasEntry) == 16, "GPU layout");
+
+enum KCameraType : uint32_t { kCameraPerspective = 0, kCameraOrthographic = 1 };
+
+struct KCamera {
+  Vec3 position;
+  uint32_t type;
+  Vec3 right;  // unit vectors of the camera frame
+  float tan_half_fov_y;
+  Vec3 up;
+  float aspect;  // width / height of the film
+  Vec3 forward;
+  float aperture_radius;  // thin lens; 0 = pinhole
+  float focus_distance;
+  float ortho_half_height;
+  uint32_t width, height;
+};
+static_assert(sizeof(KCamera) == 80, "GPU layout");
+
+struct KEnvironment {
+  Vec3 color;          // constant radiance, or multiplier of the map
+  int32_t has_map;     // 1: equirectangular map in env_texels
+  uint32_t width, height;
+  float rotation;      // radians about +y
+  float map_integral;  // sum of sin-weighted luminance (for pdf normalisation)
+};
+static_assert(sizeof(KEnvironment) == 32, "GPU layout");
+
+struct KIntegratorParams {
+  uint32_t max_depth;        // scattering events; 1 = direct lighting only
+  uint32_t rr_start_depth;   // Russian roulette starts after this many bounces
+  float radiance_clamp;      // 0: off. Clamps indirect sample radiance (biased).
+  uint32_t seed;
+};
+
+// Scalars that accompany the device arrays.
+struct KernelConstants {
+  KCamera camera;
+  KEnvironment environment;
+  KIntegratorParams integrator;
+  Vec3 scene_center;
+  float scene_radius;
+  float total_light_power;
+  uint32_t environment_light_index;  // kInvalidIndex if the environment is black
+  uint32_t pad[2];
+};
+
+}  // namespace tandem

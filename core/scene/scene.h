@@ -1,0 +1,208 @@
+// The host-side scene model: what loaders build and what games edit.
+//
+// Objects live in flat vectors and are referred to by index. Every mutation
+// goes through a method that marks the touched object dirty, so the scene
+// compiler can turn exactly the changed objects into kernel-array deltas
+// (and the CUDA backend can upload only those bytes). Nothing here is hashed
+// or diffed to find changes.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tandem {
+
+enum class AlphaMode : uint8_t { kOpaque, kMask, kBlend };
+enum class WrapMode : uint8_t { kRepeat, kClampToEdge, kMirroredRepeat };
+
+// KHR_texture_transform plus the UV set a texture reads.
+struct TextureTransform {
+  glm::vec2 offset{0.0f};
+  glm::vec2 scale{1.0f};
+  float rotation = 0.0f;  // radians, counter-clockwise in UV space
+  uint32_t uv_set = 0;    // TEXCOORD_n
+};
+
+struct TextureRef {
+  int32_t texture = -1;  // index into Scene::textures(), -1 = none
+  TextureTransform transform;
+};
+
+// An 8-bit RGBA image. Whether its RGB is sRGB-encoded depends on how a
+// material uses it (base colour/emissive: sRGB; others: linear), so that is
+// decided at compile time, not stored here.
+struct Texture {
+  std::string name;
+  uint32_t width = 0, height = 0;
+  std::vector<uint32_t> rgba8;  // packed R | G<<8 | B<<16 | A<<24, row 0 = top
+  WrapMode wrap_s = WrapMode::kRepeat, wrap_t = WrapMode::kRepeat;
+  bool nearest = false;  // magnification filter NEAREST
+};
+
+// glTF metallic-roughness material plus supported extensions. Defaults are
+// the glTF defaults.
+struct Material {
+  std::string name;
+  glm::vec4 base_color{1.0f};
+  float metallic = 1.0f;
+  float roughness = 1.0f;
+  glm::vec3 emissive{0.0f};
+  float emissive_strength = 1.0f;  // KHR_materials_emissive_strength
+  float transmission = 0.0f;       // KHR_materials_transmission
+  float ior = 1.5f;                // KHR_materials_ior
+  float specular = 1.0f;           // KHR_materials_specular
+  glm::vec3 specular_color{1.0f};
+  AlphaMode alpha_mode = AlphaMode::kOpaque;
+  float alpha_cutoff = 0.5f;
+  bool double_sided = false;
+  float normal_scale = 1.0f;
+  TextureRef base_color_texture, metallic_roughness_texture, normal_texture, emissive_texture,
+      transmission_texture;
+};
+
+// Triangle mesh (one BLAS). glTF primitives of one mesh are merged into one
+// Mesh with a material per triangle, so instancing a glTF mesh instances all
+// of its primitives at once.
+struct Mesh {
+  std::string name;
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;   // empty or one per vertex
+  std::vector<glm::vec4> tangents;  // empty or one per vertex (w = handedness)
+  std::vector<glm::vec2> uv0, uv1;  // empty or one per vertex
+  std::vector<glm::uvec3> triangles;
+  std::vector<uint32_t> triangle_materials;  // one per triangle
+};
+
+struct Instance {
+  std::string name;
+  uint32_t mesh = 0;
+  glm::mat4 transform{1.0f};  // object to world
+};
+
+enum class LightType : uint8_t { kPoint, kSpot, kDirectional };
+
+// KHR_lights_punctual light in world space. Intensity is used as a radiometric
+// quantity (W/sr for point/spot, W/m^2 for directional); see docs/scene-units.md.
+struct Light {
+  std::string name;
+  LightType type = LightType::kPoint;
+  glm::vec3 color{1.0f};
+  float intensity = 1.0f;
+  glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, -1.0f};  // direction light travels (spot/directional)
+  float inner_cone_angle = 0.0f;
+  float outer_cone_angle = 0.7853981634f;
+};
+
+enum class CameraType : uint8_t { kPerspective, kOrthographic };
+
+struct Camera {
+  CameraType type = CameraType::kPerspective;
+  glm::vec3 position{0.0f, 0.0f, 5.0f};
+  glm::vec3 forward{0.0f, 0.0f, -1.0f};  // unit
+  glm::vec3 up{0.0f, 1.0f, 0.0f};        // unit, orthogonal to forward
+  float yfov = 0.6911112f;               // radians (39.6 degrees)
+  float ortho_half_height = 1.0f;
+  float aperture_radius = 0.0f;  // world units, 0 = pinhole
+  float focus_distance = 1.0f;   // world units along forward
+};
+
+// Either a constant colour or an equirectangular map (linear RGB) scaled by
+// colour * intensity.
+struct Environment {
+  glm::vec3 color{0.0f};
+  float intensity = 1.0f;
+  float rotation = 0.0f;  // radians about +y
+  uint32_t width = 0, height = 0;
+  std::vector<glm::vec3> texels;  // empty for a constant environment
+  std::string source;             // file it came from, for messages
+};
+
+struct SceneBounds {
+  glm::vec3 lo{0.0f}, hi{0.0f};
+  bool empty = true;
+  void extend(const glm::vec3& p);
+  glm::vec3 center() const { return (lo + hi) * 0.5f; }
+  float radius() const;
+};
+
+// Bits of a per-object dirty mask.
+enum DirtyBits : uint32_t {
+  kDirtyCreated = 1u << 0,    // object is new since the last compile
+  kDirtyTransform = 1u << 1,  // instance transform changed (TLAS update)
+  kDirtyVertices = 1u << 2,   // vertex data changed, topology kept (BLAS refit)
+  kDirtyTopology = 1u << 3,   // triangles changed (BLAS rebuild)
+  kDirtyParams = 1u << 4,     // material / light / texture parameters
+};
+
+class Scene {
+ public:
+  // --- building -----------------------------------------------------------
+  uint32_t add_texture(Texture t);
+  uint32_t add_material(Material m);
+  uint32_t add_mesh(Mesh m);
+  uint32_t add_instance(Instance i);
+  uint32_t add_light(Light l);
+  void set_camera(const Camera& c);
+  void set_environment(Environment e);
+
+  // --- editing (marks the object dirty) ------------------------------------
+  void set_instance_transform(uint32_t instance, const glm::mat4& transform);
+  Material& edit_material(uint32_t material);
+  Light& edit_light(uint32_t light);
+  // Caller may change vertex attributes in place but not the vertex count.
+  Mesh& edit_mesh_vertices(uint32_t mesh);
+  Camera& edit_camera();
+  Environment& edit_environment();
+
+  // --- reading -------------------------------------------------------------
+  const std::vector<Texture>& textures() const { return textures_; }
+  const std::vector<Material>& materials() const { return materials_; }
+  const std::vector<Mesh>& meshes() const { return meshes_; }
+  const std::vector<Instance>& instances() const { return instances_; }
+  const std::vector<Light>& lights() const { return lights_; }
+  const Camera& camera() const { return camera_; }
+  const Environment& environment() const { return environment_; }
+  bool has_camera() const { return has_camera_; }
+
+  size_t triangle_count_unique() const;     // sum over meshes
+  size_t triangle_count_instanced() const;  // sum over instances
+  SceneBounds bounds() const;               // world-space bounds of all instances
+
+  // --- change tracking -------------------------------------------------------
+  const std::vector<uint32_t>& texture_dirty() const { return texture_dirty_; }
+  const std::vector<uint32_t>& material_dirty() const { return material_dirty_; }
+  const std::vector<uint32_t>& mesh_dirty() const { return mesh_dirty_; }
+  const std::vector<uint32_t>& instance_dirty() const { return instance_dirty_; }
+  const std::vector<uint32_t>& light_dirty() const { return light_dirty_; }
+  bool camera_dirty() const { return camera_dirty_; }
+  bool environment_dirty() const { return environment_dirty_; }
+  bool any_dirty() const;
+  void clear_dirty();
+
+  // Optional description for `tandem info` (e.g. glTF generator, file name).
+  std::string source;
+
+ private:
+  std::vector<Texture> textures_;
+  std::vector<Material> materials_;
+  std::vector<Mesh> meshes_;
+  std::vector<Instance> instances_;
+  std::vector<Light> lights_;
+  Camera camera_;
+  Environment environment_;
+  bool has_camera_ = false;
+
+  std::vector<uint32_t> texture_dirty_, material_dirty_, mesh_dirty_, instance_dirty_, light_dirty_;
+  bool camera_dirty_ = true;
+  bool environment_dirty_ = true;
+};
+
+// Places a camera that frames the scene bounds (used when a file has none).
+Camera frame_bounds_camera(const SceneBounds& bounds, float yfov, float aspect);
+
+}  // namespace tandem
