@@ -1,1 +1,44 @@
-// placeholder
+#include "scenes/scene_loader.h"
+
+#include <filesystem>
+
+#include "core/image/image.h"
+#include "core/util/errors.h"
+#include "scenes/builtin_scenes.h"
+#include "scenes/gltf_loader.h"
+
+namespace tandem {
+
+Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
+  const std::string prefix = "builtin:";
+  if (spec.rfind(prefix, 0) == 0) return make_builtin_scene(spec.substr(prefix.size()));
+  const std::filesystem::path path(spec);
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".gltf" && ext != ".glb") {
+    throw InputError(spec + ": unsupported scene format (expected a .gltf or .glb file, or builtin:NAME)");
+  }
+  GltfOptions gltf;
+  gltf.scene_index = options.gltf_scene;
+  return load_gltf(path, gltf);
+}
+
+void load_environment_map(Scene& scene, const std::string& path, float intensity) {
+  ImageRGB img = read_image(path);
+  if (img.width < 2 || img.height < 1) throw InputError(path + ": environment map is too small");
+  Environment& env = scene.edit_environment();
+  env.color = glm::vec3(1.0f);
+  env.intensity = intensity;
+  env.width = img.width;
+  env.height = img.height;
+  env.source = path;
+  env.texels.resize(size_t(img.width) * img.height);
+  for (size_t i = 0; i < env.texels.size(); ++i) {
+    glm::vec3 c(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);
+    // Negative or non-finite texels would poison the sampling tables.
+    for (int k = 0; k < 3; ++k) c[k] = std::isfinite(c[k]) && c[k] > 0.0f ? c[k] : 0.0f;
+    env.texels[i] = c;
+  }
+}
+
+}  // namespace tandem

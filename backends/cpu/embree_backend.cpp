@@ -1,1 +1,219 @@
-// placeholder
+#include "backends/cpu/embree_backend.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+#include "core/kernel/integrator.h"
+#include "core/util/log.h"
+
+namespace tandem {
+
+namespace {
+
+// Our data travels with every Embree query through an extended context,
+// which is how the intersection filter reaches the kernel data and the
+// path's alpha key.
+struct TandemRayContext {
+  RTCIntersectContext rtc;
+  const KernelData* kd;
+  uint32_t alpha_key;
+};
+
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* ctx = reinterpret_cast<const TandemRayContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const uint32_t instance = RTCHitN_instID(args->hit, args->N, i, 0);
+    const uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
+    const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
+    if (!alpha_test_opaque(*ctx->kd, instance, prim, u, v, ctx->alpha_key)) args->valid[i] = 0;
+  }
+}
+
+void embree_error(void*, RTCError code, const char* message) {
+  log_warning(std::string("Embree error ") + std::to_string(int(code)) + ": " + (message ? message : ""));
+}
+
+RTCRay make_rtc_ray(const Ray& r) {
+  RTCRay ray;
+  ray.org_x = r.origin.x;
+  ray.org_y = r.origin.y;
+  ray.org_z = r.origin.z;
+  ray.tnear = r.tmin;
+  ray.dir_x = r.dir.x;
+  ray.dir_y = r.dir.y;
+  ray.dir_z = r.dir.z;
+  ray.time = 0.0f;
+  ray.tfar = r.tmax;
+  ray.mask = 0xffffffffu;
+  ray.id = 0;
+  ray.flags = 0;
+  return ray;
+}
+
+}  // namespace
+
+Hit EmbreeTracer::intersect(const Ray& ray, uint32_t alpha_key) const {
+  TandemRayContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.kd = kd;
+  ctx.alpha_key = alpha_key;
+  RTCRayHit rh;
+  rh.ray = make_rtc_ray(ray);
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene, &ctx.rtc, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return make_miss();
+  return {rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.instID[0], rh.hit.primID};
+}
+
+bool EmbreeTracer::occluded(const Ray& ray, uint32_t alpha_key) const {
+  TandemRayContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.kd = kd;
+  ctx.alpha_key = alpha_key;
+  RTCRay r = make_rtc_ray(ray);
+  rtcOccluded1(scene, &ctx.rtc, &r);
+  return r.tfar < 0.0f;  // Embree sets tfar = -inf on a hit
+}
+
+EmbreeBackend::EmbreeBackend() {
+  device_ = rtcNewDevice(nullptr);
+  if (!device_) {
+    throw std::runtime_error("cannot create an Embree device (error " +
+                             std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  }
+  rtcSetDeviceErrorFunction(device_, embree_error, nullptr);
+}
+
+EmbreeBackend::~EmbreeBackend() {
+  release_scenes();
+  if (device_) rtcReleaseDevice(device_);
+}
+
+void EmbreeBackend::release_scenes() {
+  if (top_) rtcReleaseScene(top_);
+  top_ = nullptr;
+  for (RTCScene s : blas_) rtcReleaseScene(s);
+  blas_.clear();
+}
+
+void EmbreeBackend::build_all(const KernelScene& ks) {
+  release_scenes();
+  blas_.resize(ks.meshes.size());
+  // BLAS builds are independent; Embree parallelises inside each build too.
+  for (size_t m = 0; m < ks.meshes.size(); ++m) {
+    const KMesh& km = ks.meshes[m];
+    RTCScene blas = rtcNewScene(device_);
+    rtcSetSceneFlags(blas, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(blas, RTC_BUILD_QUALITY_HIGH);
+    if (km.triangle_count > 0) {
+      RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, ks.positions.data(),
+                                 size_t(km.vertex_offset) * sizeof(Vec3), sizeof(Vec3), km.vertex_count);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
+                                 size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle),
+                                 km.triangle_count);
+      if (km.flags & kMeshHasAlphaTest) {
+        rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+        rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+      }
+      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(blas, g, 0);
+      rtcReleaseGeometry(g);
+    }
+    rtcCommitScene(blas);
+    blas_[m] = blas;
+  }
+  top_ = rtcNewScene(device_);
+  rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
+  for (size_t i = 0; i < ks.instances.size(); ++i) {
+    const KInstance& inst = ks.instances[i];
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
+    rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &inst.object_to_world);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(top_, g, unsigned(i));
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(top_);
+}
+
+void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
+  // Embree shares our vertex/index memory, so a reallocated array means the
+  // BLAS must be rebuilt against the new storage.
+  if (delta.full || !top_ || delta.positions.reallocated || delta.triangles.reallocated ||
+      delta.meshes.reallocated || delta.instances.reallocated || !delta.meshes_rebuilt.empty()) {
+    build_all(ks);
+  } else {
+    for (uint32_t m : delta.meshes_refit) {
+      RTCGeometry g = rtcGetGeometry(blas_[m], 0);
+      rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
+      rtcCommitGeometry(g);
+      rtcCommitScene(blas_[m]);
+    }
+    if (delta.instances_changed) {
+      for (uint32_t i = delta.instances.begin; i < delta.instances.end; ++i) {
+        RTCGeometry g = rtcGetGeometry(top_, i);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &ks.instances[i].object_to_world);
+        rtcCommitGeometry(g);
+      }
+      // Refit BLAS changed their bounds, so the instances referencing them
+      // must be re-committed as well.
+      if (!delta.meshes_refit.empty()) {
+        for (size_t i = 0; i < ks.instances.size(); ++i) rtcCommitGeometry(rtcGetGeometry(top_, unsigned(i)));
+      }
+      rtcCommitScene(top_);
+    }
+  }
+  kd_ = ks.view();
+}
+
+BackendStats EmbreeBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {
+  const auto start = std::chrono::steady_clock::now();
+  const EmbreeTracer tracer{top_, &kd_};
+  const int workers = tbb::this_task_arena::max_concurrency();
+  std::vector<BackendStats> per_worker(static_cast<size_t>(workers));
+  tbb::parallel_for(0, workers, [&](int w) {
+    BackendStats& st = per_worker[size_t(w)];
+    Tile tile;
+    while (tiles.next(&tile)) {
+      for (uint32_t y = tile.y0; y < tile.y1; ++y) {
+        for (uint32_t x = tile.x0; x < tile.x1; ++x) {
+          uint32_t rays = 0;
+          double sum[3] = {0.0, 0.0, 0.0};
+          for (uint32_t s = 0; s < pass.sample_count; ++s) {
+            const Vec3 l = render_pixel_sample(kd_, tracer, x, y, pass.sample_begin + s, &rays);
+            sum[0] += l.x;
+            sum[1] += l.y;
+            sum[2] += l.z;
+          }
+          film.add(x, y, sum, pass.sample_count);
+          st.rays += rays;
+        }
+      }
+      st.tiles += 1;
+      st.pixels += tile.pixel_count();
+      st.samples += uint64_t(tile.pixel_count()) * pass.sample_count;
+    }
+  });
+  BackendStats total;
+  for (const BackendStats& s : per_worker) total += s;
+  total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return total;
+}
+
+Hit EmbreeBackend::intersect(const Ray& ray, uint32_t alpha_key) const {
+  return EmbreeTracer{top_, &kd_}.intersect(ray, alpha_key);
+}
+
+bool EmbreeBackend::occluded(const Ray& ray, uint32_t alpha_key) const {
+  return EmbreeTracer{top_, &kd_}.occluded(ray, alpha_key);
+}
+
+}  // namespace tandem

@@ -1,1 +1,28 @@
-// placeholder
+#include "core/render/film.h"
+
+#include <algorithm>
+
+namespace tandem {
+
+void Film::resize(uint32_t width, uint32_t height) {
+  width_ = width;
+  height_ = height;
+  sum_.assign(size_t(width) * height * 3, 0.0);
+  samples_.assign(size_t(width) * height, 0u);
+}
+
+void Film::clear() {
+  std::fill(sum_.begin(), sum_.end(), 0.0);
+  std::fill(samples_.begin(), samples_.end(), 0u);
+}
+
+ImageRGB Film::resolve() const {
+  ImageRGB img(width_, height_);
+  for (size_t i = 0; i < samples_.size(); ++i) {
+    const double inv = samples_[i] ? 1.0 / double(samples_[i]) : 0.0;
+    for (int c = 0; c < 3; ++c) img.rgb[3 * i + c] = float(sum_[3 * i + c] * inv);
+  }
+  return img;
+}
+
+}  // namespace tandem

@@ -109,6 +109,7 @@ struct Camera {
   float ortho_half_height = 1.0f;
   float aperture_radius = 0.0f;  // world units, 0 = pinhole
   float focus_distance = 1.0f;   // world units along forward
+  float aspect_ratio = 0.0f;     // preferred width / height; 0 = unspecified
 };
 
 // Either a constant colour or an equirectangular map (linear RGB) scaled by

@@ -1,0 +1,110 @@
+#include "app/cli_args.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "core/util/errors.h"
+
+namespace tandem {
+
+ParsedArgs::ParsedArgs(const std::string& command, const std::vector<OptionSpec>& specs,
+                       const std::vector<std::string>& args)
+    : command_(command) {
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a.size() < 2 || a.compare(0, 2, "--") != 0 || a == "--") {
+      if (a == "--") {
+        positionals_.insert(positionals_.end(), args.begin() + long(i) + 1, args.end());
+        break;
+      }
+      if (a.size() > 1 && a[0] == '-' && !(a[1] >= '0' && a[1] <= '9')) {
+        throw UsageError(command_ + ": unknown option '" + a + "'");
+      }
+      positionals_.push_back(a);
+      continue;
+    }
+    std::string name = a.substr(2), value;
+    bool inline_value = false;
+    if (const size_t eq = name.find('='); eq != std::string::npos) {
+      value = name.substr(eq + 1);
+      name = name.substr(0, eq);
+      inline_value = true;
+    }
+    const OptionSpec* spec = nullptr;
+    for (const OptionSpec& s : specs) {
+      if (s.name == name) spec = &s;
+    }
+    if (!spec) throw UsageError(command_ + ": unknown option '--" + name + "'");
+    if (spec->takes_value && !inline_value) {
+      if (i + 1 >= args.size()) throw UsageError(command_ + ": option '--" + name + "' needs a value");
+      value = args[++i];
+    } else if (!spec->takes_value && inline_value) {
+      throw UsageError(command_ + ": option '--" + name + "' takes no value");
+    }
+    if (values_.count(name)) throw UsageError(command_ + ": option '--" + name + "' given twice");
+    values_[name] = value;
+  }
+}
+
+std::optional<std::string> ParsedArgs::value(const std::string& name) const {
+  auto it = values_.find(name);
+  if (it == values_.end()) return std::nullopt;
+  return it->second;
+}
+
+std::string ParsedArgs::get_string(const std::string& name, const std::string& fallback) const {
+  return value(name).value_or(fallback);
+}
+
+int ParsedArgs::get_int(const std::string& name, int fallback, int min, int max) const {
+  const auto v = value(name);
+  if (!v) return fallback;
+  errno = 0;
+  char* end = nullptr;
+  const long n = std::strtol(v->c_str(), &end, 10);
+  if (v->empty() || *end != '\0' || errno == ERANGE || n < min || n > max) {
+    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) + ", " +
+                     std::to_string(max) + "], got '" + *v + "'");
+  }
+  return int(n);
+}
+
+uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_t min, uint32_t max) const {
+  const auto v = value(name);
+  if (!v) return fallback;
+  errno = 0;
+  char* end = nullptr;
+  const unsigned long long n = std::strtoull(v->c_str(), &end, 10);
+  if (v->empty() || (*v)[0] == '-' || *end != '\0' || errno == ERANGE || n < min || n > max) {
+    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) + ", " +
+                     std::to_string(max) + "], got '" + *v + "'");
+  }
+  return uint32_t(n);
+}
+
+float ParsedArgs::get_float(const std::string& name, float fallback, float min, float max) const {
+  const auto v = value(name);
+  if (!v) return fallback;
+  errno = 0;
+  char* end = nullptr;
+  const float f = std::strtof(v->c_str(), &end);
+  if (v->empty() || *end != '\0' || errno == ERANGE || !std::isfinite(f) || f < min || f > max) {
+    throw UsageError(command_ + ": --" + name + " expects a number in [" + std::to_string(min) + ", " +
+                     std::to_string(max) + "], got '" + *v + "'");
+  }
+  return f;
+}
+
+std::string format_options_help(const std::vector<OptionSpec>& specs) {
+  std::string out;
+  for (const OptionSpec& s : specs) {
+    std::string left = "  --" + s.name + (s.takes_value ? " " + (s.value_name.empty() ? "X" : s.value_name) : "");
+    if (left.size() < 28) left.resize(28, ' ');
+    else left += "  ";
+    out += left + s.help + "\n";
+  }
+  return out;
+}
+
+}  // namespace tandem

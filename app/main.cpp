@@ -1,0 +1,54 @@
+// The `tandem` command-line tool. Exit codes: 0 success, 1 bad input (the
+// message names the file and the reason), 2 bad usage.
+#include <cstdio>
+#include <exception>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "app/commands.h"
+#include "core/util/errors.h"
+
+namespace {
+
+void print_usage() {
+  std::printf(
+      "usage: tandem <command> [options]\n\n"
+      "commands:\n"
+      "  render SCENE   render a .gltf/.glb file or builtin:NAME to an image\n"
+      "  info SCENE     print what a scene contains\n\n"
+      "Run 'tandem <command> --help' for the options of a command.\n"
+      "Built-in scenes: builtin:cornell, builtin:furnace, builtin:sky-plane\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  try {
+    if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
+      print_usage();
+      return args.empty() ? 2 : 0;
+    }
+    if (args[0] == "--version") {
+      std::printf("tandem 0.1.0\n");
+      return 0;
+    }
+    const std::vector<std::string> rest(args.begin() + 1, args.end());
+    if (args[0] == "render") return tandem::run_render(rest);
+    if (args[0] == "info") return tandem::run_info(rest);
+    throw tandem::UsageError("unknown command '" + args[0] + "'");
+  } catch (const tandem::UsageError& e) {
+    std::fprintf(stderr, "tandem: error: %s\nRun 'tandem --help' for usage.\n", e.what());
+    return 2;
+  } catch (const tandem::InputError& e) {
+    std::fprintf(stderr, "tandem: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "tandem: error: out of memory\n");
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tandem: error: %s\n", e.what());
+    return 1;
+  }
+}

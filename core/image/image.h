@@ -1,0 +1,53 @@
+// Linear RGB images, tone mapping, and image files.
+//
+// Writers are atomic: the image goes to a temporary file in the destination
+// directory which is renamed over the target only when complete, so a crash
+// or a full disk never leaves a half-written output behind.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace tandem {
+
+struct ImageRGB {
+  uint32_t width = 0, height = 0;
+  std::vector<float> rgb;  // linear, row 0 = top, 3 floats per pixel
+
+  ImageRGB() = default;
+  ImageRGB(uint32_t w, uint32_t h) : width(w), height(h), rgb(size_t(w) * h * 3, 0.0f) {}
+  float* pixel(uint32_t x, uint32_t y) { return &rgb[(size_t(y) * width + x) * 3]; }
+  const float* pixel(uint32_t x, uint32_t y) const { return &rgb[(size_t(y) * width + x) * 3]; }
+};
+
+enum class ToneMap { kStandard, kAces, kReinhard };
+
+// Parses "standard" | "aces" | "reinhard"; throws UsageError otherwise.
+ToneMap parse_tone_map(const std::string& name);
+
+// Exposure (in stops) + tone curve + sRGB encoding to 8-bit RGB.
+std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_stops, ToneMap curve);
+
+struct ImageWriteOptions {
+  float exposure = 0.0f;  // stops, PNG only
+  ToneMap tone_map = ToneMap::kStandard;
+};
+
+// Chooses the format from the extension: .png (tone mapped sRGB), .exr
+// (32-bit float RGB, uncompressed) or .pfm (32-bit float RGB). Throws
+// InputError naming the file for unknown extensions or write failures.
+void write_image(const std::filesystem::path& path, const ImageRGB& image,
+                 const ImageWriteOptions& options = {});
+
+// Writes 8-bit RGB data as PNG (atomically).
+void write_png_rgb8(const std::filesystem::path& path, uint32_t width, uint32_t height,
+                    const std::vector<uint8_t>& rgb);
+
+// Reads .hdr (Radiance RGBE), .exr (uncompressed scanline, half/float), .pfm,
+// and 8-bit formats stb_image supports (decoded from sRGB to linear).
+// Throws InputError naming the file and the reason.
+ImageRGB read_image(const std::filesystem::path& path);
+
+}  // namespace tandem
