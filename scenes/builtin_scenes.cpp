@@ -167,9 +167,9 @@ Scene make_sky_plane_scene(float albedo, float sky) {
   env.color = glm::vec3(sky);
   scene.set_environment(env);
   Camera cam;
-  // Looking down at 60 degrees: the top rows see the sky, the rest the plane.
+  // Pitched down ~17 degrees: the top fifth of the image sees the sky.
   cam.position = {0.0f, 1.0f, 0.0f};
-  cam.forward = glm::normalize(glm::vec3(0.0f, -0.5f, -1.0f));
+  cam.forward = glm::normalize(glm::vec3(0.0f, -0.3f, -1.0f));
   cam.up = glm::normalize(glm::cross(glm::cross(cam.forward, glm::vec3(0, 1, 0)), cam.forward));
   cam.yfov = 1.0f;
   scene.set_camera(cam);

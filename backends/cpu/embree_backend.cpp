@@ -1,13 +1,10 @@
 #include "backends/cpu/embree_backend.h"
 
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
-#include <chrono>
 #include <stdexcept>
 #include <string>
 
-#include "core/kernel/integrator.h"
+#include "core/kernel/alpha.h"
+#include "core/render/cpu_tile_loop.h"
 #include "core/util/log.h"
 
 namespace tandem {
@@ -175,37 +172,7 @@ void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
 }
 
 BackendStats EmbreeBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {
-  const auto start = std::chrono::steady_clock::now();
-  const EmbreeTracer tracer{top_, &kd_};
-  const int workers = tbb::this_task_arena::max_concurrency();
-  std::vector<BackendStats> per_worker(static_cast<size_t>(workers));
-  tbb::parallel_for(0, workers, [&](int w) {
-    BackendStats& st = per_worker[size_t(w)];
-    Tile tile;
-    while (tiles.next(&tile)) {
-      for (uint32_t y = tile.y0; y < tile.y1; ++y) {
-        for (uint32_t x = tile.x0; x < tile.x1; ++x) {
-          uint32_t rays = 0;
-          double sum[3] = {0.0, 0.0, 0.0};
-          for (uint32_t s = 0; s < pass.sample_count; ++s) {
-            const Vec3 l = render_pixel_sample(kd_, tracer, x, y, pass.sample_begin + s, &rays);
-            sum[0] += l.x;
-            sum[1] += l.y;
-            sum[2] += l.z;
-          }
-          film.add(x, y, sum, pass.sample_count);
-          st.rays += rays;
-        }
-      }
-      st.tiles += 1;
-      st.pixels += tile.pixel_count();
-      st.samples += uint64_t(tile.pixel_count()) * pass.sample_count;
-    }
-  });
-  BackendStats total;
-  for (const BackendStats& s : per_worker) total += s;
-  total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return total;
+  return render_tiles_on_cpu(kd_, EmbreeTracer{top_, &kd_}, pass, tiles, film);
 }
 
 Hit EmbreeBackend::intersect(const Ray& ray, uint32_t alpha_key) const {

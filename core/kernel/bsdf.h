@@ -48,10 +48,10 @@ struct BsdfLobeProbabilities {
 };
 
 TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec3 wo) {
-  const float f_dielectric = fresnel_dielectric(wo.z, p.eta);
+  const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo.z, p.eta) : 0.0f;
   const float dielectric = 1.0f - p.metallic;
-  const float reflect = p.metallic * luminance(fresnel_schlick(p.base_color, wo.z)) +
-                        dielectric * p.specular * f_dielectric * luminance(p.specular_color);
+  const float metal = p.metallic > 0.0f ? p.metallic * luminance(fresnel_schlick(p.base_color, wo.z)) : 0.0f;
+  const float reflect = metal + dielectric * p.specular * f_dielectric * luminance(p.specular_color);
   const float base = dielectric * max_f(0.0f, 1.0f - p.specular * f_dielectric * max_component(p.specular_color));
   const float albedo = luminance(p.base_color);
   const float diffuse = base * (1.0f - p.transmission) * albedo;
@@ -62,10 +62,12 @@ TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec
   return {reflect * inv, diffuse * inv, transmit * inv};
 }
 
-TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
+// bsdf_eval with the lobe probabilities for this wo already computed (the
+// integrator evaluates and samples the same wo, so it computes them once).
+TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
+                                   Vec3 wi) {
   BsdfEval out = {make_vec3(0.0f), 0.0f};
   if (wo.z <= 0.0f || wi.z == 0.0f) return out;
-  const BsdfLobeProbabilities prob = bsdf_lobe_probabilities(p, wo);
   const float dielectric = 1.0f - p.metallic;
   const float spec_max = max_component(p.specular_color);
 
@@ -73,17 +75,21 @@ TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
     const Vec3 h = normalize(wo + wi);
     const float wo_h = dot(wo, h);
     if (wo_h <= 0.0f) return out;
-    const float f_dielectric = fresnel_dielectric(wo_h, p.eta);
-    const Vec3 fresnel = p.metallic * fresnel_schlick(p.base_color, wo_h) +
-                         (dielectric * p.specular * f_dielectric) * p.specular_color;
-    const float d = ggx_d(h, p.alpha);
-    const float g = ggx_g2(wo, wi, p.alpha);
-    const Vec3 spec = fresnel * (d * g / (4.0f * wo.z * wi.z));
+    const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo_h, p.eta) : 0.0f;
     const float diffuse_w =
         dielectric * (1.0f - p.transmission) * max_f(0.0f, 1.0f - p.specular * spec_max * f_dielectric);
-    out.f = spec + p.base_color * (diffuse_w * kInvPi);
-    out.pdf = prob.reflect * ggx_visible_pdf(wo, h, p.alpha) / (4.0f * wo_h) +
-              prob.diffuse * pdf_cosine_hemisphere(wi.z);
+    out.f = p.base_color * (diffuse_w * kInvPi);
+    out.pdf = prob.diffuse * pdf_cosine_hemisphere(wi.z);
+    // Pure Lambertian materials (no metal, no specular layer) skip the GGX
+    // terms entirely: they are a large share of shading time otherwise.
+    if (p.metallic > 0.0f || p.specular > 0.0f) {
+      const Vec3 fresnel = p.metallic * fresnel_schlick(p.base_color, wo_h) +
+                           (dielectric * p.specular * f_dielectric) * p.specular_color;
+      const float d = ggx_d(h, p.alpha);
+      const float g = ggx_g2(wo, wi, p.alpha);
+      out.f += fresnel * (d * g / (4.0f * wo.z * wi.z));
+      out.pdf += prob.reflect * ggx_visible_pdf(wo, h, p.alpha) / (4.0f * wo_h);
+    }
     return out;
   }
 
@@ -108,13 +114,16 @@ TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
   return out;
 }
 
+TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
+  return bsdf_eval_lobes(p, bsdf_lobe_probabilities(p, wo), wo, wi);
+}
+
 // Picks a lobe with u_lobe and samples it with (u1, u2). Returns false when
 // the sample carries no energy (below the horizon, total internal
 // reflection in the transmission lobe, or a black material).
-TANDEM_HD bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u_lobe, float u1, float u2,
-                           BsdfSample* out) {
+TANDEM_HD bool bsdf_sample_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
+                                 float u_lobe, float u1, float u2, BsdfSample* out) {
   if (wo.z <= 0.0f) return false;
-  const BsdfLobeProbabilities prob = bsdf_lobe_probabilities(p, wo);
   Vec3 wi;
   if (u_lobe < prob.reflect) {
     const Vec3 m = ggx_sample_visible_normal(wo, p.alpha, u1, u2);
@@ -129,12 +138,17 @@ TANDEM_HD bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u_lobe, float u1,
   } else {
     return false;
   }
-  const BsdfEval e = bsdf_eval(p, wo, wi);
+  const BsdfEval e = bsdf_eval_lobes(p, prob, wo, wi);
   if (!(e.pdf > 0.0f) || !is_finite(e.pdf)) return false;
   out->wi = wi;
   out->pdf = e.pdf;
   out->weight = e.f * (fabsf(wi.z) / e.pdf);
   return is_finite(out->weight);
+}
+
+TANDEM_HD bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u_lobe, float u1, float u2,
+                           BsdfSample* out) {
+  return bsdf_sample_lobes(p, bsdf_lobe_probabilities(p, wo), wo, u_lobe, u1, u2, out);
 }
 
 }  // namespace tandem

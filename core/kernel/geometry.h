@@ -90,6 +90,37 @@ TANDEM_HD Vec4 material_base_color(const KernelData& kd, const KMaterial& m, con
   return c;
 }
 
+// Texture coordinates of both UV sets at barycentrics (u, v); UV set 1
+// falls back to set 0 when a mesh has only one.
+TANDEM_HD void interpolate_uvs(const KernelData& kd, const KMesh& mesh, const KTriangle& tri, float u,
+                               float v, Vec2 uv[2]) {
+  uv[0] = (mesh.flags & kMeshHasUv0) ? interpolate_uv(kd.uv0, mesh.vertex_offset, tri, u, v) : make_vec2(0, 0);
+  uv[1] = (mesh.flags & kMeshHasUv1) ? interpolate_uv(kd.uv1, mesh.vertex_offset, tri, u, v) : uv[0];
+}
+
+// The part of a shading point that light sampling needs: position, front
+// normal, area, material and UVs. Much cheaper than make_surface_point (no
+// normal interpolation, tangents or normal maps).
+TANDEM_HD SurfacePoint make_light_point(const KernelData& kd, uint32_t instance, uint32_t prim, float u, float v) {
+  const KInstance& inst = kd.instances[instance];
+  const TriangleVertices tv = fetch_triangle(kd, inst.mesh, prim);
+  SurfacePoint sp;
+  const float w = 1.0f - u - v;
+  sp.position = transform_point(inst.object_to_world, tv.p0 * w + tv.p1 * u + tv.p2 * v);
+  const Vec3 e1 = transform_vector(inst.object_to_world, tv.p1 - tv.p0);
+  const Vec3 e2 = transform_vector(inst.object_to_world, tv.p2 - tv.p0);
+  const Vec3 ng_raw = cross(e1, e2) * inst.handedness;
+  const float ng_len = length(ng_raw);
+  sp.area_world = 0.5f * ng_len;
+  sp.geometric_normal = ng_len > 0.0f ? ng_raw * (1.0f / ng_len) : make_vec3(0.0f, 0.0f, 1.0f);
+  sp.front_normal = sp.geometric_normal;
+  sp.shading_normal = sp.geometric_normal;
+  sp.tangent = make_vec3(0.0f);
+  sp.material = tv.tri.material;
+  interpolate_uvs(kd, *tv.mesh, tv.tri, u, v, sp.uv);
+  return sp;
+}
+
 // Builds the full shading point for a hit. Normals are not flipped towards
 // the ray here; the integrator decides sidedness.
 TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) {
@@ -115,8 +146,7 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
   sp.front_normal = sp.geometric_normal;
   sp.material = tv.tri.material;
 
-  sp.uv[0] = (mesh.flags & kMeshHasUv0) ? interpolate_uv(kd.uv0, base, tv.tri, u, v) : make_vec2(0, 0);
-  sp.uv[1] = (mesh.flags & kMeshHasUv1) ? interpolate_uv(kd.uv1, base, tv.tri, u, v) : sp.uv[0];
+  interpolate_uvs(kd, mesh, tv.tri, u, v, sp.uv);
 
   Vec3 ns = sp.geometric_normal;
   if (mesh.flags & kMeshHasNormals) {

@@ -9,6 +9,7 @@
 // so that it too is a pure function of the path, not of traversal order.
 #pragma once
 
+#include "core/kernel/alpha.h"
 #include "core/kernel/bsdf.h"
 #include "core/kernel/camera.h"
 #include "core/kernel/lights.h"
@@ -16,30 +17,9 @@
 
 namespace tandem {
 
-// Decides whether a candidate hit on an alpha-tested triangle is opaque.
-// MASK: alpha >= cutoff. BLEND: stochastic transparency, opaque with
-// probability alpha, keyed by (path, instance, primitive).
-TANDEM_HD bool alpha_test_opaque(const KernelData& kd, uint32_t instance, uint32_t prim, float u, float v,
-                                 uint32_t alpha_key) {
-  const KInstance& inst = kd.instances[instance];
-  const KMesh& mesh = kd.meshes[inst.mesh];
-  const KTriangle tri = kd.triangles[mesh.triangle_offset + prim];
-  const KMaterial& m = kd.materials[tri.material];
-  if (m.alpha_mode == kAlphaOpaque) return true;
-  float alpha = m.base_color.w;
-  if (m.base_color_tex.texture >= 0) {
-    Vec2 uv[2];
-    uv[0] = (mesh.flags & kMeshHasUv0) ? interpolate_uv(kd.uv0, mesh.vertex_offset, tri, u, v) : make_vec2(0, 0);
-    uv[1] = (mesh.flags & kMeshHasUv1) ? interpolate_uv(kd.uv1, mesh.vertex_offset, tri, u, v) : uv[0];
-    alpha *= sample_texture(kd, uint32_t(m.base_color_tex.texture), material_uv(m.base_color_tex, uv)).w;
-  }
-  if (m.alpha_mode == kAlphaMask) return alpha >= m.alpha_cutoff;
-  const float r = u32_to_unit_float(hash_combine(hash_combine(alpha_key, instance), prim));
-  return r < alpha;
-}
-
 struct ShadingSetup {
   BsdfParams params;
+  BsdfLobeProbabilities lobes;
   Frame frame;
   Vec3 ng;  // geometric normal on the side wo is on
   Vec3 wo_local;
@@ -81,6 +61,7 @@ TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 
   // Leaving a transmissive object the relative index inverts. Opaque
   // materials are two-sided: both faces see air outside.
   p.eta = (p.transmission > 0.0f && !front) ? 1.0f / m.ior : m.ior;
+  s->lobes = bsdf_lobe_probabilities(p, s->wo_local);
   return true;
 }
 
@@ -137,7 +118,7 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
                      rng_1d(rng, bounce_dimension(bounce, kBounceLightV)), &ls)) {
       const Vec3 wi_local = to_local(sh.frame, ls.wi);
       if (consistent_side(ls.wi, wi_local, sh.ng)) {
-        const BsdfEval e = bsdf_eval(sh.params, sh.wo_local, wi_local);
+        const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
         const Vec3 contrib = beta * e.f * ls.radiance * (fabsf(wi_local.z) / ls.pdf);
         if (!is_black(contrib) && is_finite(contrib)) {
           const float w = ls.is_delta ? 1.0f : mis_power_heuristic(ls.pdf, e.pdf);
@@ -151,7 +132,7 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 
     // Continue the path by sampling the BSDF.
     BsdfSample bs;
-    if (!bsdf_sample(sh.params, sh.wo_local, rng_1d(rng, bounce_dimension(bounce, kBounceLobe)),
+    if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local, rng_1d(rng, bounce_dimension(bounce, kBounceLobe)),
                      rng_1d(rng, bounce_dimension(bounce, kBounceBsdfU)),
                      rng_1d(rng, bounce_dimension(bounce, kBounceBsdfV)), &bs)) {
       break;

@@ -90,8 +90,7 @@ TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, floa
 
   if (light.type == kLightTriangle) {
     const Vec2 b = sample_triangle_barycentrics(u1, u2);
-    const Hit h = {0.0f, b.x, b.y, light.instance, light.prim};
-    const SurfacePoint lp = make_surface_point(kd, h);
+    const SurfacePoint lp = make_light_point(kd, light.instance, light.prim, b.x, b.y);
     Vec3 d = lp.position - ref;
     const float dist2 = length_sq(d);
     if (!(dist2 > 0.0f)) return false;

@@ -1,0 +1,127 @@
+// Whole-integrator tests against scenes with known radiance: the white
+// furnace (closed emitting, reflecting sphere) and a Lambertian plane under
+// a uniform sky. Tolerances come from the measured pixel variance, so the
+// tests fail on bias, not on noise.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backends/cpu/embree_backend.h"
+#include "core/render/renderer.h"
+#include "scenes/builtin_scenes.h"
+
+namespace tandem {
+namespace {
+
+struct Stats {
+  double mean = 0.0;
+  double standard_error = 0.0;
+  size_t count = 0;
+};
+
+// Mean over channels and pixels, with the standard error of that mean
+// estimated from the spread of independent pixel values.
+template <class Keep>
+Stats pixel_stats(const ImageRGB& img, Keep keep) {
+  std::vector<double> values;
+  for (uint32_t y = 0; y < img.height; ++y) {
+    for (uint32_t x = 0; x < img.width; ++x) {
+      if (!keep(x, y)) continue;
+      const float* p = img.pixel(x, y);
+      values.push_back((double(p[0]) + p[1] + p[2]) / 3.0);
+    }
+  }
+  Stats s;
+  s.count = values.size();
+  for (double v : values) s.mean += v;
+  s.mean /= double(values.size());
+  double var = 0.0;
+  for (double v : values) var += (v - s.mean) * (v - s.mean);
+  var /= double(values.size() - 1);
+  s.standard_error = std::sqrt(var / double(values.size()));
+  return s;
+}
+
+ImageRGB render_scene(Scene& scene, RenderSettings settings, uint32_t spp) {
+  KernelScene ks;
+  SceneCompiler compiler;
+  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  EmbreeBackend backend;
+  backend.sync(ks, delta);
+  OfflineRenderOptions options;
+  options.spp = spp;
+  return render_offline(backend, settings.width, settings.height, options).image;
+}
+
+struct FurnaceCase {
+  float albedo, emission;
+  uint32_t max_depth;
+};
+
+class FurnaceTest : public ::testing::TestWithParam<FurnaceCase> {};
+
+TEST_P(FurnaceTest, RadianceMatchesGeometricSeries) {
+  const FurnaceCase c = GetParam();
+  Scene scene = make_furnace_scene(c.albedo, c.emission);
+  RenderSettings settings;
+  settings.width = 24;
+  settings.height = 24;
+  settings.max_depth = c.max_depth;
+  const ImageRGB img = render_scene(scene, settings, 64);
+  // L = e * sum_{k=0}^{D} a^k: each scattering event adds one reflection.
+  const double a = c.albedo, e = c.emission;
+  const double expected = c.max_depth >= 1000 ? e / (1.0 - a) : e * (1.0 - std::pow(a, c.max_depth + 1)) / (1.0 - a);
+  const Stats s = pixel_stats(img, [](uint32_t, uint32_t) { return true; });
+  EXPECT_NEAR(s.mean, expected, 5.0 * s.standard_error + 1e-4 * expected)
+      << "albedo " << a << " emission " << e << " depth " << c.max_depth << " (standard error "
+      << s.standard_error << ")";
+  // The furnace is a strong test only if the estimate is tight.
+  EXPECT_LT(s.standard_error, 0.02 * expected);
+}
+
+INSTANTIATE_TEST_SUITE_P(Furnace, FurnaceTest,
+                         ::testing::Values(FurnaceCase{0.5f, 1.0f, 1024}, FurnaceCase{0.8f, 0.5f, 1024},
+                                           FurnaceCase{0.9f, 0.25f, 1024}, FurnaceCase{0.8f, 0.5f, 0},
+                                           FurnaceCase{0.8f, 0.5f, 1}, FurnaceCase{0.8f, 0.5f, 3}),
+                         [](const auto& info) {
+                           const FurnaceCase& c = info.param;
+                           return "albedo" + std::to_string(int(c.albedo * 100)) + "_depth" +
+                                  std::to_string(c.max_depth);
+                         });
+
+TEST(SkyPlaneTest, LambertianPlaneReflectsAlbedoTimesSky) {
+  const float albedo = 0.5f, sky = 1.0f;
+  Scene scene = make_sky_plane_scene(albedo, sky);
+  RenderSettings settings;
+  settings.width = 32;
+  settings.height = 32;
+  settings.max_depth = 4;
+  const ImageRGB img = render_scene(scene, settings, 64);
+
+  // Classify pixels by where all four corners of the pixel look: entirely
+  // below or above the horizon.
+  const Camera cam = scene.camera();
+  const glm::vec3 right = glm::normalize(glm::cross(cam.forward, cam.up));
+  const float tan_half = std::tan(0.5f * cam.yfov);
+  auto corner_dir_y = [&](float px, float py) {
+    const float nx = 2.0f * px / settings.width - 1.0f, ny = 1.0f - 2.0f * py / settings.height;
+    return glm::normalize(cam.forward + right * (nx * tan_half) + cam.up * (ny * tan_half)).y;
+  };
+  auto all_corners = [&](uint32_t x, uint32_t y, bool below) {
+    for (int c = 0; c < 4; ++c) {
+      const float dy = corner_dir_y(float(x + (c & 1)), float(y + (c >> 1)));
+      if (below ? dy > -0.02f : dy < 0.02f) return false;
+    }
+    return true;
+  };
+  const Stats plane = pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, true); });
+  const Stats sky_px = pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, false); });
+  ASSERT_GT(plane.count, 100u);
+  ASSERT_GT(sky_px.count, 20u);
+  EXPECT_NEAR(plane.mean, albedo * sky, 5.0 * plane.standard_error + 1e-4);
+  EXPECT_LT(plane.standard_error, 0.01);
+  EXPECT_NEAR(sky_px.mean, sky, 1e-6);
+}
+
+}  // namespace
+}  // namespace tandem
