@@ -1,1 +1,497 @@
-// placeholder
+// glTF entry point: reads the file, runs tinygltf, validates, converts, and
+// walks the chosen scene's node tree into instances, camera and lights.
+#include "scenes/gltf_loader.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <map>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "core/util/errors.h"
+#include "core/util/log.h"
+#include "scenes/gltf_internal.h"
+#include "scenes/gltf_validate.h"
+
+namespace tandem {
+
+namespace gltf {
+
+void Context::fail(const std::string& reason) const {
+  throw InputError(path_ + ": " + reason);
+}
+void Context::warn(const std::string& message) const {
+  log_warning(path_ + ": " + message);
+}
+void Context::warn_once(const std::string& key, const std::string& message) {
+  if (warned_.insert(key).second) warn(message);
+}
+
+}  // namespace gltf
+
+namespace {
+
+using gltf::Context;
+
+[[noreturn]] void fail(const std::string& label, const std::string& reason) {
+  throw InputError(label + ": " + reason);
+}
+
+std::vector<unsigned char> read_file(const std::filesystem::path& path, const std::string& label) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) fail(label, "the file does not exist");
+  if (!std::filesystem::is_regular_file(path, ec)) fail(label, "not a regular file");
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) fail(label, "cannot read the file size (" + ec.message() + ")");
+  if (size == 0) fail(label, "the file is empty");
+  if (size > gltf::kMaxFileBytes) fail(label, "the file is larger than 4 GiB");
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) fail(label, std::string("cannot open the file (") + std::strerror(errno) + ")");
+  std::vector<unsigned char> data(static_cast<size_t>(size));
+  const size_t got = std::fread(data.data(), 1, data.size(), f);
+  std::fclose(f);
+  if (got != data.size()) fail(label, "cannot read the whole file");
+  return data;
+}
+
+// tinygltf's messages can span lines and end in "\n"; keep the first line.
+std::string first_line(const std::string& text) {
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    while (!line.empty() && std::isspace(static_cast<unsigned char>(line.back())))
+      line.pop_back();
+    if (!line.empty()) return line;
+    start = end + 1;
+  }
+  return "";
+}
+
+// tinygltf's image-loader callback. It never decodes:
+//  - for images in a bufferView, `bytes` points into a view tinygltf has not
+//    range-checked, so it must not be read before validate_model();
+//  - a file that is present but not decodable must only cost that texture
+//    (tinygltf's own loader would fail the whole load);
+//  - decoding later lets us skip unused images and use all cores.
+bool keep_encoded_image(tinygltf::Image* image, const int index, std::string*, std::string*, int,
+                        int, const unsigned char* bytes, int size, void* user) {
+  if (image->bufferView >= 0) return true;
+  auto* encoded = static_cast<gltf::EncodedImages*>(user);
+  if (bytes != nullptr && size > 0) encoded->by_image[index].assign(bytes, bytes + size);
+  return true;
+}
+
+// tinygltf reads external buffers and images through these. Only regular
+// files: a URI naming a FIFO or device would otherwise block or stream
+// forever.
+bool regular_file_exists(const std::string& path, void*) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(path, ec);
+}
+
+bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                       void* user) {
+  if (!regular_file_exists(path, nullptr)) {
+    if (err != nullptr) *err += "Not a regular file : " + path + "\n";
+    return false;
+  }
+  return tinygltf::ReadWholeFile(out, err, path, user);
+}
+
+glm::dmat4 local_transform(const tinygltf::Node& node) {
+  if (node.matrix.size() == 16) return glm::make_mat4(node.matrix.data());  // column-major, as glTF
+  glm::dmat4 m(1.0);
+  if (node.translation.size() == 3) {
+    m = glm::translate(m,
+                       glm::dvec3(node.translation[0], node.translation[1], node.translation[2]));
+  }
+  if (node.rotation.size() == 4) {
+    // glTF stores x, y, z, w; glm's constructor takes w first.
+    const glm::dquat q = glm::normalize(
+        glm::dquat(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]));
+    m *= glm::mat4_cast(q);
+  }
+  if (node.scale.size() == 3)
+    m = glm::scale(m, glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
+  return m;
+}
+
+bool finite(const glm::mat4& m) {
+  for (int c = 0; c < 4; ++c) {
+    for (int r = 0; r < 4; ++r) {
+      if (!std::isfinite(m[c][r])) return false;
+    }
+  }
+  return true;
+}
+
+class SceneBuilder {
+ public:
+  SceneBuilder(Context& ctx, gltf::AccessorCache& cache, gltf::DecodedMeshes& meshes)
+      : ctx_(ctx), cache_(cache), meshes_(meshes), mesh_ids_(meshes.meshes.size(), kNotAdded) {}
+
+  // Walks the tree under each root depth-first, children in file order (so
+  // "the first camera" is the first in that order). Iterative: a hostile
+  // file can nest nodes deeply enough to overflow a recursive walk.
+  void walk(const std::vector<int>& roots) {
+    struct Item {
+      int node;
+      glm::dmat4 parent;
+    };
+    std::vector<Item> stack;
+    for (auto it = roots.rbegin(); it != roots.rend(); ++it)
+      stack.push_back({*it, glm::dmat4(1.0)});
+    while (!stack.empty()) {
+      const Item item = stack.back();
+      stack.pop_back();
+      const tinygltf::Node& node = ctx_.model.nodes[size_t(item.node)];
+      const glm::dmat4 world = item.parent * local_transform(node);
+      visit(item.node, node, world);
+      for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) {
+        stack.push_back({*it, world});
+      }
+    }
+  }
+
+  bool needs_default_material() const { return needs_default_material_; }
+  const std::vector<Instance>& instances() const { return instances_; }
+  std::vector<Mesh>& new_meshes() { return new_meshes_; }
+  const std::vector<Light>& lights() const { return lights_; }
+  bool has_camera() const { return has_camera_; }
+  const Camera& camera() const { return camera_; }
+
+ private:
+  static constexpr int kNotAdded = -2;
+
+  std::string node_name(int index, const tinygltf::Node& node) const {
+    return node.name.empty() ? "node " + std::to_string(index) : node.name;
+  }
+
+  // Tandem mesh for glTF mesh `mi`; -1 if it has no triangles. glTF meshes
+  // with identical primitives (same accessors and materials) share one.
+  int mesh_id(int mi) {
+    int& id = mesh_ids_[size_t(mi)];
+    if (id != kNotAdded) return id;
+    Mesh& mesh = meshes_.meshes[size_t(mi)];
+    if (mesh.triangles.empty()) {
+      ctx_.warn("mesh " + std::to_string(mi) + " has no triangles and is not shown");
+      return id = -1;
+    }
+    const auto [it, inserted] =
+        mesh_by_key_.emplace(meshes_.keys[size_t(mi)], int(new_meshes_.size()));
+    if (inserted) {
+      new_meshes_.push_back(std::move(mesh));
+      if (meshes_.uses_default_material[size_t(mi)]) needs_default_material_ = true;
+    }
+    return id = it->second;
+  }
+
+  void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index) {
+    const glm::mat4 transform(world);
+    if (!finite(transform)) {
+      ctx_.fail("node " + std::to_string(node_index) + " has a world transform that is not finite");
+    }
+    instances_.push_back(Instance{name, uint32_t(mesh), transform});
+  }
+
+  void visit(int index, const tinygltf::Node& node, const glm::dmat4& world) {
+    if (node.skin >= 0) {
+      ctx_.warn_once("skin",
+                     "skinning is not supported; skinned meshes are shown in their bind pose");
+    }
+    if (node.mesh >= 0) {
+      const int mesh = mesh_id(node.mesh);
+      const auto gpu = node.extensions.find("EXT_mesh_gpu_instancing");
+      if (mesh < 0) {
+        // nothing to show
+      } else if (gpu != node.extensions.end()) {
+        add_gpu_instances(index, node, gpu->second, mesh, world);
+      } else {
+        add_instance(node_name(index, node), mesh, world, index);
+      }
+    }
+    if (node.camera >= 0 && !has_camera_) set_camera(index, node, world);
+    const auto light = node.extensions.find("KHR_lights_punctual");
+    if (light != node.extensions.end())
+      add_light(index, light->second.Get("light").Get<int>(), world);
+  }
+
+  // EXT_mesh_gpu_instancing: one instance per entry, node_world * T * R * S.
+  void add_gpu_instances(int index, const tinygltf::Node& node, const tinygltf::Value& ext,
+                         int mesh, const glm::dmat4& world) {
+    const std::string who = "node " + std::to_string(index) + " EXT_mesh_gpu_instancing";
+    const tinygltf::Value& attrs = ext.Get("attributes");
+    auto read = [&](const char* name) -> const std::vector<float>* {
+      if (!attrs.Has(name)) return nullptr;
+      return &cache_.floats(attrs.Get(name).Get<int>(), who + " " + name);
+    };
+    const std::vector<float>* t = read("TRANSLATION");
+    const std::vector<float>* r = read("ROTATION");
+    const std::vector<float>* s = read("SCALE");
+    size_t count = 0;
+    for (const std::string& name : attrs.Keys()) {
+      count = ctx_.model.accessors[size_t(attrs.Get(name).Get<int>())].count;
+    }
+    if (t == nullptr && r == nullptr && s == nullptr) {
+      ctx_.warn(who + " has no TRANSLATION, ROTATION or SCALE; the node is shown once");
+      add_instance(node_name(index, node), mesh, world, index);
+      return;
+    }
+    const std::string base = node_name(index, node);
+    for (size_t i = 0; i < count; ++i) {
+      glm::dmat4 m(1.0);
+      if (t) m = glm::translate(m, glm::dvec3((*t)[3 * i], (*t)[3 * i + 1], (*t)[3 * i + 2]));
+      if (r) {
+        const glm::dquat q((*r)[4 * i + 3], (*r)[4 * i], (*r)[4 * i + 1], (*r)[4 * i + 2]);
+        const double len = glm::length(q);
+        if (!(len > 1e-6))
+          ctx_.fail(who + " ROTATION " + std::to_string(i) + " is a zero quaternion");
+        m *= glm::mat4_cast(q / len);
+      }
+      if (s) m = glm::scale(m, glm::dvec3((*s)[3 * i], (*s)[3 * i + 1], (*s)[3 * i + 2]));
+      add_instance(base + "[" + std::to_string(i) + "]", mesh, world * m, index);
+    }
+  }
+
+  // Unit vector of `world` applied to direction `d`, or false if degenerate.
+  static bool direction(const glm::dmat4& world, const glm::dvec3& d, glm::vec3& out) {
+    const glm::dvec3 v(world * glm::dvec4(d, 0.0));
+    const double len = glm::length(v);
+    if (!(len > 1e-30) || !std::isfinite(len)) return false;
+    out = glm::vec3(v / len);
+    return true;
+  }
+
+  void set_camera(int index, const tinygltf::Node& node, const glm::dmat4& world) {
+    const tinygltf::Camera& gc = ctx_.model.cameras[size_t(node.camera)];
+    Camera cam;
+    // glTF cameras look down their local -Z with +Y up.
+    glm::vec3 forward, up;
+    const glm::vec3 position(world[3]);
+    if (!direction(world, {0, 0, -1}, forward) || !direction(world, {0, 1, 0}, up) ||
+        !std::isfinite(position.x) || !std::isfinite(position.y) || !std::isfinite(position.z)) {
+      ctx_.warn("camera on node " + std::to_string(index) +
+                " has a degenerate transform; it is ignored");
+      return;
+    }
+    up -= forward * glm::dot(up, forward);  // orthogonalize (non-uniform scale can skew it)
+    if (!(glm::length(up) > 1e-6f)) {
+      ctx_.warn("camera on node " + std::to_string(index) +
+                " has no usable up vector; it is ignored");
+      return;
+    }
+    cam.position = position;
+    cam.forward = forward;
+    cam.up = glm::normalize(up);
+    if (gc.type == "orthographic") {
+      cam.type = CameraType::kOrthographic;
+      cam.ortho_half_height = float(std::fabs(gc.orthographic.ymag));
+    } else {
+      cam.type = CameraType::kPerspective;
+      cam.yfov = float(gc.perspective.yfov);
+    }
+    camera_ = cam;
+    has_camera_ = true;
+  }
+
+  void add_light(int index, int light_index, const glm::dmat4& world) {
+    const tinygltf::Light& gl = ctx_.model.lights[size_t(light_index)];
+    Light l;
+    l.name = gl.name.empty() ? "light " + std::to_string(light_index) : gl.name;
+    l.type = gl.type == "spot"          ? LightType::kSpot
+             : gl.type == "directional" ? LightType::kDirectional
+                                        : LightType::kPoint;
+    if (gl.color.size() == 3)
+      l.color = glm::vec3(float(gl.color[0]), float(gl.color[1]), float(gl.color[2]));
+    l.intensity = float(gl.intensity);
+    l.position = glm::vec3(world[3]);
+    if (!direction(world, {0, 0, -1}, l.direction) && l.type != LightType::kPoint) {
+      ctx_.warn("light on node " + std::to_string(index) +
+                " has a degenerate transform; it is ignored");
+      return;
+    }
+    if (!std::isfinite(l.position.x) || !std::isfinite(l.position.y) ||
+        !std::isfinite(l.position.z)) {
+      ctx_.fail("node " + std::to_string(index) + " has a world transform that is not finite");
+    }
+    l.inner_cone_angle = float(gl.spot.innerConeAngle);
+    l.outer_cone_angle = float(gl.spot.outerConeAngle);
+    lights_.push_back(l);
+  }
+
+  Context& ctx_;
+  gltf::AccessorCache& cache_;
+  gltf::DecodedMeshes& meshes_;
+  std::vector<int> mesh_ids_;
+  std::map<std::string, int> mesh_by_key_;
+  std::vector<Mesh> new_meshes_;
+  std::vector<Instance> instances_;
+  std::vector<Light> lights_;
+  Camera camera_;
+  bool has_camera_ = false;
+  bool needs_default_material_ = false;
+};
+
+void warn_about_extensions(Context& ctx) {
+  for (const std::string& ext : ctx.model.extensionsUsed) {
+    if (gltf::extension_supported(ext) || ext == "KHR_xmp" || ext == "KHR_xmp_json_ld") continue;
+    ctx.warn("extension " + ext + " is not supported; its data is ignored");
+  }
+  if (!ctx.model.animations.empty()) {
+    ctx.warn("animations are not supported yet; the scene is shown in its static pose");
+  }
+}
+
+}  // namespace
+
+Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
+                GltfSummary* summary) {
+  const std::string label = path.string();
+  const std::vector<unsigned char> data = read_file(path, label);
+
+  std::string ext = path.extension().string();
+  for (char& c : ext)
+    c = char(std::tolower(static_cast<unsigned char>(c)));
+  const bool magic = data.size() >= 4 && std::memcmp(data.data(), "glTF", 4) == 0;
+  const bool binary = magic || ext == ".glb";  // .glb without magic: let tinygltf explain
+  if (!binary && data.size() >= 3 && data[0] == 0xEF && data[1] == 0xBB && data[2] == 0xBF) {
+    fail(label, "the file starts with a UTF-8 byte order mark, which glTF forbids");
+  }
+
+  tinygltf::Model model;
+  gltf::EncodedImages encoded;
+  {
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(&keep_encoded_image, &encoded);
+    loader.SetFsCallbacks({&regular_file_exists, &tinygltf::ExpandFilePath, &read_regular_file,
+                           &tinygltf::WriteWholeFile, nullptr});
+    std::string err, warn;
+    const std::string base_dir = path.has_parent_path() ? path.parent_path().string() : ".";
+    bool ok = false;
+    try {
+      ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data.data(),
+                                                unsigned(data.size()), base_dir)
+                  : loader.LoadASCIIFromString(&model, &err, &warn,
+                                               reinterpret_cast<const char*>(data.data()),
+                                               unsigned(data.size()), base_dir);
+    } catch (const std::exception& e) {
+      // tinygltf catches JSON errors but not, e.g., std::vector::at on odd input.
+      fail(label, std::string("invalid glTF: ") + e.what());
+    }
+    if (!ok) {
+      const std::string reason = first_line(err);
+      fail(label,
+           "invalid glTF: " + (reason.empty() ? "tinygltf could not parse the file" : reason));
+    }
+    // tinygltf reports missing required properties in `err` but carries on
+    // without the object (e.g. drops a primitive with no "attributes").
+    if (!first_line(err).empty()) fail(label, "invalid glTF: " + first_line(err));
+    // Its warnings are about images, which we report ourselves, by name.
+    if (!warn.empty()) log_debug(label + ": tinygltf: " + first_line(warn));
+  }
+
+  Context ctx(label, model);
+  gltf::validate_model(ctx);
+  warn_about_extensions(ctx);
+
+  int scene_index = options.scene_index;
+  if (scene_index < -1) fail(label, "scene index " + std::to_string(scene_index) + " is invalid");
+  if (scene_index == -1) {
+    scene_index = model.defaultScene >= 0 ? model.defaultScene : model.scenes.empty() ? -1 : 0;
+  } else if (size_t(scene_index) >= model.scenes.size()) {
+    fail(label, "scene index " + std::to_string(scene_index) + " is out of range (the file has " +
+                    std::to_string(model.scenes.size()) + " scene" +
+                    (model.scenes.size() == 1 ? "" : "s") + ")");
+  }
+
+  gltf::AccessorCache cache(ctx);
+  const uint32_t default_material = uint32_t(model.materials.size());
+  gltf::DecodedMeshes meshes = gltf::decode_meshes(ctx, cache, default_material);
+  gltf::MaterialResult materials = gltf::convert_materials(ctx, encoded);
+
+  std::vector<int> roots;
+  if (scene_index >= 0) {
+    roots = model.scenes[size_t(scene_index)].nodes;
+  } else {
+    // No scenes: show every root node rather than nothing.
+    std::vector<bool> is_child(model.nodes.size(), false);
+    for (const tinygltf::Node& n : model.nodes) {
+      for (int c : n.children)
+        is_child[size_t(c)] = true;
+    }
+    for (size_t i = 0; i < model.nodes.size(); ++i) {
+      if (!is_child[i]) roots.push_back(int(i));
+    }
+    if (!roots.empty()) ctx.warn("the file has no scenes; showing all root nodes");
+  }
+  SceneBuilder builder(ctx, cache, meshes);
+  builder.walk(roots);
+
+  Scene scene;
+  for (Texture& t : materials.textures)
+    scene.add_texture(std::move(t));
+  for (Material& m : materials.materials)
+    scene.add_material(std::move(m));
+  if (builder.needs_default_material()) {
+    Material m;  // glTF's default material: white, metallic 1, roughness 1
+    m.name = "default";
+    scene.add_material(m);
+  }
+  for (Mesh& m : builder.new_meshes())
+    scene.add_mesh(std::move(m));
+  for (const Instance& i : builder.instances())
+    scene.add_instance(i);
+  for (const Light& l : builder.lights())
+    scene.add_light(l);
+  if (builder.has_camera()) {
+    Camera cam = builder.camera();
+    const SceneBounds bounds = scene.bounds();
+    if (!bounds.empty) {
+      // Focus on the plane through the scene's centre; if that is behind the
+      // camera, at the centre's distance.
+      const glm::vec3 to_center = bounds.center() - cam.position;
+      const float along = glm::dot(to_center, cam.forward);
+      const float distance = along > 1e-6f ? along : glm::length(to_center);
+      if (std::isfinite(distance) && distance > 0.0f) cam.focus_distance = distance;
+    }
+    scene.set_camera(cam);
+  }
+  if (scene.triangle_count_instanced() == 0) ctx.warn("the scene has no triangles");
+  scene.source =
+      path.filename().string() +
+      (model.asset.generator.empty() ? "" : " (generator: " + model.asset.generator + ")");
+
+  if (summary != nullptr) {
+    GltfSummary& s = *summary;
+    s = GltfSummary{};
+    s.generator = model.asset.generator;
+    s.scenes = model.scenes.size();
+    s.scene_loaded = scene_index;
+    s.nodes = model.nodes.size();
+    s.meshes = model.meshes.size();
+    s.primitives = meshes.primitives;
+    s.file_triangles = meshes.file_triangles;
+    s.degenerate_triangles_dropped = meshes.dropped_degenerate;
+    s.materials = model.materials.size();
+    s.textures = model.textures.size();
+    s.images = model.images.size();
+    s.images_unavailable = materials.images_unavailable;
+    s.samplers = model.samplers.size();
+    s.cameras = model.cameras.size();
+    s.lights = model.lights.size();
+    s.animations = model.animations.size();
+    s.skins = model.skins.size();
+    s.extensions_used = model.extensionsUsed;
+    s.extensions_required = model.extensionsRequired;
+  }
+  return scene;
+}
+
+}  // namespace tandem

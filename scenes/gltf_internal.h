@@ -1,0 +1,129 @@
+// Pieces shared by the glTF loader's translation units (not a public API;
+// tests include it to check the image conversion).
+//
+// Flow: gltf_loader.cpp reads the file and runs tinygltf, gltf_validate.cpp
+// checks every index, range and format in the tinygltf model, then
+// gltf_mesh.cpp (geometry, via gltf_accessor.cpp) and gltf_material.cpp
+// (materials, textures, images) convert the validated model, and
+// gltf_loader.cpp assembles nodes, instances, camera and lights.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <tiny_gltf.h>
+
+#include "core/scene/scene.h"
+
+namespace tandem::gltf {
+
+// --- limits -----------------------------------------------------------------
+// A hostile file must not make us allocate absurd amounts of memory. Data
+// that lives in a buffer is bounded by the file size once ranges are checked;
+// these bound what is not (zero-filled accessors, merged meshes, images).
+inline constexpr uint64_t kMaxMeshVertices = (uint64_t(1) << 31) - 1;   // per tandem Mesh
+inline constexpr uint64_t kMaxMeshTriangles = (uint64_t(1) << 31) - 1;  // per tandem Mesh
+// All meshes of a file together. Accessors can be shared by any number of
+// primitives, so merged geometry is not bounded by the file size; 2^27
+// vertices are already ~1.5 GiB of positions.
+inline constexpr uint64_t kMaxTotalVertices = uint64_t(1) << 27;
+inline constexpr uint64_t kMaxTotalTriangles = uint64_t(1) << 27;
+inline constexpr uint64_t kMaxZeroAccessorElements = uint64_t(1)
+                                                     << 24;  // accessors without bufferView
+// Larger images are skipped with a warning: a small PNG can claim any size,
+// and a 16-bit RGBA decode of 2^26 pixels already takes 512 MiB.
+inline constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;    // 8192 x 8192
+inline constexpr uint64_t kMaxFileBytes = (uint64_t(1) << 32) - 1;  // tinygltf takes 32-bit sizes
+
+// Error/warning helper: every message is prefixed with the file path, as
+// the user gave it, so messages are complete sentences on their own.
+class Context {
+ public:
+  Context(std::string path, const tinygltf::Model& model) : model(model), path_(std::move(path)) {}
+
+  [[noreturn]] void fail(const std::string& reason) const;
+  void warn(const std::string& message) const;
+  // Warns only the first time `key` is seen (e.g. "one warning per feature").
+  void warn_once(const std::string& key, const std::string& message);
+  const std::string& path() const { return path_; }
+
+  const tinygltf::Model& model;
+
+ private:
+  std::string path_;
+  std::set<std::string> warned_;
+};
+
+// --- gltf_accessor.cpp ---------------------------------------------------------
+// Component / element sizes; 0 for invalid values. Element size includes
+// glTF's 4-byte column padding for matrices with 1- or 2-byte components.
+size_t component_size(int component_type);
+int component_count(int type);
+size_t accessor_element_size(int component_type, int type);
+
+// Decodes validated accessors to floats / indices, applying byteStride,
+// normalization and sparse substitution. Results are cached per accessor
+// because glTF files commonly share accessors between meshes.
+class AccessorCache {
+ public:
+  explicit AccessorCache(const Context& ctx) : ctx_(ctx) {}
+
+  // count * components floats. Float accessors are checked to be finite;
+  // `what` names the use in the error message ("POSITION of mesh 0 primitive 0").
+  const std::vector<float>& floats(int accessor, const std::string& what);
+  // Scalar unsigned integers (indices, sparse indices).
+  const std::vector<uint32_t>& uints(int accessor, const std::string& what);
+
+ private:
+  const Context& ctx_;
+  std::map<int, std::vector<float>> floats_;
+  std::map<int, std::vector<uint32_t>> uints_;
+};
+
+// --- gltf_mesh.cpp ---------------------------------------------------------------
+struct DecodedMeshes {
+  // One entry per glTF mesh: all its triangle primitives merged. Material
+  // indices are glTF material indices, or `default_material` for primitives
+  // without one.
+  std::vector<Mesh> meshes;
+  // Meshes with equal keys reference the same accessors and materials, so
+  // they can share one tandem Mesh.
+  std::vector<std::string> keys;
+  std::vector<bool> uses_default_material;
+  size_t primitives = 0;
+  size_t file_triangles = 0;
+  size_t dropped_degenerate = 0;
+};
+// Decodes and checks every mesh of the file (unused ones too: a broken mesh
+// makes the file invalid whether or not the chosen scene shows it).
+DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default_material);
+
+// --- gltf_material.cpp ---------------------------------------------------------
+// Encoded bytes of images that tinygltf read from URIs, by image index
+// (filled by the image-loader callback, which never decodes; see
+// gltf_loader.cpp for why).
+struct EncodedImages {
+  std::map<int, std::vector<unsigned char>> by_image;
+};
+
+struct MaterialResult {
+  std::vector<Material> materials;  // one per glTF material, in file order
+  std::vector<Texture> textures;    // only textures that materials reference and that loaded
+  size_t images_unavailable = 0;
+};
+// Converts all materials; decodes the images they reference (in parallel).
+// Texture references whose image is missing or undecodable become -1 with
+// a warning.
+MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded);
+
+// Converts a decoded tinygltf image (1-4 channels, 8 or 16 bits) to packed
+// RGBA8 (grey -> RGB = grey, missing alpha -> 255, 16 bit -> 8 bit rounded).
+// Returns false when the layout is not one of those.
+bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out);
+
+}  // namespace tandem::gltf

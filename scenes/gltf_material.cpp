@@ -1,0 +1,419 @@
+// glTF materials, textures and images -> tandem Materials and Textures.
+#include <algorithm>
+#include <atomic>
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <thread>
+
+#include <stb_image.h>
+
+#include "scenes/gltf_internal.h"
+
+namespace tandem::gltf {
+
+namespace {
+
+using tinygltf::Value;
+
+// Value::Get(key) asserts on non-objects, so every lookup goes through here.
+const Value* member(const Value* object, const char* key) {
+  if (object == nullptr || !object->IsObject() || !object->Has(key)) return nullptr;
+  return &object->Get(key);
+}
+
+const Value* extension(const tinygltf::ExtensionMap& extensions, const char* name) {
+  const auto it = extensions.find(name);
+  return it == extensions.end() ? nullptr : &it->second;
+}
+
+double number(const Context& ctx, const Value* object, const char* key, double fallback,
+              const std::string& who) {
+  const Value* v = member(object, key);
+  if (v == nullptr) return fallback;
+  if (!v->IsNumber() || !std::isfinite(v->GetNumberAsDouble())) {
+    ctx.fail(who + " " + key + " must be a finite number");
+  }
+  return v->GetNumberAsDouble();
+}
+
+// Reads an array of `n` finite numbers, or returns false when absent.
+bool numbers(const Context& ctx, const Value* object, const char* key, int n, double* out,
+             const std::string& who) {
+  const Value* v = member(object, key);
+  if (v == nullptr) return false;
+  if (!v->IsArray() || v->ArrayLen() != size_t(n)) {
+    ctx.fail(who + " " + key + " must be an array of " + std::to_string(n) + " numbers");
+  }
+  for (int i = 0; i < n; ++i) {
+    const Value& e = v->Get(i);
+    if (!e.IsNumber() || !std::isfinite(e.GetNumberAsDouble())) {
+      ctx.fail(who + " " + key + " must be an array of " + std::to_string(n) + " finite numbers");
+    }
+    out[i] = e.GetNumberAsDouble();
+  }
+  return true;
+}
+
+struct DecodedImage {
+  bool ok = false;
+  uint32_t width = 0, height = 0;
+  std::vector<uint32_t> rgba8;
+  std::string error;
+};
+
+DecodedImage decode_image(const unsigned char* bytes, size_t size, int index) {
+  DecodedImage out;
+  if (size > size_t(INT_MAX)) {
+    out.error = "the encoded image is larger than 2 GiB";
+    return out;
+  }
+  // Check the header first so a tiny file that claims a huge size cannot
+  // make the decoder allocate gigabytes.
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info_from_memory(bytes, int(size), &w, &h, &comp)) {
+    out.error = std::string("not a decodable PNG/JPEG image (") + stbi_failure_reason() + ")";
+    return out;
+  }
+  if (w < 1 || h < 1 || uint64_t(w) * uint64_t(h) > kMaxTexturePixels) {
+    out.error = "image size " + std::to_string(w) + "x" + std::to_string(h) + " is not supported";
+    return out;
+  }
+  tinygltf::Image image;
+  std::string err, warn;
+  // user_data nullptr: tinygltf's decoder with its default options.
+  if (!tinygltf::LoadImageData(&image, index, &err, &warn, 0, 0, bytes, int(size), nullptr)) {
+    out.error = err.empty() ? "the image could not be decoded" : err.substr(0, err.find('\n'));
+    return out;
+  }
+  if (!image_to_rgba8(image, out.rgba8)) {
+    out.error = "unsupported pixel layout (" + std::to_string(image.component) + " channels, " +
+                std::to_string(image.bits) + " bits)";
+    return out;
+  }
+  out.width = uint32_t(image.width);
+  out.height = uint32_t(image.height);
+  out.ok = true;
+  return out;
+}
+
+std::string image_label(const tinygltf::Model& m, int index) {
+  const tinygltf::Image& img = m.images[size_t(index)];
+  std::string label = "image " + std::to_string(index);
+  if (!img.uri.empty() && img.uri.rfind("data:", 0) != 0) {
+    label += " (\"" + img.uri + "\")";
+  } else if (!img.name.empty()) {
+    label += " (\"" + img.name + "\")";
+  }
+  return label;
+}
+
+class MaterialConverter {
+ public:
+  MaterialConverter(Context& ctx, const EncodedImages& encoded) : ctx_(ctx), encoded_(encoded) {}
+
+  MaterialResult run() {
+    const tinygltf::Model& m = ctx_.model;
+    decode_referenced_images();
+    texture_map_.assign(m.textures.size(), kNotCreated);
+    for (size_t i = 0; i < m.materials.size(); ++i) {
+      result_.materials.push_back(convert(m.materials[i], "material " + std::to_string(i)));
+    }
+    return std::move(result_);
+  }
+
+ private:
+  static constexpr int kNotCreated = -2;
+
+  // Texture indices of every slot we read, so only those images get decoded.
+  std::vector<int> referenced_textures() const {
+    std::vector<int> out;
+    for (const tinygltf::Material& mat : ctx_.model.materials) {
+      out.push_back(mat.pbrMetallicRoughness.baseColorTexture.index);
+      out.push_back(mat.pbrMetallicRoughness.metallicRoughnessTexture.index);
+      out.push_back(mat.normalTexture.index);
+      out.push_back(mat.emissiveTexture.index);
+      const Value* tt =
+          member(extension(mat.extensions, "KHR_materials_transmission"), "transmissionTexture");
+      if (const Value* idx = member(tt, "index"); idx != nullptr && idx->IsInt()) {
+        out.push_back(idx->Get<int>());
+      }
+    }
+    return out;
+  }
+
+  void decode_referenced_images() {
+    const tinygltf::Model& m = ctx_.model;
+    std::vector<int> images;
+    for (int t : referenced_textures()) {
+      if (t >= 0 && m.textures[size_t(t)].source >= 0)
+        images.push_back(m.textures[size_t(t)].source);
+    }
+    std::sort(images.begin(), images.end());
+    images.erase(std::unique(images.begin(), images.end()), images.end());
+    decoded_.resize(m.images.size());
+    // How many distinct glTF textures will take each image, so the last one
+    // can take the pixels instead of copying them.
+    image_users_.assign(m.images.size(), 0);
+    std::vector<int> textures = referenced_textures();
+    std::sort(textures.begin(), textures.end());
+    textures.erase(std::unique(textures.begin(), textures.end()), textures.end());
+    for (int t : textures) {
+      if (t >= 0 && m.textures[size_t(t)].source >= 0)
+        ++image_users_[size_t(m.textures[size_t(t)].source)];
+    }
+
+    // PNG decoding dominates load time for textured models; images are
+    // independent, so decode them on all cores.
+    std::atomic<size_t> next{0};
+    auto worker = [&] {
+      for (size_t k = next++; k < images.size(); k = next++) {
+        const int i = images[k];
+        const tinygltf::Image& img = m.images[size_t(i)];
+        DecodedImage& d = decoded_[size_t(i)];
+        try {
+          if (img.bufferView >= 0) {
+            const tinygltf::BufferView& v = m.bufferViews[size_t(img.bufferView)];
+            d = decode_image(m.buffers[size_t(v.buffer)].data.data() + v.byteOffset, v.byteLength,
+                             i);
+          } else if (const auto it = encoded_.by_image.find(i); it != encoded_.by_image.end()) {
+            d = decode_image(it->second.data(), it->second.size(), i);
+          } else {
+            d.error = "the file was not found or could not be read";
+          }
+        } catch (const std::exception& e) {  // bad_alloc: must not escape a thread
+          d = DecodedImage{};
+          d.error = std::string("decoding failed (") + e.what() + ")";
+        }
+      }
+    };
+    const size_t threads =
+        std::min<size_t>(images.size(), std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    for (size_t t = 1; t < threads; ++t)
+      pool.emplace_back(worker);
+    worker();
+    for (std::thread& t : pool)
+      t.join();
+
+    for (int i : images) {
+      if (!decoded_[size_t(i)].ok) {
+        ++result_.images_unavailable;
+        ctx_.warn(image_label(m, i) + " is unavailable: " + decoded_[size_t(i)].error +
+                  "; textures using it are ignored");
+      }
+    }
+  }
+
+  // Tandem texture for glTF texture `t`, created on first use; -1 when its
+  // image is unavailable.
+  int32_t texture(int t) {
+    if (texture_map_[size_t(t)] != kNotCreated) return texture_map_[size_t(t)];
+    const tinygltf::Model& m = ctx_.model;
+    const tinygltf::Texture& gt = m.textures[size_t(t)];
+    int32_t id = -1;
+    if (gt.source < 0) {
+      ctx_.warn(
+          "texture " + std::to_string(t) +
+          " has no PNG/JPEG source (e.g. KTX2/WebP via an extension, which is not supported); "
+          "it is ignored");
+    } else if (DecodedImage& img = decoded_[size_t(gt.source)]; img.ok) {
+      Texture out;
+      const tinygltf::Image& gi = m.images[size_t(gt.source)];
+      out.name = gt.name;
+      if (out.name.empty()) out.name = gi.name;
+      if (out.name.empty() && gi.uri.rfind("data:", 0) != 0) out.name = gi.uri;
+      if (out.name.empty()) out.name = "texture " + std::to_string(t);
+      out.width = img.width;
+      out.height = img.height;
+      // Several glTF textures may share an image (with different samplers).
+      if (--image_users_[size_t(gt.source)] == 0) {
+        out.rgba8 = std::move(img.rgba8);
+      } else {
+        out.rgba8 = img.rgba8;
+      }
+      if (gt.sampler >= 0) {
+        const tinygltf::Sampler& s = m.samplers[size_t(gt.sampler)];
+        auto wrap = [](int w) {
+          return w == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE     ? WrapMode::kClampToEdge
+                 : w == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? WrapMode::kMirroredRepeat
+                                                              : WrapMode::kRepeat;
+        };
+        out.wrap_s = wrap(s.wrapS);
+        out.wrap_t = wrap(s.wrapT);
+        out.nearest = s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST;
+      }
+      id = int32_t(result_.textures.size());
+      result_.textures.push_back(std::move(out));
+    }
+    texture_map_[size_t(t)] = id;
+    return id;
+  }
+
+  // A texture reference: index, texCoord and the reference's extensions
+  // (for KHR_texture_transform).
+  TextureRef reference(int index, int tex_coord, const Value* transform, const std::string& who) {
+    TextureRef ref;
+    if (index < 0) return ref;
+    ref.texture = texture(index);
+    int uv = tex_coord;
+    if (transform != nullptr) {
+      double v[2];
+      if (numbers(ctx_, transform, "offset", 2, v, who + " KHR_texture_transform")) {
+        ref.transform.offset = glm::vec2(float(v[0]), float(v[1]));
+      }
+      if (numbers(ctx_, transform, "scale", 2, v, who + " KHR_texture_transform")) {
+        ref.transform.scale = glm::vec2(float(v[0]), float(v[1]));
+      }
+      ref.transform.rotation =
+          float(number(ctx_, transform, "rotation", 0.0, who + " KHR_texture_transform"));
+      if (const Value* tc = member(transform, "texCoord"); tc != nullptr) {
+        if (!tc->IsInt() || tc->Get<int>() < 0) {
+          ctx_.fail(who + " KHR_texture_transform texCoord must be a non-negative integer");
+        }
+        uv = tc->Get<int>();
+      }
+    }
+    if (uv > 1) {
+      ctx_.warn_once("texcoord",
+                     who + " (and possibly others) uses TEXCOORD_" + std::to_string(uv) +
+                         "; only TEXCOORD_0 and TEXCOORD_1 are supported, using TEXCOORD_0");
+      uv = 0;
+    }
+    ref.transform.uv_set = uint32_t(uv);
+    return ref;
+  }
+
+  TextureRef reference(const tinygltf::TextureInfo& info, const std::string& who) {
+    return reference(info.index, info.texCoord, extension(info.extensions, "KHR_texture_transform"),
+                     who);
+  }
+
+  // A texture object inside a material extension (a JSON Value).
+  TextureRef reference(const Value* info, const std::string& who) {
+    if (info == nullptr) return {};
+    const Value* tc = member(info, "texCoord");
+    return reference(member(info, "index")->Get<int>(), tc != nullptr ? tc->Get<int>() : 0,
+                     member(member(info, "extensions"), "KHR_texture_transform"), who);
+  }
+
+  float unit(double v, const std::string& who) {
+    if (v < 0.0 || v > 1.0) {
+      ctx_.warn_once("clamp", who + " (and possibly others) is outside [0, 1] and was clamped");
+    }
+    return float(std::clamp(v, 0.0, 1.0));
+  }
+
+  Material convert(const tinygltf::Material& gm, const std::string& who) {
+    Material out;
+    out.name = gm.name.empty() ? who : gm.name;
+    const auto& pbr = gm.pbrMetallicRoughness;
+    for (int k = 0; k < 4; ++k)
+      out.base_color[k] = unit(pbr.baseColorFactor[size_t(k)], who + " baseColorFactor");
+    out.metallic = unit(pbr.metallicFactor, who + " metallicFactor");
+    out.roughness = unit(pbr.roughnessFactor, who + " roughnessFactor");
+    for (int k = 0; k < 3; ++k)
+      out.emissive[k] = unit(gm.emissiveFactor[size_t(k)], who + " emissiveFactor");
+    out.alpha_mode = gm.alphaMode == "MASK"    ? AlphaMode::kMask
+                     : gm.alphaMode == "BLEND" ? AlphaMode::kBlend
+                                               : AlphaMode::kOpaque;
+    out.alpha_cutoff = float(gm.alphaCutoff);
+    out.double_sided = gm.doubleSided;
+    out.normal_scale = float(gm.normalTexture.scale);
+    out.base_color_texture = reference(pbr.baseColorTexture, who + " baseColorTexture");
+    out.metallic_roughness_texture =
+        reference(pbr.metallicRoughnessTexture, who + " metallicRoughnessTexture");
+    out.normal_texture = reference(gm.normalTexture.index, gm.normalTexture.texCoord,
+                                   extension(gm.normalTexture.extensions, "KHR_texture_transform"),
+                                   who + " normalTexture");
+    out.emissive_texture = reference(gm.emissiveTexture, who + " emissiveTexture");
+
+    if (const Value* e = extension(gm.extensions, "KHR_materials_emissive_strength")) {
+      const std::string ewho = who + " KHR_materials_emissive_strength";
+      const double s = number(ctx_, e, "emissiveStrength", 1.0, ewho);
+      if (s < 0.0) ctx_.fail(ewho + " emissiveStrength must be >= 0");
+      out.emissive_strength = float(s);
+    }
+    if (const Value* e = extension(gm.extensions, "KHR_materials_transmission")) {
+      const std::string ewho = who + " KHR_materials_transmission";
+      out.transmission =
+          unit(number(ctx_, e, "transmissionFactor", 0.0, ewho), ewho + " transmissionFactor");
+      out.transmission_texture =
+          reference(member(e, "transmissionTexture"), ewho + " transmissionTexture");
+    }
+    if (const Value* e = extension(gm.extensions, "KHR_materials_ior")) {
+      const std::string ewho = who + " KHR_materials_ior";
+      double ior = number(ctx_, e, "ior", 1.5, ewho);
+      if (ior < 1.0) {
+        ctx_.warn(ewho + " ior " + std::to_string(ior) + " is below 1; using 1");
+        ior = 1.0;
+      }
+      out.ior = float(ior);
+    }
+    if (const Value* e = extension(gm.extensions, "KHR_materials_specular")) {
+      const std::string ewho = who + " KHR_materials_specular";
+      out.specular = unit(number(ctx_, e, "specularFactor", 1.0, ewho), ewho + " specularFactor");
+      double c[3];
+      if (numbers(ctx_, e, "specularColorFactor", 3, c, ewho)) {
+        // Colours above 1 are allowed by the extension but our BSDF is only
+        // energy-conserving up to 1.
+        for (int k = 0; k < 3; ++k)
+          out.specular_color[k] = float(std::clamp(c[k], 0.0, 1.0));
+      }
+      if (member(e, "specularTexture") != nullptr || member(e, "specularColorTexture") != nullptr) {
+        ctx_.warn_once("spectex",
+                       ewho + " (and possibly others) has specular textures, which are ignored");
+      }
+    }
+    return out;
+  }
+
+  Context& ctx_;
+  const EncodedImages& encoded_;
+  std::vector<DecodedImage> decoded_;
+  std::vector<int32_t> texture_map_;
+  std::vector<int> image_users_;
+  MaterialResult result_;
+};
+
+}  // namespace
+
+bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out) {
+  const int c = image.component;
+  const int bytes = image.bits / 8;
+  if (image.width < 1 || image.height < 1 || c < 1 || c > 4 ||
+      (image.bits != 8 && image.bits != 16)) {
+    return false;
+  }
+  const size_t pixels = size_t(image.width) * size_t(image.height);
+  if (image.image.size() != pixels * size_t(c) * size_t(bytes)) return false;
+  out.resize(pixels);
+  const unsigned char* src = image.image.data();
+  auto channel = [&](size_t i, int k) -> uint32_t {
+    if (bytes == 1) return src[i * size_t(c) + size_t(k)];
+    uint16_t v;
+    std::memcpy(&v, src + (i * size_t(c) + size_t(k)) * 2, 2);
+    return (uint32_t(v) * 255u + 32767u) / 65535u;  // round to nearest
+  };
+  for (size_t i = 0; i < pixels; ++i) {
+    uint32_t r, g, b, a = 255;
+    if (c <= 2) {
+      r = g = b = channel(i, 0);  // grey
+      if (c == 2) a = channel(i, 1);
+    } else {
+      r = channel(i, 0);
+      g = channel(i, 1);
+      b = channel(i, 2);
+      if (c == 4) a = channel(i, 3);
+    }
+    out[i] = r | (g << 8) | (b << 16) | (a << 24);
+  }
+  return true;
+}
+
+MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded) {
+  return MaterialConverter(ctx, encoded).run();
+}
+
+}  // namespace tandem::gltf

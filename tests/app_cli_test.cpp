@@ -1,0 +1,186 @@
+// End-to-end tests of the `tandem` executable: exit codes, messages, output
+// files. Each test runs the real binary the way a user would.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "core/image/image.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunResult {
+  int exit_code;
+  std::string output;  // stdout + stderr
+};
+
+std::string shell_quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s)
+    out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+RunResult run_tandem(const std::string& args) {
+  const std::string cmd = shell_quote(TANDEM_BINARY) + " " + args + " 2>&1";
+  RunResult r{-1, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
+    r.output.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("tandem_cli_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+const fs::path kShared = fs::path(TANDEM_SHARED_DIR) / "scenes";
+
+TEST(CliTest, NoArgumentsIsUsageError) {
+  const RunResult r = run_tandem("");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("usage"), std::string::npos);
+}
+
+TEST(CliTest, HelpExitsZero) {
+  EXPECT_EQ(run_tandem("--help").exit_code, 0);
+  const RunResult r = run_tandem("render --help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--spp"), std::string::npos);
+}
+
+TEST(CliTest, BadUsageExitsTwo) {
+  for (const char* args :
+       {"frobnicate", "render", "render builtin:cornell --spp", "render builtin:cornell --spp abc",
+        "render builtin:cornell --spp -3", "render builtin:cornell --width 0",
+        "render builtin:cornell --bogus", "render builtin:cornell --backend quantum",
+        "render builtin:cornell --output out.bmp", "render a b",
+        "render builtin:cornell --tonemap sepia", "render builtin:cornell --spp 4 --spp 5"}) {
+    const RunResult r = run_tandem(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("error"), std::string::npos) << args;
+  }
+}
+
+TEST(CliTest, MissingOrUnknownSceneExitsOneNamingIt) {
+  RunResult r = run_tandem("info /nonexistent/scene.gltf");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
+  r = run_tandem("info builtin:nope");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("builtin:nope"), std::string::npos) << r.output;
+  r = run_tandem("info scene.obj");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+}
+
+TEST(CliTest, EveryBadGltfFileIsRejectedByTheCli) {
+  size_t files = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(kShared / "bad")) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".gltf" && ext != ".glb") continue;
+    ++files;
+    const RunResult r =
+        run_tandem("render " + shell_quote(entry.path().string()) +
+                   " --width 8 --height 8 --spp 1 --quiet --output /dev/null/x.png");
+    EXPECT_EQ(r.exit_code, 1) << entry.path() << "\n" << r.output;
+    EXPECT_NE(r.output.find(entry.path().filename().string()), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("Segmentation"), std::string::npos);
+  }
+  EXPECT_EQ(files, 38u);
+}
+
+TEST(CliTest, RendersPngExrAndPfm) {
+  TempDir dir;
+  for (const char* ext : {"png", "exr", "pfm"}) {
+    const fs::path out = dir.path() / (std::string("cornell.") + ext);
+    const RunResult r =
+        run_tandem("render builtin:cornell --width 24 --height 16 --spp 2 --backend cpu --output " +
+                   shell_quote(out.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    ASSERT_TRUE(fs::exists(out));
+    EXPECT_NE(r.output.find("Mrays/s"), std::string::npos) << r.output;
+    const tandem::ImageRGB img = tandem::read_image(out);
+    EXPECT_EQ(img.width, 24u);
+    EXPECT_EQ(img.height, 16u);
+    double sum = 0.0;
+    for (float v : img.rgb)
+      sum += v;
+    EXPECT_GT(sum, 0.0) << "image is black";
+  }
+  // Atomic writes leave no temporary files behind.
+  size_t entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path()))
+    ++entries;
+  EXPECT_EQ(entries, 3u);
+}
+
+TEST(CliTest, UnwritableOutputFailsCleanly) {
+  const RunResult r = run_tandem(
+      "render builtin:cornell --width 8 --height 8 --spp 1 --output /nonexistent_dir/x.png");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent_dir/x.png"), std::string::npos) << r.output;
+}
+
+TEST(CliTest, FailedRenderKeepsPreviousOutput) {
+  TempDir dir;
+  const fs::path out = dir.path() / "keep.png";
+  { std::ofstream(out) << "previous"; }
+  const RunResult r = run_tandem("render /nonexistent.gltf --output " + shell_quote(out.string()));
+  EXPECT_EQ(r.exit_code, 1);
+  std::ifstream in(out);
+  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(content, "previous");
+}
+
+TEST(CliTest, InfoPrintsCounts) {
+  const RunResult r = run_tandem("info builtin:cornell");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("triangles:  38"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("2 emissive triangles"), std::string::npos) << r.output;
+}
+
+TEST(CliTest, AutoBackendFallsBackToCpuWithNotice) {
+  const RunResult r =
+      run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --output /dev/null/x.pfm");
+  // The output path is invalid on purpose: only the backend notice matters.
+  if (r.output.find("rendering on the CPU") == std::string::npos) {
+    GTEST_SKIP() << "a GPU is available here";
+  }
+  EXPECT_EQ(r.exit_code, 1);
+}
+
+TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {
+  TempDir dir;
+  const RunResult r =
+      run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --backend cuda --output " +
+                 shell_quote((dir.path() / "x.png").string()));
+  if (r.exit_code == 0) GTEST_SKIP() << "a CUDA device is available here";
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cuda"), std::string::npos) << r.output;
+}
+
+}  // namespace
