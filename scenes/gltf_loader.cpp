@@ -293,9 +293,21 @@ class SceneBuilder {
     if (gc.type == "orthographic") {
       cam.type = CameraType::kOrthographic;
       cam.ortho_half_height = float(std::fabs(gc.orthographic.ymag));
+      if (gc.orthographic.ymag != 0.0) {
+        cam.aspect_ratio = float(std::fabs(gc.orthographic.xmag / gc.orthographic.ymag));
+      }
     } else {
       cam.type = CameraType::kPerspective;
       cam.yfov = float(gc.perspective.yfov);
+      // Optional in glTF; used to pick the image shape when only one of
+      // --width/--height is given.
+      if (gc.perspective.aspectRatio > 0.0 && std::isfinite(gc.perspective.aspectRatio)) {
+        cam.aspect_ratio = float(gc.perspective.aspectRatio);
+      }
+    }
+    if (!(cam.aspect_ratio > 0.0f) || !std::isfinite(cam.aspect_ratio) ||
+        cam.aspect_ratio > 100.0f) {
+      cam.aspect_ratio = 0.0f;
     }
     camera_ = cam;
     has_camera_ = true;

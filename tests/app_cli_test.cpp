@@ -184,3 +184,41 @@ TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CliTest, RendersWithEnvironmentMapAndDepthOfField) {
+  TempDir dir;
+  // A small sky: bright down to 22.5 degrees below the horizon, dark below.
+  tandem::ImageRGB env(16, 8);
+  for (uint32_t y = 0; y < env.height; ++y) {
+    for (uint32_t x = 0; x < env.width; ++x) {
+      float* p = env.pixel(x, y);
+      p[0] = p[1] = p[2] = y < 5 ? 2.0f : 0.1f;
+    }
+  }
+  const fs::path env_path = dir.path() / "sky.pfm";
+  tandem::write_image(env_path, env);
+  const fs::path out = dir.path() / "lit.pfm";
+  const RunResult r = run_tandem(
+      "render builtin:sky-plane --width 16 --height 16 --spp 4 --aperture 0.05 "
+      "--focus-distance 2 --env " +
+      shell_quote(env_path.string()) + " --output " + shell_quote(out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const tandem::ImageRGB img = tandem::read_image(out);
+  // The top row looks at the bright part of the sky (radiance 2).
+  EXPECT_NEAR(img.pixel(8, 0)[1], 2.0f, 1e-3f);
+}
+
+TEST(CliTest, BadEnvironmentMapExitsOneNamingIt) {
+  TempDir dir;
+  const fs::path bad = dir.path() / "broken.hdr";
+  { std::ofstream(bad) << "#?RADIANCE\nthis is not an image"; }
+  const RunResult r = run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --env " +
+                                 shell_quote(bad.string()) + " --output " +
+                                 shell_quote((dir.path() / "x.png").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("broken.hdr"), std::string::npos) << r.output;
+}
+
+}  // namespace
