@@ -33,10 +33,12 @@ Stats pixel_stats(const ImageRGB& img, Keep keep) {
   }
   Stats s;
   s.count = values.size();
-  for (double v : values) s.mean += v;
+  for (double v : values)
+    s.mean += v;
   s.mean /= double(values.size());
   double var = 0.0;
-  for (double v : values) var += (v - s.mean) * (v - s.mean);
+  for (double v : values)
+    var += (v - s.mean) * (v - s.mean);
   var /= double(values.size() - 1);
   s.standard_error = std::sqrt(var / double(values.size()));
   return s;
@@ -70,7 +72,8 @@ TEST_P(FurnaceTest, RadianceMatchesGeometricSeries) {
   const ImageRGB img = render_scene(scene, settings, 64);
   // L = e * sum_{k=0}^{D} a^k: each scattering event adds one reflection.
   const double a = c.albedo, e = c.emission;
-  const double expected = c.max_depth >= 1000 ? e / (1.0 - a) : e * (1.0 - std::pow(a, c.max_depth + 1)) / (1.0 - a);
+  const double expected =
+      c.max_depth >= 1000 ? e / (1.0 - a) : e * (1.0 - std::pow(a, c.max_depth + 1)) / (1.0 - a);
   const Stats s = pixel_stats(img, [](uint32_t, uint32_t) { return true; });
   EXPECT_NEAR(s.mean, expected, 5.0 * s.standard_error + 1e-4 * expected)
       << "albedo " << a << " emission " << e << " depth " << c.max_depth << " (standard error "
@@ -80,9 +83,11 @@ TEST_P(FurnaceTest, RadianceMatchesGeometricSeries) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Furnace, FurnaceTest,
-                         ::testing::Values(FurnaceCase{0.5f, 1.0f, 1024}, FurnaceCase{0.8f, 0.5f, 1024},
-                                           FurnaceCase{0.9f, 0.25f, 1024}, FurnaceCase{0.8f, 0.5f, 0},
-                                           FurnaceCase{0.8f, 0.5f, 1}, FurnaceCase{0.8f, 0.5f, 3}),
+                         ::testing::Values(FurnaceCase{0.5f, 1.0f, 1024},
+                                           FurnaceCase{0.8f, 0.5f, 1024},
+                                           FurnaceCase{0.9f, 0.25f, 1024},
+                                           FurnaceCase{0.8f, 0.5f, 0}, FurnaceCase{0.8f, 0.5f, 1},
+                                           FurnaceCase{0.8f, 0.5f, 3}),
                          [](const auto& info) {
                            const FurnaceCase& c = info.param;
                            return "albedo" + std::to_string(int(c.albedo * 100)) + "_depth" +
@@ -114,8 +119,10 @@ TEST(SkyPlaneTest, LambertianPlaneReflectsAlbedoTimesSky) {
     }
     return true;
   };
-  const Stats plane = pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, true); });
-  const Stats sky_px = pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, false); });
+  const Stats plane =
+      pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, true); });
+  const Stats sky_px =
+      pixel_stats(img, [&](uint32_t x, uint32_t y) { return all_corners(x, y, false); });
   ASSERT_GT(plane.count, 100u);
   ASSERT_GT(sky_px.count, 20u);
   EXPECT_NEAR(plane.mean, albedo * sky, 5.0 * plane.standard_error + 1e-4);

@@ -48,7 +48,8 @@ TEST(DeterminismTest, DifferentSeedDifferentNoise) {
   const ImageRGB a = render_cornell(2, 16, 1);
   const ImageRGB b = render_cornell(2, 16, 2);
   size_t differing = 0;
-  for (size_t i = 0; i < a.rgb.size(); ++i) differing += a.rgb[i] != b.rgb[i];
+  for (size_t i = 0; i < a.rgb.size(); ++i)
+    differing += a.rgb[i] != b.rgb[i];
   // Almost every lit pixel must differ: the seed really reaches the RNG.
   EXPECT_GT(differing, a.rgb.size() / 2);
 }

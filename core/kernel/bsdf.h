@@ -3,11 +3,17 @@
 //
 //   reflection   metallic * Schlick(baseColor) + (1 - metallic) * specular *
 //                specularColor * Fresnel_dielectric(ior), times GGX D G / 4|cos cos|
-//   diffuse      (1 - metallic)(1 - transmission)(1 - specular F) baseColor / pi
+//   diffuse      (1 - metallic)(1 - transmission) baseColor / pi *
+//                (1 - kF(wo))(1 - kF(wi)) / (1 - k F_avg),  k = specular * max(specularColor)
 //   transmission (1 - metallic) transmission (1 - specular F) baseColor *
 //                Walter et al. 2007 rough dielectric BTDF (smooth glass as alpha -> 0)
 //
-// Conductors use Schlick's approximation with F0 = baseColor as glTF does; the
+// The diffuse term sees the light the specular layer lets through on the way
+// in and on the way out, normalised by the layer's hemispherical average
+// (Kelemen & Szirmay-Kalos 2001): reciprocal, and the total albedo is at most
+// k F(wo) + (1 - k F(wo)) baseColor <= 1, exactly 1 for a white smooth
+// plastic. glTF's fresnel_mix(VdotH) form instead creates up to 50% energy
+// at grazing angles. Conductors use Schlick's approximation with F0 = baseColor as glTF does; the
 // dielectric layer uses the exact Fresnel equations so glass gets total
 // internal reflection right. Sampling picks a lobe by its estimated albedo and
 // always returns the mixture pdf, so bsdf_sample and bsdf_eval agree exactly
@@ -30,7 +36,14 @@ struct BsdfParams {
   float transmission;
   float eta;       // relative index of refraction across the surface
   float specular;  // weight of the dielectric reflection layer
+  // Hemispherical average of fresnel_dielectric(., eta); < 0 means "compute
+  // it here" (slow; the integrator passes the per-material precomputed value).
+  float fresnel_avg = -1.0f;
 };
+
+TANDEM_HD float bsdf_fresnel_average(const BsdfParams& p) {
+  return p.fresnel_avg >= 0.0f ? p.fresnel_avg : fresnel_dielectric_average(p.eta);
+}
 
 struct BsdfEval {
   Vec3 f;     // BSDF value (no cosine)
@@ -47,12 +60,27 @@ struct BsdfLobeProbabilities {
   float reflect, diffuse, transmit;
 };
 
+// Floor on the Fresnel factors of the lobe-selection weights below. Those
+// use Fresnel at the macro normal, which can be exactly 0 (Schlick with a
+// black F0 at normal incidence) or 1 (total internal reflection) while
+// off-normal microfacets still reflect or transmit: without the floor such a
+// lobe has f > 0 but probability 0, and bsdf_sample can never reach it (bias,
+// not noise). Any positive floor keeps the estimator unbiased; 0.1 also keeps
+// the weights of those samples moderate.
+constexpr float kMinLobeFresnelWeight = 0.1f;
+
 TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec3 wo) {
   const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo.z, p.eta) : 0.0f;
   const float dielectric = 1.0f - p.metallic;
-  const float metal = p.metallic > 0.0f ? p.metallic * luminance(fresnel_schlick(p.base_color, wo.z)) : 0.0f;
-  const float reflect = metal + dielectric * p.specular * f_dielectric * luminance(p.specular_color);
-  const float base = dielectric * max_f(0.0f, 1.0f - p.specular * f_dielectric * max_component(p.specular_color));
+  const float metal = p.metallic > 0.0f
+                          ? p.metallic * max_f(luminance(fresnel_schlick(p.base_color, wo.z)),
+                                               kMinLobeFresnelWeight)
+                          : 0.0f;
+  const float reflect =
+      metal + dielectric * p.specular * f_dielectric * luminance(p.specular_color);
+  const float base =
+      dielectric * max_f(kMinLobeFresnelWeight,
+                         1.0f - p.specular * f_dielectric * max_component(p.specular_color));
   const float albedo = luminance(p.base_color);
   const float diffuse = base * (1.0f - p.transmission) * albedo;
   const float transmit = base * p.transmission * albedo;
@@ -76,8 +104,14 @@ TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilit
     const float wo_h = dot(wo, h);
     if (wo_h <= 0.0f) return out;
     const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo_h, p.eta) : 0.0f;
-    const float diffuse_w =
-        dielectric * (1.0f - p.transmission) * max_f(0.0f, 1.0f - p.specular * spec_max * f_dielectric);
+    float diffuse_w = dielectric * (1.0f - p.transmission);
+    const float k = p.specular * spec_max;
+    if (k > 0.0f && diffuse_w > 0.0f) {
+      const float in = 1.0f - k * fresnel_dielectric(wo.z, p.eta);
+      const float out_w = 1.0f - k * fresnel_dielectric(wi.z, p.eta);
+      diffuse_w *=
+          max_f(0.0f, in) * max_f(0.0f, out_w) / max_f(1e-6f, 1.0f - k * bsdf_fresnel_average(p));
+    }
     out.f = p.base_color * (diffuse_w * kInvPi);
     out.pdf = prob.diffuse * pdf_cosine_hemisphere(wi.z);
     // Pure Lambertian materials (no metal, no specular layer) skip the GGX
@@ -105,7 +139,8 @@ TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilit
   if (!(denom2 > 0.0f)) return out;
   const float d = ggx_d(h, p.alpha);
   const float g = ggx_g2(wo, wi, p.alpha);
-  const float weight = dielectric * p.transmission * max_f(0.0f, 1.0f - p.specular * spec_max * f_dielectric);
+  const float weight =
+      dielectric * p.transmission * max_f(0.0f, 1.0f - p.specular * spec_max * f_dielectric);
   // Radiance form: includes the 1/eta^2 compression of radiance entering a
   // denser medium.
   const float btdf = d * g * fabsf(wi_h) * wo_h / (fabsf(wi.z) * wo.z * denom2);

@@ -27,7 +27,8 @@ struct ShadingSetup {
 
 // Evaluates textures and orients the shading frame towards wo. Returns
 // false when the surface cannot scatter towards wo at all.
-TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 wo, ShadingSetup* s) {
+TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 wo,
+                             ShadingSetup* s) {
   const KMaterial& m = kd.materials[sp.material];
   const Vec4 base = material_base_color(kd, m, sp.uv);
   float metallic = m.metallic, roughness = m.roughness, transmission = m.transmission;
@@ -39,7 +40,8 @@ TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 
   }
   if (m.transmission_tex.texture >= 0) {
     transmission *= sample_texture(kd, uint32_t(m.transmission_tex.texture),
-                                   material_uv(m.transmission_tex, sp.uv)).x;
+                                   material_uv(m.transmission_tex, sp.uv))
+                        .x;
   }
   const bool front = dot(wo, sp.geometric_normal) >= 0.0f;
   s->ng = front ? sp.geometric_normal : -sp.geometric_normal;
@@ -60,7 +62,9 @@ TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 
   p.specular_color = m.specular_color;
   // Leaving a transmissive object the relative index inverts. Opaque
   // materials are two-sided: both faces see air outside.
-  p.eta = (p.transmission > 0.0f && !front) ? 1.0f / m.ior : m.ior;
+  const bool leaving = p.transmission > 0.0f && !front;
+  p.eta = leaving ? 1.0f / m.ior : m.ior;
+  p.fresnel_avg = leaving ? m.fresnel_avg_leave : m.fresnel_avg_enter;
   s->lobes = bsdf_lobe_probabilities(p, s->wo_local);
   return true;
 }
@@ -101,9 +105,10 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 
     if (!is_black(mat.emission) && emits_towards(mat, sp, wo)) {
       const Vec3 le = material_emission(kd, mat, sp.uv);
-      const float w = prev_bsdf_pdf > 0.0f
-                          ? mis_power_heuristic(prev_bsdf_pdf, triangle_light_pdf(kd, sp, ray.dir, hit.t))
-                          : 1.0f;
+      const float w =
+          prev_bsdf_pdf > 0.0f
+              ? mis_power_heuristic(prev_bsdf_pdf, triangle_light_pdf(kd, sp, ray.dir, hit.t))
+              : 1.0f;
       radiance += beta * le * w;
     }
     if (bounce >= ip.max_depth) break;
@@ -132,9 +137,10 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 
     // Continue the path by sampling the BSDF.
     BsdfSample bs;
-    if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local, rng_1d(rng, bounce_dimension(bounce, kBounceLobe)),
-                     rng_1d(rng, bounce_dimension(bounce, kBounceBsdfU)),
-                     rng_1d(rng, bounce_dimension(bounce, kBounceBsdfV)), &bs)) {
+    if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local,
+                           rng_1d(rng, bounce_dimension(bounce, kBounceLobe)),
+                           rng_1d(rng, bounce_dimension(bounce, kBounceBsdfU)),
+                           rng_1d(rng, bounce_dimension(bounce, kBounceBsdfV)), &bs)) {
       break;
     }
     const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
@@ -162,8 +168,8 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 // (x, y, sample, seed): this is what makes images independent of the tile
 // split and of which backend rendered them.
 template <class Tracer>
-TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x, uint32_t y,
-                                   uint32_t sample, uint32_t* ray_count) {
+TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                   uint32_t y, uint32_t sample, uint32_t* ray_count) {
   const KCamera& cam = kd.constants.camera;
   const PathRng rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
   const float jx = rng_1d(rng, kDimPixelJitter), jy = rng_1d(rng, kDimPixelJitter + 1);

@@ -33,7 +33,9 @@ TANDEM_HD float ggx_lambda(Vec3 w, float alpha) {
   const float tan2 = (w.x * w.x + w.y * w.y) / z2;
   return 0.5f * (sqrtf(1.0f + alpha * alpha * tan2) - 1.0f);
 }
-TANDEM_HD float ggx_g1(Vec3 w, float alpha) { return 1.0f / (1.0f + ggx_lambda(w, alpha)); }
+TANDEM_HD float ggx_g1(Vec3 w, float alpha) {
+  return 1.0f / (1.0f + ggx_lambda(w, alpha));
+}
 // Height-correlated masking-shadowing.
 TANDEM_HD float ggx_g2(Vec3 wo, Vec3 wi, float alpha) {
   return 1.0f / (1.0f + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha));
@@ -74,6 +76,18 @@ TANDEM_HD float fresnel_dielectric(float cos_i, float eta) {
   const float r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
   const float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
   return 0.5f * (r_par * r_par + r_perp * r_perp);
+}
+
+// Cosine-weighted hemispherical average of fresnel_dielectric,
+// 2 * integral_0^1 F(mu) mu dmu = integral_0^1 F(sqrt(x)) dx, by the midpoint
+// rule in x (F is continuous; its kink at the critical angle costs O(h^2)).
+// Hosts precompute it per material; the kernel only calls it as a fallback.
+TANDEM_HD float fresnel_dielectric_average(float eta) {
+  constexpr int kSteps = 256;
+  float sum = 0.0f;
+  for (int i = 0; i < kSteps; ++i)
+    sum += fresnel_dielectric(sqrtf((float(i) + 0.5f) / float(kSteps)), eta);
+  return sum / float(kSteps);
 }
 
 TANDEM_HD Vec3 fresnel_schlick(Vec3 f0, float cos_theta) {

@@ -69,7 +69,10 @@ TANDEM_HD float mis_power_heuristic(float pdf_a, float pdf_b) {
 // -z, matching the usual HDRI orientation used by glTF viewers.
 TANDEM_HD Vec2 direction_to_equirect(Vec3 d) {
   const float u = atan2f(d.x, -d.z) * kInv2Pi + 0.5f;
-  const float v = acosf(clamp_f(d.y, -1.0f, 1.0f)) * kInvPi;
+  // theta from atan2 rather than acos(d.y): acos is ill-conditioned near the
+  // poles, where float d.y = 1 - 6e-8 steps move theta by 3e-4 rad, and the
+  // sin(theta) Jacobian in env_pdf then disagrees with env_sample's (or is 0).
+  const float v = atan2f(sqrtf(d.x * d.x + d.z * d.z), d.y) * kInvPi;
   return {u - floorf(u), v};
 }
 TANDEM_HD Vec3 equirect_to_direction(float u, float v) {

@@ -21,8 +21,12 @@ struct Hit {
   uint32_t instance;
   uint32_t prim;
 };
-TANDEM_HD bool hit_valid(const Hit& h) { return h.instance != kInvalidIndex; }
-TANDEM_HD Hit make_miss() { return {kFloatMax, 0.0f, 0.0f, kInvalidIndex, kInvalidIndex}; }
+TANDEM_HD bool hit_valid(const Hit& h) {
+  return h.instance != kInvalidIndex;
+}
+TANDEM_HD Hit make_miss() {
+  return {kFloatMax, 0.0f, 0.0f, kInvalidIndex, kInvalidIndex};
+}
 
 // Triangle record: vertex indices relative to its mesh's vertex_offset, and
 // the material it uses. 16 bytes so Embree can read it as a strided UINT3.
@@ -47,7 +51,9 @@ struct KMesh {
   uint32_t triangle_offset;
   uint32_t triangle_count;
   uint32_t flags;
-  uint32_t pad[3];
+  uint32_t bvh_root;   // root of this mesh's BLAS in bvh_nodes (kInvalidIndex: no triangles)
+  uint32_t wide_root;  // root of this mesh's BLAS in bvh_wide_nodes
+  uint32_t pad;
 };
 static_assert(sizeof(KMesh) == 32, "GPU layout");
 
@@ -107,13 +113,19 @@ struct KMaterial {
   uint32_t flags;
   float normal_scale;
   float emission_luminance_scale;  // mean luminance of the emissive texture (1 if none)
+  // Hemispherical averages of the dielectric Fresnel term for eta = ior
+  // (entering) and 1/ior (leaving), precomputed on the host because the
+  // diffuse-under-specular energy normalisation needs them at every hit.
+  float fresnel_avg_enter;
+  float fresnel_avg_leave;
+  float pad[2];
   KTextureRef base_color_tex;
   KTextureRef metallic_roughness_tex;
   KTextureRef normal_tex;
   KTextureRef emissive_tex;
   KTextureRef transmission_tex;
 };
-static_assert(sizeof(KMaterial) == 80 + 5 * 32, "GPU layout");
+static_assert(sizeof(KMaterial) == 96 + 5 * 32, "GPU layout");
 
 enum KLightType : uint32_t {
   kLightTriangle = 0,
@@ -166,8 +178,8 @@ struct KCamera {
 static_assert(sizeof(KCamera) == 80, "GPU layout");
 
 struct KEnvironment {
-  Vec3 color;          // constant radiance, or multiplier of the map
-  int32_t has_map;     // 1: equirectangular map in env_texels
+  Vec3 color;       // constant radiance, or multiplier of the map
+  int32_t has_map;  // 1: equirectangular map in env_texels
   uint32_t width, height;
   float rotation;      // radians about +y
   float map_integral;  // sum of sin-weighted luminance (for pdf normalisation)
@@ -175,9 +187,9 @@ struct KEnvironment {
 static_assert(sizeof(KEnvironment) == 32, "GPU layout");
 
 struct KIntegratorParams {
-  uint32_t max_depth;        // scattering events; 1 = direct lighting only
-  uint32_t rr_start_depth;   // Russian roulette starts after this many bounces
-  float radiance_clamp;      // 0: off. Clamps indirect sample radiance (biased).
+  uint32_t max_depth;       // scattering events; 1 = direct lighting only
+  uint32_t rr_start_depth;  // Russian roulette starts after this many bounces
+  float radiance_clamp;     // 0: off. Clamps indirect sample radiance (biased).
   uint32_t seed;
 };
 
@@ -191,6 +203,13 @@ struct KernelConstants {
   float total_light_power;
   uint32_t environment_light_index;  // kInvalidIndex if the environment is black
   uint32_t pad[2];
+  // Tandem's own BVH (core/kernel/bvh.h): TLAS roots in bvh_nodes and
+  // bvh_wide_nodes (kInvalidIndex: empty scene) and which layout BvhTracer
+  // traverses (KBvhLayout).
+  uint32_t tlas_root;
+  uint32_t tlas_wide_root;
+  uint32_t bvh_layout;
+  uint32_t bvh_pad;
 };
 
 }  // namespace tandem

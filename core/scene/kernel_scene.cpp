@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/kernel/lights.h"
+#include "core/kernel/microfacet.h"
 #include "core/kernel/texture.h"
 #include "core/scene/light_tables.h"
 
@@ -14,8 +15,8 @@ namespace tandem {
 
 KernelData KernelScene::view() const {
   KernelData kd{};
-#define TANDEM_FILL_VIEW(T, name)  \
-  kd.name = name.data();           \
+#define TANDEM_FILL_VIEW(T, name) \
+  kd.name = name.data();          \
   kd.name##_count = uint32_t(name.size());
   TANDEM_KERNEL_ARRAYS(TANDEM_FILL_VIEW)
 #undef TANDEM_FILL_VIEW
@@ -56,9 +57,11 @@ bool SceneDelta::any() const {
 
 size_t SceneDelta::bytes(const KernelScene& ks) const {
   size_t total = constants ? sizeof(KernelConstants) : 0;
-#define TANDEM_CHANGE_BYTES(T, name)                                       \
-  if (name.reallocated) total += ks.name.size() * sizeof(T);               \
-  else if (name.end > name.begin) total += size_t(name.end - name.begin) * sizeof(T);
+#define TANDEM_CHANGE_BYTES(T, name)     \
+  if (name.reallocated)                  \
+    total += ks.name.size() * sizeof(T); \
+  else if (name.end > name.begin)        \
+    total += size_t(name.end - name.begin) * sizeof(T);
   TANDEM_KERNEL_ARRAYS(TANDEM_CHANGE_BYTES)
 #undef TANDEM_CHANGE_BYTES
   return total;
@@ -69,7 +72,9 @@ size_t SceneDelta::bytes(const KernelScene& ks) const {
 
 namespace {
 
-Vec3 to_vec3(const glm::vec3& v) { return {v.x, v.y, v.z}; }
+Vec3 to_vec3(const glm::vec3& v) {
+  return {v.x, v.y, v.z};
+}
 
 Mat34 to_mat34(const glm::mat4& m) {
   // glm is column-major: m[col][row].
@@ -82,17 +87,23 @@ Mat34 to_mat34(const glm::mat4& m) {
 
 uint32_t to_wrap(WrapMode w) {
   switch (w) {
-    case WrapMode::kClampToEdge: return kWrapClamp;
-    case WrapMode::kMirroredRepeat: return kWrapMirror;
-    default: return kWrapRepeat;
+    case WrapMode::kClampToEdge:
+      return kWrapClamp;
+    case WrapMode::kMirroredRepeat:
+      return kWrapMirror;
+    default:
+      return kWrapRepeat;
   }
 }
 
 uint32_t to_alpha_mode(AlphaMode a) {
   switch (a) {
-    case AlphaMode::kMask: return kAlphaMask;
-    case AlphaMode::kBlend: return kAlphaBlend;
-    default: return kAlphaOpaque;
+    case AlphaMode::kMask:
+      return kAlphaMask;
+    case AlphaMode::kBlend:
+      return kAlphaBlend;
+    default:
+      return kAlphaOpaque;
   }
 }
 
@@ -114,7 +125,8 @@ KTextureRef to_texture_ref(const TextureRef& ref, int32_t slot) {
 }
 
 bool material_emits(const Material& m) {
-  return m.emissive_strength > 0.0f && (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f);
+  return m.emissive_strength > 0.0f &&
+         (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f);
 }
 
 }  // namespace
@@ -182,6 +194,8 @@ KMaterial SceneCompiler::compile_material(const Scene& scene, const Material& m)
   k.transmission = m.transmission;
   k.ior = m.ior > 0.0f ? m.ior : 1.5f;
   k.specular = m.specular;
+  k.fresnel_avg_enter = fresnel_dielectric_average(k.ior);
+  k.fresnel_avg_leave = fresnel_dielectric_average(1.0f / k.ior);
   k.alpha_cutoff = m.alpha_cutoff;
   k.alpha_mode = to_alpha_mode(m.alpha_mode);
   k.flags = m.double_sided ? kMaterialDoubleSided : 0u;
@@ -209,13 +223,16 @@ void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
   const uint32_t base = km.vertex_offset;
   for (uint32_t v = 0; v < km.vertex_count; ++v) {
     out.positions[base + v] = to_vec3(mesh.positions[v]);
-    if (!out.normals.empty()) out.normals[base + v] = mesh.normals.empty() ? Vec3{0, 0, 0} : to_vec3(mesh.normals[v]);
+    if (!out.normals.empty())
+      out.normals[base + v] = mesh.normals.empty() ? Vec3{0, 0, 0} : to_vec3(mesh.normals[v]);
     if (!out.tangents.empty()) {
       const glm::vec4 t = mesh.tangents.empty() ? glm::vec4(0.0f) : mesh.tangents[v];
       out.tangents[base + v] = {t.x, t.y, t.z, t.w};
     }
-    if (!out.uv0.empty()) out.uv0[base + v] = mesh.uv0.empty() ? Vec2{0, 0} : Vec2{mesh.uv0[v].x, mesh.uv0[v].y};
-    if (!out.uv1.empty()) out.uv1[base + v] = mesh.uv1.empty() ? Vec2{0, 0} : Vec2{mesh.uv1[v].x, mesh.uv1[v].y};
+    if (!out.uv0.empty())
+      out.uv0[base + v] = mesh.uv0.empty() ? Vec2{0, 0} : Vec2{mesh.uv0[v].x, mesh.uv0[v].y};
+    if (!out.uv1.empty())
+      out.uv1[base + v] = mesh.uv1.empty() ? Vec2{0, 0} : Vec2{mesh.uv1[v].x, mesh.uv1[v].y};
   }
 }
 
@@ -262,9 +279,10 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
 
   out.constants.environment_light_index = kInvalidIndex;
   const KEnvironment& env = out.constants.environment;
-  const float env_lum = env.has_map ? luminance(env.color) * env.map_integral /
-                                          std::max(1.0f, float(env.width) * float(env.height) * 0.6366f)
-                                    : luminance(env.color);
+  const float env_lum = env.has_map
+                            ? luminance(env.color) * env.map_integral /
+                                  std::max(1.0f, float(env.width) * float(env.height) * 0.6366f)
+                            : luminance(env.color);
   if (env_lum > 0.0f) {
     KLight k{};
     k.type = kLightEnvironment;
@@ -298,7 +316,8 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   }
   out.light_alias = build_alias_table(power);
   double total = 0.0;
-  for (double p : power) total += p;
+  for (double p : power)
+    total += p;
   out.constants.total_light_power = float(total);
   (void)triangle_power;
   delta.lights.reallocated = true;
@@ -320,15 +339,18 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
     k.width = e.width;
     k.height = e.height;
     out.env_texels.resize(e.texels.size());
-    for (size_t i = 0; i < e.texels.size(); ++i) out.env_texels[i] = make_vec4(to_vec3(e.texels[i]), 0.0f);
-    k.map_integral = build_environment_cdfs(out.view(), out.env_marginal_cdf, out.env_conditional_cdf);
+    for (size_t i = 0; i < e.texels.size(); ++i)
+      out.env_texels[i] = make_vec4(to_vec3(e.texels[i]), 0.0f);
+    k.map_integral =
+        build_environment_cdfs(out.view(), out.env_marginal_cdf, out.env_conditional_cdf);
   }
   delta.env_texels.reallocated = delta.env_marginal_cdf.reallocated =
       delta.env_conditional_cdf.reallocated = true;
   delta.constants = true;
 }
 
-void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& s, KernelScene& out) {
+void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& s,
+                                      KernelScene& out) {
   const Camera& c = scene.camera();
   KCamera& k = out.constants.camera;
   k.type = c.type == CameraType::kOrthographic ? kCameraOrthographic : kCameraPerspective;
@@ -357,7 +379,8 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
   compile_textures(scene, out);
 
   out.materials.clear();
-  for (const Material& m : scene.materials()) out.materials.push_back(compile_material(scene, m));
+  for (const Material& m : scene.materials())
+    out.materials.push_back(compile_material(scene, m));
   if (out.materials.empty()) out.materials.push_back(compile_material(scene, Material{}));
 
   // Meshes: per-vertex arrays are only allocated when some mesh has them.
@@ -372,8 +395,9 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
     km.vertex_count = uint32_t(m.positions.size());
     km.triangle_offset = triangle_total;
     km.triangle_count = uint32_t(m.triangles.size());
-    km.flags = (m.normals.empty() ? 0u : kMeshHasNormals) | (m.tangents.empty() ? 0u : kMeshHasTangents) |
-               (m.uv0.empty() ? 0u : kMeshHasUv0) | (m.uv1.empty() ? 0u : kMeshHasUv1);
+    km.flags = (m.normals.empty() ? 0u : kMeshHasNormals) |
+               (m.tangents.empty() ? 0u : kMeshHasTangents) | (m.uv0.empty() ? 0u : kMeshHasUv0) |
+               (m.uv1.empty() ? 0u : kMeshHasUv1);
     for (uint32_t mat : m.triangle_materials) {
       const KMaterial& k = out.materials[std::min<size_t>(mat, out.materials.size() - 1)];
       if (k.alpha_mode != kAlphaOpaque) km.flags |= kMeshHasAlphaTest;
@@ -408,7 +432,8 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
   }
 
   out.instances.clear();
-  for (const Instance& inst : scene.instances()) out.instances.push_back(compile_instance(inst));
+  for (const Instance& inst : scene.instances())
+    out.instances.push_back(compile_instance(inst));
 
   compile_environment(scene, out, delta);
   compile_lights(scene, out, delta);
@@ -422,11 +447,13 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
 
 SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, KernelScene& out) {
   SceneDelta delta;
-  const size_t counts[5] = {scene.textures().size(), scene.materials().size(), scene.meshes().size(),
-                            scene.instances().size(), scene.lights().size()};
+  const size_t counts[5] = {scene.textures().size(), scene.materials().size(),
+                            scene.meshes().size(), scene.instances().size(), scene.lights().size()};
   bool structural = !compiled_once_ || !std::equal(counts, counts + 5, counts_);
-  for (uint32_t d : scene.texture_dirty()) structural |= d != 0;
-  for (uint32_t d : scene.mesh_dirty()) structural |= (d & (kDirtyTopology | kDirtyCreated)) != 0;
+  for (uint32_t d : scene.texture_dirty())
+    structural |= d != 0;
+  for (uint32_t d : scene.mesh_dirty())
+    structural |= (d & (kDirtyTopology | kDirtyCreated)) != 0;
 
   if (structural) {
     compile_full(scene, out, delta);
@@ -447,8 +474,10 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
       write_mesh_vertices(scene.meshes()[i], i, out);
       const KMesh& km = out.meshes[i];
       delta.positions.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-      if (!out.normals.empty()) delta.normals.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-      if (!out.tangents.empty()) delta.tangents.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
+      if (!out.normals.empty())
+        delta.normals.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
+      if (!out.tangents.empty())
+        delta.tangents.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
       if (!out.uv0.empty()) delta.uv0.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
       if (!out.uv1.empty()) delta.uv1.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
       delta.meshes_refit.push_back(i);
@@ -462,7 +491,8 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
       delta.instances_changed = true;
       lights_dirty |= mesh_emissive_[out.instances[i].mesh];
     }
-    for (uint32_t d : scene.light_dirty()) lights_dirty |= d != 0;
+    for (uint32_t d : scene.light_dirty())
+      lights_dirty |= d != 0;
     if (scene.environment_dirty()) {
       compile_environment(scene, out, delta);
       lights_dirty = true;

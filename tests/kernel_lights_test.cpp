@@ -1,0 +1,751 @@
+// Tests of light sampling (core/kernel/lights.h, environment.h) on small
+// hand-built KernelScenes: the environment map's importance sampling, the
+// solid-angle pdf of emissive triangles (against analytic solid angle and
+// irradiance), and the punctual lights.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include "core/kernel/lights.h"
+#include "core/scene/kernel_scene.h"
+#include "core/scene/light_tables.h"
+#include "test_stats.h"
+
+namespace tandem {
+namespace {
+
+using test_stats::MeanAccumulator;
+using test_stats::sidak_alpha;
+using test_stats::TestRng;
+
+// Chi-square tests in this file: environment x2, triangle directions,
+// light selection.
+const double kAlpha = sidak_alpha(test_stats::kFamilySignificance, 4);
+
+// ---------------------------------------------------------------------------
+// Environment map.
+
+constexpr uint32_t kEnvWidth = 32, kEnvHeight = 16;
+
+// A 32x16 map with a horizontal/vertical colour gradient and a small bright
+// spot (a "sun" 200x brighter than the sky), then the sampling tables.
+KernelScene make_environment_scene(float rotation) {
+  KernelScene ks;
+  ks.env_texels.resize(kEnvWidth * kEnvHeight);
+  for (uint32_t y = 0; y < kEnvHeight; ++y) {
+    for (uint32_t x = 0; x < kEnvWidth; ++x) {
+      const float gx = float(x) / float(kEnvWidth - 1), gy = float(y) / float(kEnvHeight - 1);
+      Vec3 c = make_vec3(0.2f + 0.8f * gx, 0.3f + 0.5f * gy, 0.1f + 0.4f * gx * gy);
+      if (x >= 20 && x <= 22 && y >= 4 && y <= 5) c = make_vec3(60.0f, 50.0f, 40.0f);
+      ks.env_texels[y * kEnvWidth + x] = make_vec4(c, 0.0f);
+    }
+  }
+  KEnvironment& env = ks.constants.environment;
+  env.color = make_vec3(1.0f);
+  env.has_map = 1;
+  env.width = kEnvWidth;
+  env.height = kEnvHeight;
+  env.rotation = rotation;
+  env.map_integral = build_environment_cdfs(ks.view(), ks.env_marginal_cdf, ks.env_conditional_cdf);
+  return ks;
+}
+
+// Histogram frame whose pole is the map's pole (+y), so rows of the map are
+// bands of the histogram. (A cyclic permutation: no mirroring.)
+Vec3 world_to_grid(Vec3 d) {
+  return make_vec3(d.z, d.x, d.y);
+}
+Vec3 grid_to_world(Vec3 g) {
+  return make_vec3(g.y, g.z, g.x);
+}
+
+// Integral of env_radiance over the sphere by fine midpoint quadrature in
+// (theta, phi) about +y; the map is bilinear, so 1024x2048 points are exact
+// to far below the Monte Carlo noise we compare with.
+Vec3 environment_integral(const KernelData& kd) {
+  constexpr int kTheta = 1024, kPhi = 2048;
+  double sum[3] = {0, 0, 0};
+  for (int i = 0; i < kTheta; ++i) {
+    const double theta = (i + 0.5) * double(kPi) / kTheta;
+    double row[3] = {0, 0, 0};
+    for (int j = 0; j < kPhi; ++j) {
+      const double phi = (j + 0.5) * 2.0 * double(kPi) / kPhi;
+      const Vec3 l = env_radiance(kd, grid_to_world(test_stats::spherical_direction(theta, phi)));
+      row[0] += l.x;
+      row[1] += l.y;
+      row[2] += l.z;
+    }
+    const double w = std::sin(theta) * (double(kPi) / kTheta) * (2.0 * double(kPi) / kPhi);
+    for (int k = 0; k < 3; ++k)
+      sum[k] += row[k] * w;
+  }
+  return make_vec3(float(sum[0]), float(sum[1]), float(sum[2]));
+}
+
+class EnvironmentSampling : public ::testing::TestWithParam<float> {};
+
+TEST_P(EnvironmentSampling, DirectionsFollowEnvPdf) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  TestRng rng(200 + uint32_t(GetParam() * 10.0f));
+  const auto r = test_stats::sphere_chi_square(
+      [&](Vec3* g) {
+        const EnvSample s = env_sample(kd, rng.next(), rng.next());
+        if (!(s.pdf > 0.0f)) return false;
+        *g = world_to_grid(s.dir);
+        return true;
+      },
+      [&](Vec3 g) { return env_pdf(kd, grid_to_world(g)); }, 200000, 64, 64);
+  EXPECT_TRUE(r.passed(kAlpha)) << "rotation " << GetParam() << "\n" << r.summary();
+  EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
+}
+
+TEST_P(EnvironmentSampling, SampleReportsEnvPdfAndRadiance) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  TestRng rng(210);
+  int mismatched = 0;
+  for (int s = 0; s < 100000; ++s) {
+    const EnvSample es = env_sample(kd, rng.next(), rng.next());
+    ASSERT_NEAR(length(es.dir), 1.0f, 1e-5f);
+    ASSERT_TRUE(es.pdf > 0.0f && std::isfinite(es.pdf));
+    const float pdf = env_pdf(kd, es.dir);
+    if (!(fabsf(pdf - es.pdf) <= 1e-3f * es.pdf) && mismatched++ < 10) {
+      ADD_FAILURE() << "env_sample pdf " << es.pdf << " but env_pdf " << pdf << " at dir ("
+                    << es.dir.x << "," << es.dir.y << "," << es.dir.z << ")";
+    }
+    const Vec3 l = env_radiance(kd, es.dir);
+    ASSERT_NEAR(es.radiance.x, l.x, 1e-5f * l.x);
+    ASSERT_NEAR(es.radiance.y, l.y, 1e-5f * l.y);
+    ASSERT_NEAR(es.radiance.z, l.z, 1e-5f * l.z);
+  }
+  EXPECT_EQ(mismatched, 0);
+}
+
+TEST_P(EnvironmentSampling, EstimatorMatchesIntegralOfRadiance) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  const Vec3 reference = environment_integral(kd);
+  TestRng rng(220);
+  MeanAccumulator importance[3], uniform[3];
+  for (int s = 0; s < 200000; ++s) {
+    const EnvSample es = env_sample(kd, rng.next(), rng.next());
+    const Vec3 d = sample_uniform_sphere(rng.next(), rng.next());
+    const Vec3 lu = env_radiance(kd, d) * (4.0f * kPi);
+    for (int k = 0; k < 3; ++k) {
+      importance[k].add(es.pdf > 0.0f ? double(component(es.radiance, k)) / es.pdf : 0.0);
+      uniform[k].add(component(lu, k));
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    const double ref = component(reference, k);
+    EXPECT_NEAR(importance[k].mean(), ref, 5.0 * importance[k].std_error() + 1e-4 * ref)
+        << "channel " << k;
+    // The same reference by plain uniform sampling: guards the quadrature.
+    EXPECT_NEAR(uniform[k].mean(), ref, 5.0 * uniform[k].std_error() + 1e-4 * ref)
+        << "channel " << k;
+    // Importance sampling must actually help on a map with a sun.
+    EXPECT_LT(importance[k].std_error(), 0.5 * uniform[k].std_error()) << "channel " << k;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Rotations, EnvironmentSampling, ::testing::Values(0.0f, 1.3f));
+
+TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
+  const KernelScene ks0 = make_environment_scene(0.0f), ks1 = make_environment_scene(1.3f);
+  const KernelData kd0 = ks0.view(), kd1 = ks1.view();
+  TestRng rng(230);
+  for (int s = 0; s < 1000; ++s) {
+    const Vec3 d = sample_uniform_sphere(rng.next(), rng.next());
+    const Vec3 rotated = rotate_y(d, 1.3f);
+    const Vec3 a = env_radiance(kd0, d), b = env_radiance(kd1, rotated);
+    ASSERT_NEAR(a.x, b.x, 1e-3f * (1.0f + a.x));
+    ASSERT_NEAR(env_pdf(kd0, d), env_pdf(kd1, rotated), 1e-3f * env_pdf(kd0, d));
+  }
+  // Rotation keeps +y fixed and is a proper rotation.
+  const Vec3 y = rotate_y(make_vec3(0, 1, 0), 0.7f);
+  EXPECT_NEAR(y.y, 1.0f, 1e-6f);
+  const Vec3 x = rotate_y(make_vec3(1, 0, 0), 0.7f), z = rotate_y(make_vec3(0, 0, 1), 0.7f);
+  EXPECT_NEAR(dot(cross(x, y), z), 1.0f, 1e-5f);
+}
+
+TEST(KernelEnvironment, ConstantColorIsUniform) {
+  KernelScene ks;
+  ks.constants.environment.color = make_vec3(0.5f, 1.0f, 2.0f);
+  const KernelData kd = ks.view();
+  TestRng rng(240);
+  for (int s = 0; s < 1000; ++s) {
+    const EnvSample es = env_sample(kd, rng.next(), rng.next());
+    ASSERT_FLOAT_EQ(es.pdf, kInv4Pi);
+    ASSERT_FLOAT_EQ(env_pdf(kd, es.dir), kInv4Pi);
+    ASSERT_FLOAT_EQ(es.radiance.z, 2.0f);
+    ASSERT_FLOAT_EQ(env_radiance(kd, es.dir).y, 1.0f);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Emissive triangles.
+
+KTextureRef no_texture() {
+  KTextureRef r{};
+  r.texture = -1;
+  r.m[0] = r.m[4] = 1.0f;  // identity transform
+  return r;
+}
+
+KMaterial emissive_material(Vec3 emission, bool double_sided) {
+  KMaterial m{};
+  m.base_color = make_vec4(0.8f, 0.8f, 0.8f, 1.0f);
+  m.emission = emission;
+  m.specular_color = make_vec3(1.0f);
+  m.roughness = 1.0f;
+  m.ior = 1.5f;
+  m.specular = 1.0f;
+  m.flags = double_sided ? kMaterialDoubleSided : 0u;
+  m.normal_scale = 1.0f;
+  m.emission_luminance_scale = 1.0f;
+  m.base_color_tex = m.metallic_roughness_tex = m.normal_tex = m.emissive_tex = m.transmission_tex =
+      no_texture();
+  return m;
+}
+
+// Affine transform x -> A x + t and its inverse, from a 3x3 matrix in double.
+struct Affine {
+  Mat34 forward, inverse;
+};
+Affine make_affine(const std::array<std::array<double, 3>, 3>& a, Vec3 t) {
+  Affine r;
+  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                     a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  double inv[3][3];
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      // Cofactor of (j, i) over det.
+      const int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+      inv[i][j] = (a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]) / det;
+    }
+  }
+  const double tv[3] = {t.x, t.y, t.z};
+  for (int i = 0; i < 3; ++i) {
+    double it = 0.0;
+    for (int j = 0; j < 3; ++j)
+      it -= inv[i][j] * tv[j];
+    r.forward.rows[i] = make_vec4(float(a[i][0]), float(a[i][1]), float(a[i][2]), float(tv[i]));
+    r.inverse.rows[i] = make_vec4(float(inv[i][0]), float(inv[i][1]), float(inv[i][2]), float(it));
+  }
+  return r;
+}
+
+// Rz(40 deg) * Rx(20 deg) * diag(1.5, 0.7, 1.2): rotated and non-uniformly
+// scaled, positive determinant.
+Affine rotated_scaled() {
+  const double cz = std::cos(0.698), sz = std::sin(0.698), cx = std::cos(0.349),
+               sx = std::sin(0.349);
+  const double r[3][3] = {{cz, -sz * cx, sz * sx}, {sz, cz * cx, -cz * sx}, {0.0, sx, cx}};
+  const double s[3] = {1.5, 0.7, 1.2};
+  std::array<std::array<double, 3>, 3> a;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j)
+      a[i][j] = r[i][j] * s[j];
+  }
+  return make_affine(a, make_vec3(2.5f, 0.4f, 0.8f));
+}
+
+struct WorldTriangle {
+  Vec3 p[3];
+  uint32_t instance, prim;
+  Vec3 emission;
+  bool double_sided;
+};
+
+// One mesh of two emissive triangles at z = 2 whose front faces (glTF
+// winding) look down -z, instanced with the identity and with
+// rotated_scaled(). Every triangle becomes a light, weighted by
+// triangle_light_power as the scene compiler does.
+struct TriangleLightScene {
+  KernelScene ks;
+  std::vector<WorldTriangle> triangles;
+};
+
+TriangleLightScene make_triangle_light_scene(bool double_sided) {
+  TriangleLightScene s;
+  KernelScene& ks = s.ks;
+  ks.positions = {make_vec3(0.0f, 0.0f, 2.0f),   make_vec3(0.0f, 1.0f, 2.0f),
+                  make_vec3(1.0f, 0.0f, 2.0f),   make_vec3(-0.4f, -0.2f, 2.0f),
+                  make_vec3(-1.0f, -1.2f, 2.0f), make_vec3(0.0f)};  // last: padding for SSE loads
+  const Vec3 emission[2] = {make_vec3(4.0f, 4.0f, 4.0f), make_vec3(1.0f, 2.0f, 3.0f)};
+  ks.materials = {emissive_material(emission[0], double_sided),
+                  emissive_material(emission[1], double_sided)};
+  ks.triangles = {KTriangle{0, 1, 2, 0}, KTriangle{3, 0, 4, 1}};
+  KMesh mesh{};
+  mesh.vertex_offset = 0;
+  mesh.vertex_count = 5;
+  mesh.triangle_offset = 0;
+  mesh.triangle_count = 2;
+  mesh.flags = kMeshHasEmission;
+  ks.meshes = {mesh};
+  const Affine transforms[2] = {{mat34_identity(), mat34_identity()}, rotated_scaled()};
+  for (const Affine& a : transforms) {
+    KInstance inst{};
+    inst.object_to_world = a.forward;
+    inst.world_to_object = a.inverse;
+    inst.mesh = 0;
+    inst.handedness = 1.0f;
+    ks.instances.push_back(inst);
+  }
+  std::vector<double> power;
+  const KernelData kd = ks.view();
+  for (uint32_t i = 0; i < ks.instances.size(); ++i) {
+    for (uint32_t p = 0; p < 2; ++p) {
+      KLight light{};
+      light.type = kLightTriangle;
+      light.instance = i;
+      light.prim = p;
+      ks.lights.push_back(light);
+      power.push_back(
+          triangle_light_power(ks.materials[p], triangle_world_area(kd, ks.instances[i], p)));
+      WorldTriangle w;
+      const KTriangle& t = ks.triangles[p];
+      for (int k = 0; k < 3; ++k) {
+        w.p[k] = transform_point(ks.instances[i].object_to_world, ks.positions[(&t.v0)[k]]);
+      }
+      w.instance = i;
+      w.prim = p;
+      w.emission = emission[p];
+      w.double_sided = double_sided;
+      s.triangles.push_back(w);
+    }
+  }
+  ks.light_alias = build_alias_table(power);
+  double total = 0.0;
+  for (double p : power)
+    total += p;
+  ks.constants.total_light_power = float(total);
+  ks.constants.environment_light_index = kInvalidIndex;
+  return s;
+}
+
+// Front normal of a world triangle (glTF counter-clockwise winding).
+Vec3 front_normal(const WorldTriangle& t) {
+  return normalize(cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+}
+
+// Solid angle of a triangle seen from o (van Oosterom and Strackee 1983).
+double solid_angle(const WorldTriangle& t, Vec3 o) {
+  double a[3][3], len[3];
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 d = t.p[k] - o;
+    a[k][0] = d.x, a[k][1] = d.y, a[k][2] = d.z;
+    len[k] = std::sqrt(a[k][0] * a[k][0] + a[k][1] * a[k][1] + a[k][2] * a[k][2]);
+  }
+  auto dotd = [](const double* x, const double* y) {
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+  };
+  const double triple = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                        a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                        a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  const double denom = len[0] * len[1] * len[2] + dotd(a[0], a[1]) * len[2] +
+                       dotd(a[0], a[2]) * len[1] + dotd(a[1], a[2]) * len[0];
+  return 2.0 * std::atan2(std::fabs(triple), denom);
+}
+
+// Irradiance at o (normal n) from a triangle of constant radiance 1 above
+// o's horizon: Lambert's polygon formula E = 1/2 sum_edges theta_e (n . g_e),
+// g_e the unit normal of the plane through o and the edge.
+double unit_irradiance(const WorldTriangle& t, Vec3 o, Vec3 n) {
+  double sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 a = normalize(t.p[k] - o), b = normalize(t.p[(k + 1) % 3] - o);
+    const double theta = std::acos(std::clamp(double(dot(a, b)), -1.0, 1.0));
+    sum += theta * double(dot(n, normalize(cross(a, b))));
+  }
+  return 0.5 * std::fabs(sum);
+}
+
+struct RayHit {
+  double t, u, v;
+  size_t triangle;
+};
+
+// Closest intersection of the ray o + t d (t > 0) with the scene's triangles
+// (Moller-Trumbore in double), counting only faces that emit towards o.
+std::optional<RayHit> intersect(const std::vector<WorldTriangle>& tris, Vec3 o, Vec3 d) {
+  std::optional<RayHit> best;
+  for (size_t i = 0; i < tris.size(); ++i) {
+    const WorldTriangle& tri = tris[i];
+    const Vec3 e1 = tri.p[1] - tri.p[0], e2 = tri.p[2] - tri.p[0];
+    const Vec3 pv = cross(d, e2);
+    const double det = dot(e1, pv);
+    if (std::fabs(det) < 1e-12) continue;
+    const Vec3 tv = o - tri.p[0];
+    const double u = dot(tv, pv) / det;
+    const Vec3 qv = cross(tv, e1);
+    const double v = dot(d, qv) / det;
+    const double t = dot(e2, qv) / det;
+    if (u < 0.0 || v < 0.0 || u + v > 1.0 || t <= 1e-6) continue;
+    if (!tri.double_sided && dot(d, front_normal(tri)) >= 0.0f) continue;  // seen from behind
+    if (!best || t < best->t) best = RayHit{t, u, v, i};
+  }
+  return best;
+}
+
+// What the integrator computes when a BSDF-sampled ray hits an emitter:
+// triangle_light_pdf at the full surface point of the hit.
+float pdf_at_hit(const KernelData& kd, const std::vector<WorldTriangle>& tris, Vec3 o, Vec3 d) {
+  const auto hit = intersect(tris, o, d);
+  if (!hit) return 0.0f;
+  const WorldTriangle& tri = tris[hit->triangle];
+  const Hit h = {float(hit->t), float(hit->u), float(hit->v), tri.instance, tri.prim};
+  return triangle_light_pdf(kd, make_surface_point(kd, h), d, float(hit->t));
+}
+
+const Vec3 kReference = make_vec3(0.3f, -0.2f, -0.4f);
+const Vec3 kReferenceNormal = normalize(make_vec3(0.2f, -0.1f, 1.0f));
+
+TEST(KernelTriangleLight, SceneIsInFrontOfTheReferencePoint) {
+  // Preconditions of the analytic references below.
+  const TriangleLightScene s = make_triangle_light_scene(false);
+  for (const WorldTriangle& t : s.triangles) {
+    for (const Vec3& p : t.p) {
+      EXPECT_LT(dot(p - kReference, front_normal(t)), 0.0f);
+      EXPECT_GT(dot(p - kReference, kReferenceNormal), 0.0f);
+    }
+  }
+}
+
+TEST(KernelTriangleLight, ExpectedInversePdfIsSolidAngle) {
+  // E[1 / pdf] over sample_light = sum_k P(k) int p_k / (P(k) p_k) = the
+  // total solid angle of the emitters, for any correct solid-angle pdf.
+  // E[L cos / pdf] is the irradiance, by Lambert's formula.
+  for (bool double_sided : {false, true}) {
+    const TriangleLightScene s = make_triangle_light_scene(double_sided);
+    const KernelData kd = s.ks.view();
+    double omega = 0.0, irradiance[3] = {0, 0, 0};
+    for (const WorldTriangle& t : s.triangles) {
+      omega += solid_angle(t, kReference);
+      const double e = unit_irradiance(t, kReference, kReferenceNormal);
+      for (int k = 0; k < 3; ++k)
+        irradiance[k] += e * component(t.emission, k);
+    }
+    TestRng rng(400);
+    MeanAccumulator inv_pdf, irr[3];
+    int mismatched = 0;
+    for (int i = 0; i < 200000; ++i) {
+      LightSample ls;
+      ASSERT_TRUE(sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls));
+      ASSERT_FALSE(ls.is_delta);
+      ASSERT_FALSE(ls.at_infinity);
+      ASSERT_NEAR(length(ls.wi), 1.0f, 1e-5f);
+      ASSERT_NEAR(length(ls.point - kReference), ls.distance, 1e-5f * ls.distance);
+      ASSERT_NEAR(dot(ls.point - kReference, ls.wi), ls.distance, 1e-5f * ls.distance);
+      // The pdf the integrator will compute for the same direction when a
+      // BSDF sample hits this light (MIS needs both to agree).
+      const float pdf_hit = pdf_at_hit(kd, s.triangles, kReference, ls.wi);
+      if (!(fabsf(pdf_hit - ls.pdf) <= 1e-3f * ls.pdf) && mismatched++ < 10) {
+        ADD_FAILURE() << "sample_light pdf " << ls.pdf << " but triangle_light_pdf at the hit "
+                      << pdf_hit;
+      }
+      inv_pdf.add(1.0 / ls.pdf);
+      const double cos_ref = std::max(0.0f, dot(ls.wi, kReferenceNormal));
+      for (int k = 0; k < 3; ++k)
+        irr[k].add(component(ls.radiance, k) * cos_ref / ls.pdf);
+    }
+    EXPECT_EQ(mismatched, 0);
+    EXPECT_NEAR(inv_pdf.mean(), omega, 5.0 * inv_pdf.std_error() + 1e-5 * omega)
+        << "double_sided=" << double_sided;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(irr[k].mean(), irradiance[k], 5.0 * irr[k].std_error() + 1e-5 * irradiance[k])
+          << "channel " << k << " double_sided=" << double_sided;
+    }
+  }
+}
+
+TEST(KernelTriangleLight, AnalyticReferencesMatchBruteForce) {
+  // The solid angle and irradiance formulas above, checked by cosine-
+  // weighted ray casting: otherwise a wrong reference could hide a bug.
+  const TriangleLightScene s = make_triangle_light_scene(false);
+  const Frame frame = make_frame(kReferenceNormal);
+  double expected = 0.0;
+  for (const WorldTriangle& t : s.triangles)
+    expected += unit_irradiance(t, kReference, kReferenceNormal);
+  TestRng rng(410);
+  MeanAccumulator estimate, omega;
+  for (int i = 0; i < 400000; ++i) {
+    const Vec3 d = to_world(frame, sample_cosine_hemisphere(rng.next(), rng.next()));
+    estimate.add(intersect(s.triangles, kReference, d) ? kPi : 0.0);
+    const Vec3 u = sample_uniform_sphere(rng.next(), rng.next());
+    omega.add(intersect(s.triangles, kReference, u) ? 4.0 * kPi : 0.0);
+  }
+  EXPECT_NEAR(estimate.mean(), expected, 5.0 * estimate.std_error());
+  double total_omega = 0.0;
+  for (const WorldTriangle& t : s.triangles)
+    total_omega += solid_angle(t, kReference);
+  EXPECT_NEAR(omega.mean(), total_omega, 5.0 * omega.std_error());
+}
+
+TEST(KernelTriangleLight, DirectionsFollowTheReportedPdf) {
+  // Chi-square over where sampled directions hit the emitters: each triangle
+  // is split into k^2 congruent sub-triangles (in barycentrics). A cell's
+  // expected share is the integral over it of the solid-angle pdf the
+  // integrator computes at a BSDF hit, with d(omega) = |cos_l| dA / d^2.
+  // Cells inside one triangle avoid the slivers that triangle edges would
+  // cut from (theta, phi) cells.
+  constexpr int k = 8, kSamples = 200000;
+  const TriangleLightScene s = make_triangle_light_scene(false);
+  const KernelData kd = s.ks.view();
+  const size_t per_triangle = size_t(k) * k * 2, n_cells = s.triangles.size() * per_triangle;
+  const size_t missed = n_cells, failed = n_cells + 1;  // hit no emitter / sample_light false
+  auto cell_of = [&](size_t tri, double u, double v) {
+    const double x = u * k, y = v * k;
+    const int i = std::min(int(x), k - 1), j = std::min(int(y), k - 1);
+    return tri * per_triangle + size_t(i * k + j) * 2 + ((x - i) + (y - j) > 1.0 ? 1 : 0);
+  };
+  std::vector<double> observed(n_cells + 2, 0.0), expected(n_cells + 2, 0.0);
+  TestRng rng(420);
+  for (int n = 0; n < kSamples; ++n) {
+    LightSample ls;
+    if (!sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls)) {
+      observed[failed] += 1.0;
+      continue;
+    }
+    const auto hit = intersect(s.triangles, kReference, ls.wi);
+    observed[hit ? cell_of(hit->triangle, hit->u, hit->v) : missed] += 1.0;
+  }
+  double total = 0.0;
+  for (size_t t = 0; t < s.triangles.size(); ++t) {
+    const WorldTriangle& tri = s.triangles[t];
+    const Vec3 e1 = tri.p[1] - tri.p[0], e2 = tri.p[2] - tri.p[0];
+    const Vec3 n = front_normal(tri);
+    const double area =
+        0.5 * length(cross(e1, e2)) / (double(k) * k) / 64.0;  // of one integration piece
+    // Midpoint rule on 64 congruent pieces of every sub-triangle: evaluate at
+    // the centroids of an 8 x 8 barycentric grid of the whole triangle.
+    constexpr int kFine = k * 8;
+    for (int i = 0; i < kFine; ++i) {
+      for (int j = 0; i + j < kFine; ++j) {
+        for (int upper = 0; upper < (i + j < kFine - 1 ? 2 : 1); ++upper) {
+          const double u = (i + (upper ? 2.0 : 1.0) / 3.0) / kFine,
+                       v = (j + (upper ? 2.0 : 1.0) / 3.0) / kFine;
+          const Vec3 x = tri.p[0] + e1 * float(u) + e2 * float(v);
+          const Vec3 to = x - kReference;
+          const float d2 = length_sq(to);
+          const Vec3 wi = to * (1.0f / sqrtf(d2));
+          const double p =
+              double(pdf_at_hit(kd, s.triangles, kReference, wi)) * fabsf(dot(wi, n)) / d2 * area;
+          expected[cell_of(t, u, v)] += p * kSamples;
+          total += p;
+        }
+      }
+    }
+  }
+  expected[failed] = std::max(0.0, 1.0 - total) * kSamples;
+  const auto r = test_stats::chi_square_test(observed, expected);
+  EXPECT_TRUE(r.passed(kAlpha)) << r.summary();
+  EXPECT_NEAR(total, 1.0, 1e-3);
+  EXPECT_EQ(observed[missed], 0.0) << "sampled directions that hit no emitter";
+}
+
+TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {
+  const Vec3 behind = make_vec3(0.1f, 0.1f, 4.0f);  // above the downward-facing emitters
+  {
+    const TriangleLightScene s = make_triangle_light_scene(false);
+    const KernelData kd = s.ks.view();
+    TestRng rng(430);
+    for (int i = 0; i < 10000; ++i) {
+      LightSample ls;
+      ASSERT_FALSE(sample_light(kd, behind, rng.next(), rng.next(), rng.next(), &ls));
+    }
+  }
+  {
+    // A double-sided emitter lights both sides with the same pdf rules.
+    const TriangleLightScene s = make_triangle_light_scene(true);
+    const KernelData kd = s.ks.view();
+    TestRng rng(431);
+    for (int i = 0; i < 10000; ++i) {
+      LightSample ls;
+      ASSERT_TRUE(sample_light(kd, behind, rng.next(), rng.next(), rng.next(), &ls));
+      ASSERT_NEAR(pdf_at_hit(kd, s.triangles, behind, ls.wi), ls.pdf, 1e-3f * ls.pdf);
+    }
+  }
+}
+
+TEST(KernelTriangleLight, EnvironmentAndTrianglesShareOneLightList) {
+  // The environment light's pdf in a mixed list (selection pmf x env_pdf)
+  // must be what environment_light_pdf reports for MIS.
+  TriangleLightScene s = make_triangle_light_scene(false);
+  const KernelScene env = make_environment_scene(1.3f);
+  s.ks.env_texels = env.env_texels;
+  s.ks.env_marginal_cdf = env.env_marginal_cdf;
+  s.ks.env_conditional_cdf = env.env_conditional_cdf;
+  s.ks.constants.environment = env.constants.environment;
+  std::vector<double> power;
+  const KernelData kd0 = s.ks.view();
+  for (const KLight& l : s.ks.lights) {
+    power.push_back(triangle_light_power(
+        s.ks.materials[l.prim], triangle_world_area(kd0, s.ks.instances[l.instance], l.prim)));
+  }
+  KLight env_light{};
+  env_light.type = kLightEnvironment;
+  s.ks.constants.environment_light_index = uint32_t(s.ks.lights.size());
+  s.ks.lights.push_back(env_light);
+  power.push_back(3.0);
+  s.ks.light_alias = build_alias_table(power);
+  double total = 0.0;
+  for (double p : power)
+    total += p;
+  s.ks.constants.total_light_power = float(total);
+  const KernelData kd = s.ks.view();
+  TestRng rng(440);
+  int env_count = 0;
+  constexpr int kSamples = 100000;
+  for (int i = 0; i < kSamples; ++i) {
+    LightSample ls;
+    if (!sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls)) continue;
+    if (ls.at_infinity) {
+      ++env_count;
+      ASSERT_NEAR(environment_light_pdf(kd, ls.wi), ls.pdf, 1e-3f * ls.pdf);
+    } else {
+      ASSERT_NEAR(pdf_at_hit(kd, s.triangles, kReference, ls.wi), ls.pdf, 1e-3f * ls.pdf);
+    }
+  }
+  const double p_env = 3.0 / total;
+  EXPECT_NEAR(env_count, p_env * kSamples, 5.0 * std::sqrt(kSamples * p_env * (1.0 - p_env)));
+}
+
+// ---------------------------------------------------------------------------
+// Punctual lights.
+
+KernelScene make_punctual_scene(const std::vector<KLight>& lights,
+                                const std::vector<double>& weights) {
+  KernelScene ks;
+  ks.lights = lights;
+  ks.light_alias = build_alias_table(weights);
+  double total = 0.0;
+  for (double w : weights)
+    total += w;
+  ks.constants.total_light_power = float(total);
+  ks.constants.environment_light_index = kInvalidIndex;
+  return ks;
+}
+
+KLight point_light(Vec3 position, Vec3 intensity) {
+  KLight l{};
+  l.type = kLightPoint;
+  l.position = position;
+  l.intensity = intensity;
+  return l;
+}
+
+KLight spot_light(Vec3 position, Vec3 direction, float inner, float outer, Vec3 intensity) {
+  KLight l = point_light(position, intensity);
+  l.type = kLightSpot;
+  l.direction = normalize(direction);
+  l.cos_inner = cosf(inner);
+  l.cos_outer = cosf(outer);
+  return l;
+}
+
+TEST(KernelPunctualLight, PointLightFallsOffWithInverseSquare) {
+  const Vec3 pos = make_vec3(1.0f, 2.0f, 3.0f), intensity = make_vec3(10.0f, 20.0f, 5.0f);
+  const KernelScene ks = make_punctual_scene({point_light(pos, intensity)}, {1.0});
+  const KernelData kd = ks.view();
+  for (const Vec3 ref :
+       {make_vec3(0.0f), make_vec3(1.0f, 2.0f, 0.5f), make_vec3(-3.0f, 5.0f, 3.0f)}) {
+    LightSample ls;
+    ASSERT_TRUE(sample_light(kd, ref, 0.3f, 0.5f, 0.5f, &ls));
+    const float d2 = length_sq(pos - ref);
+    EXPECT_TRUE(ls.is_delta);
+    EXPECT_FALSE(ls.at_infinity);
+    EXPECT_FLOAT_EQ(ls.pdf, 1.0f);
+    EXPECT_NEAR(ls.radiance.x, intensity.x / d2, 1e-5f * intensity.x / d2);
+    EXPECT_NEAR(ls.radiance.y, intensity.y / d2, 1e-5f * intensity.y / d2);
+    EXPECT_NEAR(ls.distance, sqrtf(d2), 1e-5f);
+    const Vec3 wi = normalize(pos - ref);
+    EXPECT_NEAR(dot(ls.wi, wi), 1.0f, 1e-6f);
+    EXPECT_NEAR(length(ls.point - pos), 0.0f, 1e-6f);
+  }
+  LightSample ls;
+  EXPECT_FALSE(sample_light(kd, pos, 0.3f, 0.5f, 0.5f, &ls)) << "shading point at the light";
+}
+
+TEST(KernelPunctualLight, SpotLightConeFalloff) {
+  // Cone along -y from (0, 5, 0); inner 20 deg, outer 30 deg. glTF's smooth
+  // falloff: t = (cos - cos_outer) / (cos_inner - cos_outer), intensity * t^2.
+  const Vec3 pos = make_vec3(0.0f, 5.0f, 0.0f), intensity = make_vec3(100.0f);
+  const float inner = 20.0f * kPi / 180.0f, outer = 30.0f * kPi / 180.0f;
+  const KernelScene ks =
+      make_punctual_scene({spot_light(pos, make_vec3(0, -1, 0), inner, outer, intensity)}, {1.0});
+  const KernelData kd = ks.view();
+  for (float deg : {0.0f, 10.0f, 19.0f, 21.0f, 25.0f, 29.0f, 31.0f, 60.0f, 120.0f}) {
+    const float a = deg * kPi / 180.0f;
+    const Vec3 ref = pos + make_vec3(sinf(a), -cosf(a), 0.0f) * 4.0f;  // 4 units from the light
+    LightSample ls;
+    const bool ok = sample_light(kd, ref, 0.5f, 0.5f, 0.5f, &ls);
+    if (deg > 30.0f) {
+      EXPECT_FALSE(ok) << deg << " deg is outside the cone";
+      continue;
+    }
+    ASSERT_TRUE(ok) << deg;
+    EXPECT_TRUE(ls.is_delta);
+    float falloff = 1.0f;
+    if (deg > 20.0f) {
+      const float t = (cosf(a) - cosf(outer)) / (cosf(inner) - cosf(outer));
+      falloff = t * t;
+    }
+    EXPECT_NEAR(ls.radiance.x, 100.0f * falloff / 16.0f, 1e-3f * (100.0f / 16.0f)) << deg << " deg";
+    EXPECT_NEAR(dot(ls.wi, normalize(pos - ref)), 1.0f, 1e-6f);
+  }
+}
+
+TEST(KernelPunctualLight, DirectionalLight) {
+  KLight l{};
+  l.type = kLightDirectional;
+  l.direction = normalize(make_vec3(1.0f, -2.0f, 0.5f));
+  l.intensity = make_vec3(3.0f, 2.0f, 1.0f);
+  const KernelScene ks = make_punctual_scene({l}, {1.0});
+  const KernelData kd = ks.view();
+  for (const Vec3 ref : {make_vec3(0.0f), make_vec3(100.0f, -50.0f, 3.0f)}) {
+    LightSample ls;
+    ASSERT_TRUE(sample_light(kd, ref, 0.9f, 0.1f, 0.2f, &ls));
+    EXPECT_TRUE(ls.is_delta);
+    EXPECT_TRUE(ls.at_infinity);
+    EXPECT_FLOAT_EQ(ls.pdf, 1.0f);
+    EXPECT_NEAR(dot(ls.wi, -l.direction), 1.0f, 1e-6f);
+    EXPECT_FLOAT_EQ(ls.radiance.x, 3.0f);  // no distance falloff
+    EXPECT_FLOAT_EQ(ls.radiance.z, 1.0f);
+  }
+}
+
+TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
+  const std::vector<double> weights = {1.0, 0.0, 2.5, 6.0};
+  const KernelScene ks = make_punctual_scene({point_light(make_vec3(0, 3, 0), make_vec3(1.0f)),
+                                              point_light(make_vec3(1, 3, 0), make_vec3(1.0f)),
+                                              point_light(make_vec3(2, 3, 0), make_vec3(1.0f)),
+                                              point_light(make_vec3(3, 3, 0), make_vec3(1.0f))},
+                                             weights);
+  const KernelData kd = ks.view();
+  constexpr int kSamples = 100000;
+  std::vector<double> observed(4, 0.0), expected(4, 0.0);
+  for (int i = 0; i < 4; ++i)
+    expected[size_t(i)] = weights[size_t(i)] / 9.5 * kSamples;
+  TestRng rng(450);
+  for (int i = 0; i < kSamples; ++i) {
+    LightSample ls;
+    ASSERT_TRUE(sample_light(kd, make_vec3(0.0f), rng.next(), rng.next(), rng.next(), &ls));
+    const int index = int(std::lround(ls.point.x));
+    ASSERT_NEAR(ls.pdf, weights[size_t(index)] / 9.5, 1e-6);
+    observed[size_t(index)] += 1.0;
+  }
+  const auto r = test_stats::chi_square_test(observed, expected);
+  EXPECT_TRUE(r.passed(kAlpha)) << r.summary();
+  LightSample ls;
+  EXPECT_FALSE(sample_light(KernelScene{}.view(), make_vec3(0.0f), 0.5f, 0.5f, 0.5f, &ls))
+      << "no lights";
+}
+
+}  // namespace
+}  // namespace tandem
