@@ -3,11 +3,12 @@
 #include <cmath>
 
 #include "core/util/errors.h"
+#include "scenes/procedural_scenes.h"
 
 namespace tandem {
 
-void append_quad(Mesh& mesh, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, const glm::vec3& d,
-                 uint32_t material, const glm::vec3& facing) {
+void append_quad(Mesh& mesh, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
+                 const glm::vec3& d, uint32_t material, const glm::vec3& facing) {
   const uint32_t base = uint32_t(mesh.positions.size());
   mesh.positions.insert(mesh.positions.end(), {a, b, c, d});
   // Orient the winding (and so the front face) towards `facing`.
@@ -24,14 +25,16 @@ void append_quad(Mesh& mesh, const glm::vec3& a, const glm::vec3& b, const glm::
   mesh.triangle_materials.push_back(material);
 }
 
-Mesh make_uv_sphere(float radius, uint32_t rings, uint32_t segments, uint32_t material, bool inward) {
+Mesh make_uv_sphere(float radius, uint32_t rings, uint32_t segments, uint32_t material,
+                    bool inward) {
   Mesh m;
   m.name = "sphere";
   for (uint32_t r = 0; r <= rings; ++r) {
     const float theta = float(M_PI) * float(r) / float(rings);
     for (uint32_t s = 0; s <= segments; ++s) {
       const float phi = 2.0f * float(M_PI) * float(s) / float(segments);
-      const glm::vec3 n(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
+      const glm::vec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
+                        std::sin(theta) * std::sin(phi));
       m.positions.push_back(n * radius);
       m.normals.push_back(inward ? -n : n);
       m.uv0.push_back({float(s) / float(segments), float(r) / float(rings)});
@@ -89,16 +92,17 @@ Scene make_cornell_box() {
   box.name = "cornell_box";
   // Floor, back wall, red (left, +x) and green (right, x = 0) walls.
   append_quad(box, P(552.8f, 0, 0), P(0, 0, 0), P(0, 0, 559.2f), P(549.6f, 0, 559.2f), white, up);
-  append_quad(box, P(549.6f, 0, 559.2f), P(0, 0, 559.2f), P(0, 548.8f, 559.2f), P(556.0f, 548.8f, 559.2f),
-              white, toward_camera);
-  append_quad(box, P(552.8f, 0, 0), P(549.6f, 0, 559.2f), P(556.0f, 548.8f, 559.2f), P(556.0f, 548.8f, 0),
-              red, glm::vec3(-1, 0, 0));
+  append_quad(box, P(549.6f, 0, 559.2f), P(0, 0, 559.2f), P(0, 548.8f, 559.2f),
+              P(556.0f, 548.8f, 559.2f), white, toward_camera);
+  append_quad(box, P(552.8f, 0, 0), P(549.6f, 0, 559.2f), P(556.0f, 548.8f, 559.2f),
+              P(556.0f, 548.8f, 0), red, glm::vec3(-1, 0, 0));
   append_quad(box, P(0, 0, 559.2f), P(0, 0, 0), P(0, 548.8f, 0), P(0, 548.8f, 559.2f), green,
               glm::vec3(1, 0, 0));
   // Ceiling with a hole where the light sits, so the two never overlap.
   const float cy = 548.8f;
   append_quad(box, P(556, cy, 0), P(556, cy, 227), P(0, cy, 227), P(0, cy, 0), white, down);
-  append_quad(box, P(556, cy, 332), P(556, cy, 559.2f), P(0, cy, 559.2f), P(0, cy, 332), white, down);
+  append_quad(box, P(556, cy, 332), P(556, cy, 559.2f), P(0, cy, 559.2f), P(0, cy, 332), white,
+              down);
   append_quad(box, P(556, cy, 227), P(556, cy, 332), P(343, cy, 332), P(343, cy, 227), white, down);
   append_quad(box, P(213, cy, 227), P(213, cy, 332), P(0, cy, 332), P(0, cy, 227), white, down);
   // The light: 130 x 105 mm, emitting downwards only.
@@ -107,10 +111,11 @@ Scene make_cornell_box() {
   // Short block.
   const glm::vec3 sb[4] = {P(130, 0, 65), P(82, 0, 225), P(240, 0, 272), P(290, 0, 114)};
   const glm::vec3 tb[4] = {P(423, 0, 247), P(265, 0, 296), P(314, 0, 456), P(472, 0, 406)};
-  auto add_block = [&](const glm::vec3 (&base)[4], float height) {
+  auto add_block = [&](const glm::vec3(&base)[4], float height) {
     const glm::vec3 h = P(0, height, 0);
     glm::vec3 center(0.0f);
-    for (const glm::vec3& p : base) center += p * 0.25f;
+    for (const glm::vec3& p : base)
+      center += p * 0.25f;
     append_quad(box, base[0] + h, base[1] + h, base[2] + h, base[3] + h, white, up);
     for (int i = 0; i < 4; ++i) {
       const glm::vec3 a = base[i], b = base[(i + 1) % 4];
@@ -176,14 +181,18 @@ Scene make_sky_plane_scene(float albedo, float sky) {
   return scene;
 }
 
-std::vector<std::string> builtin_scene_names() { return {"cornell", "furnace", "sky-plane"}; }
+std::vector<std::string> builtin_scene_names() {
+  return {"cornell", "furnace", "sky-plane", "procedural"};
+}
 
 Scene make_builtin_scene(const std::string& name) {
   if (name == "cornell") return make_cornell_box();
   if (name == "furnace") return make_furnace_scene(0.8f, 0.5f);
   if (name == "sky-plane") return make_sky_plane_scene(0.5f, 1.0f);
+  if (name == "procedural") return make_procedural_scene(1000000, 1);
   std::string known;
-  for (const std::string& n : builtin_scene_names()) known += (known.empty() ? "" : ", ") + n;
+  for (const std::string& n : builtin_scene_names())
+    known += (known.empty() ? "" : ", ") + n;
   throw InputError("builtin:" + name + ": no such built-in scene (known: " + known + ")");
 }
 

@@ -1,0 +1,324 @@
+#include "accstruc/accel_structure.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/util/log.h"
+
+namespace tandem {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Wide leaf slots hold up to three triangles, or one instance.
+constexpr uint32_t kBlasWideLeafPrims = kWideMaxLeafPrims;
+constexpr uint32_t kTlasWideLeafPrims = 1;
+
+void mark_all(ArrayChange& c) {
+  c.reallocated = true;
+}
+
+}  // namespace
+
+void AccelUpdate::mark(SceneDelta& d) const {
+  auto merge = [](ArrayChange& to, const ArrayChange& from) {
+    to.reallocated = to.reallocated || from.reallocated;
+    to.mark(from.begin, from.end);
+  };
+  merge(d.bvh_nodes, bvh_nodes);
+  merge(d.bvh_prim_indices, bvh_prim_indices);
+  merge(d.bvh_wide_nodes, bvh_wide_nodes);
+  merge(d.bvh_wide_prim_indices, bvh_wide_prim_indices);
+  merge(d.meshes, meshes);
+  d.constants = d.constants || constants;
+}
+
+MeshGeometry mesh_geometry(const KernelScene& ks, uint32_t mesh) {
+  const KMesh& km = ks.meshes[mesh];
+  MeshGeometry g;
+  g.positions = ks.positions.data() + km.vertex_offset;
+  g.vertex_count = km.vertex_count;
+  g.triangles = ks.triangles.data() + km.triangle_offset;
+  g.triangle_count = km.triangle_count;
+  return g;
+}
+
+std::vector<Aabb> triangle_boxes(const MeshGeometry& mesh) {
+  std::vector<Aabb> boxes(mesh.triangle_count);
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, mesh.triangle_count, 16384), [&](auto r) {
+    for (uint32_t i = r.begin(); i < r.end(); ++i) {
+      const KTriangle& t = mesh.triangles[i];
+      Aabb b;
+      if (t.v0 < mesh.vertex_count && t.v1 < mesh.vertex_count && t.v2 < mesh.vertex_count) {
+        b.grow(mesh.positions[t.v0]);
+        b.grow(mesh.positions[t.v1]);
+        b.grow(mesh.positions[t.v2]);
+        // min/max drop NaNs depending on argument order; make sure a
+        // non-finite vertex always invalidates the box.
+        if (!is_finite(mesh.positions[t.v0]) || !is_finite(mesh.positions[t.v1]) ||
+            !is_finite(mesh.positions[t.v2])) {
+          b = Aabb{};
+        }
+      }
+      boxes[i] = b;
+    }
+  });
+  return boxes;
+}
+
+Aabb transform_box(const Mat34& m, const Aabb& b) {
+  Aabb out;
+  if (b.empty()) return out;
+  const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
+  float olo[3], ohi[3];
+  for (int i = 0; i < 3; ++i) {
+    const Vec4& row = m.rows[i];
+    const float r[3] = {row.x, row.y, row.z};
+    float mn = row.w, mx = row.w, mag = std::fabs(row.w);
+    for (int j = 0; j < 3; ++j) {
+      const float a = r[j] * lo[j], c = r[j] * hi[j];
+      mn += std::min(a, c);
+      mx += std::max(a, c);
+      mag += std::fabs(r[j]) * std::max(std::fabs(lo[j]), std::fabs(hi[j]));
+    }
+    // The sums above round; 1e-6 relative to the largest term is ~8 ulps.
+    const float pad = mag * 1e-6f;
+    olo[i] = mn - pad;
+    ohi[i] = mx + pad;
+  }
+  out.lo = {olo[0], olo[1], olo[2]};
+  out.hi = {ohi[0], ohi[1], ohi[2]};
+  return out;
+}
+
+AccelStructure::AccelStructure(AccelSettings settings) : settings_(std::move(settings)) {
+  // A wide leaf slot holds at most 3 triangles and a wide node 8 slots.
+  settings_.blas.max_leaf_size = std::clamp<uint32_t>(settings_.blas.max_leaf_size, 1u, 16u);
+  settings_.tlas.max_leaf_size = 1;
+  if (settings_.cache.enabled) {
+    std::filesystem::path dir = settings_.cache.directory.empty()
+                                    ? BvhCache::default_directory()
+                                    : std::filesystem::path(settings_.cache.directory);
+    if (!dir.empty()) cache_ = std::make_unique<BvhCache>(dir);
+  }
+}
+
+AccelStructure::~AccelStructure() = default;
+
+void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes,
+                                AccelUpdate& up) {
+  std::atomic<uint32_t> built{0}, loaded{0};
+  const BuildSettings& bs = settings_.blas;
+  tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
+    const uint32_t m = meshes[i];
+    const MeshGeometry g = mesh_geometry(ks, m);
+    const bool use_cache = cache_ && g.triangle_count >= settings_.cache.min_triangles;
+    uint64_t key = 0;
+    if (use_cache) {
+      key = blas_cache_key(g, bs, kBlasWideLeafPrims);
+      std::string why;
+      const auto r = cache_->load(key, g.triangle_count, &blas_[m], &why);
+      if (r == BvhCache::LoadResult::kHit) {
+        loaded.fetch_add(1);
+        return;
+      }
+      if (r == BvhCache::LoadResult::kRejected) log_warning("BVH cache: " + why + "; rebuilding");
+    }
+    const std::vector<Aabb> boxes = triangle_boxes(g);
+    const BuildTree tree = build_bvh(boxes, bs);
+    blas_[m] =
+        make_layouts(tree, boxes, kBlasWideLeafPrims, bs.traversal_cost, bs.intersection_cost);
+    built.fetch_add(1);
+    if (use_cache) cache_->store(key, blas_[m]);
+  });
+  up.blas_built += built.load();
+  up.blas_loaded += loaded.load();
+}
+
+void AccelStructure::refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes) {
+  tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
+    const uint32_t m = meshes[i];
+    const std::vector<Aabb> boxes = triangle_boxes(mesh_geometry(ks, m));
+    refit_layouts(blas_[m], boxes);
+  });
+}
+
+void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
+  const LayoutBases& b = blas_bases_[m];
+  emit_layouts(blas_[m], b, ks.bvh_nodes.data() + b.node, ks.bvh_prim_indices.data() + b.prim,
+               ks.bvh_wide_nodes.data() + b.wide_node,
+               ks.bvh_wide_prim_indices.data() + b.wide_prim);
+}
+
+// Places every BLAS and the TLAS region in fresh arrays.
+void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
+  const uint32_t n = uint32_t(blas_.size());
+  blas_bases_.assign(n, LayoutBases{});
+  uint64_t node = 0, prim = 0, wide_node = 0, wide_prim = 0;
+  for (uint32_t m = 0; m < n; ++m) {
+    blas_bases_[m] = {uint32_t(node), uint32_t(prim), uint32_t(wide_node), uint32_t(wide_prim)};
+    node += blas_[m].nodes.size();
+    prim += blas_[m].prims.size();
+    wide_node += blas_[m].wide_nodes.size();
+    wide_prim += blas_[m].wide_prims.size();
+  }
+  // The TLAS region depends only on the instance count: a binary tree over
+  // k <= n leaves has max(1, k - 1) interior nodes, and so at most has a
+  // wide tree whose nodes all have two or more children.
+  const uint32_t instances = uint32_t(ks.instances.size());
+  tlas_capacity_instances_ = instances;
+  const uint32_t tlas_nodes = std::max(1u, instances > 0 ? instances - 1 : 0u);
+  tlas_base_ = {uint32_t(node), uint32_t(prim), uint32_t(wide_node), uint32_t(wide_prim)};
+  node += tlas_nodes;
+  prim += instances;
+  wide_node += tlas_nodes;
+  wide_prim += instances;
+  if (std::max({node, prim, wide_node, wide_prim}) >= kBvhLeafFlag) {
+    throw std::length_error("scene too large for Tandem's BVH (2^31 nodes or primitives)");
+  }
+  ks.bvh_nodes.assign(node, KBvhNode{});
+  ks.bvh_prim_indices.assign(prim, 0u);
+  ks.bvh_wide_nodes.assign(wide_node, KWideBvhNode{});
+  ks.bvh_wide_prim_indices.assign(wide_prim, 0u);
+  tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
+  for (uint32_t m = 0; m < n; ++m) {
+    KMesh& km = ks.meshes[m];
+    const bool empty = blas_[m].empty();
+    const uint32_t root = empty ? kInvalidIndex : blas_bases_[m].node;
+    const uint32_t wide_root = empty ? kInvalidIndex : blas_bases_[m].wide_node;
+    if (km.bvh_root != root || km.wide_root != wide_root) {
+      km.bvh_root = root;
+      km.wide_root = wide_root;
+      up.meshes.mark(m, m + 1);
+    }
+  }
+  mark_all(up.bvh_nodes);
+  mark_all(up.bvh_prim_indices);
+  mark_all(up.bvh_wide_nodes);
+  mark_all(up.bvh_wide_prim_indices);
+  laid_out_ = true;
+}
+
+void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
+  const uint32_t instances = uint32_t(ks.instances.size());
+  tlas_boxes_.resize(instances);
+  auto body = [&](uint32_t i) {
+    const KInstance& inst = ks.instances[i];
+    // Instances of meshes without triangles stay out of the TLAS.
+    tlas_boxes_[i] = inst.mesh < blas_.size()
+                         ? transform_box(inst.object_to_world, blas_[inst.mesh].bounds)
+                         : Aabb{};
+  };
+  if (instances >= 4096) {
+    tbb::parallel_for(0u, instances, body);
+  } else {
+    for (uint32_t i = 0; i < instances; ++i)
+      body(i);
+  }
+  const BuildSettings& ts = settings_.tlas;
+  const BuildTree tree = build_bvh(tlas_boxes_, ts);
+  tlas_ = BvhLayouts{};
+  if (!tree.empty()) {
+    flatten_binary(tree, tlas_);
+    collapse_wide(tree, tlas_boxes_, kTlasWideLeafPrims, ts.traversal_cost, ts.intersection_cost,
+                  tlas_);
+  }
+  const uint32_t cap_nodes = std::max(1u, instances > 0 ? instances - 1 : 0u);
+  if (tlas_.nodes.size() > cap_nodes || tlas_.wide_nodes.size() > cap_nodes) {
+    throw std::logic_error("TLAS larger than its region");  // cannot happen, see layout_arrays
+  }
+  emit_layouts(tlas_, tlas_base_, ks.bvh_nodes.data() + tlas_base_.node,
+               ks.bvh_prim_indices.data() + tlas_base_.prim,
+               ks.bvh_wide_nodes.data() + tlas_base_.wide_node,
+               ks.bvh_wide_prim_indices.data() + tlas_base_.wide_prim);
+  up.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
+  up.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
+  up.bvh_wide_nodes.mark(tlas_base_.wide_node,
+                         tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
+  up.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
+                                tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
+  const uint32_t root = tlas_.empty() ? kInvalidIndex : tlas_base_.node;
+  const uint32_t wide_root = tlas_.empty() ? kInvalidIndex : tlas_base_.wide_node;
+  if (ks.constants.tlas_root != root || ks.constants.tlas_wide_root != wide_root) {
+    ks.constants.tlas_root = root;
+    ks.constants.tlas_wide_root = wide_root;
+    up.constants = true;
+  }
+  up.tlas_rebuilt = true;
+}
+
+AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
+  AccelUpdate up;
+  const uint32_t n = uint32_t(ks.meshes.size());
+  std::vector<uint32_t> rebuild;
+  bool relayout = false;
+  if (delta.full || !laid_out_ || blas_.size() != n) {
+    blas_.assign(n, BvhLayouts{});
+    rebuild.resize(n);
+    for (uint32_t m = 0; m < n; ++m)
+      rebuild[m] = m;
+    relayout = true;
+  } else {
+    for (uint32_t m : delta.meshes_rebuilt) {
+      if (m < n) rebuild.push_back(m);
+    }
+    std::sort(rebuild.begin(), rebuild.end());
+    rebuild.erase(std::unique(rebuild.begin(), rebuild.end()), rebuild.end());
+    relayout = !rebuild.empty() || ks.instances.size() != tlas_capacity_instances_;
+  }
+  std::vector<uint32_t> refit;
+  for (uint32_t m : delta.meshes_refit) {
+    if (m < n && !std::binary_search(rebuild.begin(), rebuild.end(), m)) refit.push_back(m);
+  }
+  std::sort(refit.begin(), refit.end());
+  refit.erase(std::unique(refit.begin(), refit.end()), refit.end());
+
+  auto t0 = Clock::now();
+  if (!rebuild.empty()) build_blas(ks, rebuild, up);
+  up.blas_seconds = seconds_since(t0);
+  t0 = Clock::now();
+  if (!refit.empty()) {
+    refit_blas(ks, refit);
+    up.blas_refit = uint32_t(refit.size());
+  }
+  up.refit_seconds = seconds_since(t0);
+
+  if (relayout) {
+    layout_arrays(ks, up);
+  } else {
+    // A refit keeps every array's size: rewrite the meshes' node ranges.
+    for (uint32_t m : refit) {
+      emit_blas(ks, m);
+      const LayoutBases& b = blas_bases_[m];
+      up.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
+      up.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
+    }
+  }
+
+  t0 = Clock::now();
+  if (relayout || delta.instances_changed || !refit.empty()) rebuild_tlas(ks, up);
+  up.tlas_seconds = seconds_since(t0);
+
+  if (ks.constants.bvh_layout != uint32_t(settings_.layout)) {
+    ks.constants.bvh_layout = settings_.layout;
+    up.constants = true;
+  }
+  return up;
+}
+
+AccelUpdate AccelStructure::update_and_mark(KernelScene& ks, SceneDelta& delta) {
+  AccelUpdate up = update(ks, delta);
+  up.mark(delta);
+  return up;
+}
+
+}  // namespace tandem

@@ -1,0 +1,104 @@
+// The host side of Tandem's own acceleration structures: Brigade's
+// "UpdateAccStruc" step.
+//
+// Every frame, after the SceneCompiler, AccelStructure::update() brings the
+// BVH kernel arrays (bvh_nodes, bvh_prim_indices, bvh_wide_nodes,
+// bvh_wide_prim_indices), the meshes' BLAS roots and the TLAS roots in
+// KernelConstants up to date with what the SceneDelta says changed:
+//   - BLAS of delta.meshes_rebuilt (all meshes on delta.full) are built (or
+//     read from the disk cache), in parallel across and within meshes;
+//   - BLAS of delta.meshes_refit are refit in place (same size, same place);
+//   - the TLAS is rebuilt from scratch when instances changed (or any BLAS).
+// Each concatenated array holds every BLAS (in mesh order) and then the
+// TLAS, whose region is sized from the instance count alone, so a frame that
+// only moves instances rewrites only the TLAS region and a refit frame only
+// the refit meshes' regions. update() reports those element ranges so a GPU
+// backend can upload just them.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <vector>
+
+#include "accstruc/bvh_builder.h"
+#include "accstruc/bvh_cache.h"
+#include "accstruc/bvh_layouts.h"
+#include "core/scene/kernel_scene.h"
+
+namespace tandem {
+
+struct AccelSettings {
+  BuildSettings blas;  // binned SAH, leaves of up to 4 triangles
+  // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
+  BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};
+  KBvhLayout layout = kBvhLayoutBinary;  // what BvhTracer traverses (kd.constants.bvh_layout)
+  BvhCacheSettings cache;
+};
+
+// What one update() did. The ArrayChanges use SceneDelta's conventions
+// (reallocated: resend the whole array; else [begin, end) changed).
+struct AccelUpdate {
+  ArrayChange bvh_nodes, bvh_prim_indices, bvh_wide_nodes, bvh_wide_prim_indices;
+  ArrayChange meshes;      // bvh_root / wide_root rewritten
+  bool constants = false;  // tlas_root / tlas_wide_root / bvh_layout changed
+  uint32_t blas_built = 0, blas_loaded = 0, blas_refit = 0;
+  bool tlas_rebuilt = false;
+  double blas_seconds = 0.0, refit_seconds = 0.0, tlas_seconds = 0.0;
+
+  // Merges the changes into a SceneDelta for the backends' sync().
+  void mark(SceneDelta& delta) const;
+};
+
+class AccelStructure {
+ public:
+  explicit AccelStructure(AccelSettings settings = {});
+  ~AccelStructure();
+  AccelStructure(const AccelStructure&) = delete;
+  AccelStructure& operator=(const AccelStructure&) = delete;
+
+  // Updates ks's BVH arrays for `delta` (as returned by SceneCompiler) and
+  // reports what changed; `delta` itself is not modified.
+  AccelUpdate update(KernelScene& ks, const SceneDelta& delta);
+  // update() followed by AccelUpdate::mark(delta).
+  AccelUpdate update_and_mark(KernelScene& ks, SceneDelta& delta);
+
+  // Takes effect (kd.constants.bvh_layout) at the next update().
+  void set_layout(KBvhLayout layout) { settings_.layout = layout; }
+  const AccelSettings& settings() const { return settings_; }
+
+  // Per-mesh BLAS and the TLAS with indices relative to themselves.
+  const BvhLayouts& blas(uint32_t mesh) const { return blas_[mesh]; }
+  size_t blas_count() const { return blas_.size(); }
+  const BvhLayouts& tlas() const { return tlas_; }
+  // The directory in use, or nullptr when the disk cache is off.
+  const BvhCache* cache() const { return cache_.get(); }
+
+ private:
+  void build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes, AccelUpdate& up);
+  void refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes);
+  void layout_arrays(KernelScene& ks, AccelUpdate& up);
+  void emit_blas(KernelScene& ks, uint32_t mesh) const;
+  void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
+
+  AccelSettings settings_;
+  std::unique_ptr<BvhCache> cache_;
+  std::vector<BvhLayouts> blas_;
+  std::vector<LayoutBases> blas_bases_;
+  BvhLayouts tlas_;
+  LayoutBases tlas_base_;
+  uint32_t tlas_capacity_instances_ = 0;
+  bool laid_out_ = false;
+  std::vector<Aabb> tlas_boxes_;  // reused every frame
+};
+
+// The boxes a mesh's BLAS is built from: one per triangle, invalid (and so
+// skipped) for triangles with out-of-range indices.
+std::vector<Aabb> triangle_boxes(const MeshGeometry& mesh);
+MeshGeometry mesh_geometry(const KernelScene& ks, uint32_t mesh);
+
+// World box of an object-space box under an affine transform, padded by a
+// few ulps so rounding can never make it tighter than the transformed
+// geometry.
+Aabb transform_box(const Mat34& m, const Aabb& b);
+
+}  // namespace tandem

@@ -1,0 +1,71 @@
+// Conversion of a BuildTree into the two kernel layouts of core/kernel/bvh.h,
+// refitting them in place, checking them, and copying them into the
+// concatenated kernel arrays.
+//
+// A BvhLayouts holds one hierarchy (a mesh's BLAS or the TLAS) with indices
+// relative to itself, so it can be cached on disk and placed anywhere in the
+// kernel arrays; emit_layouts() adds the bases when copying.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "accstruc/bvh_builder.h"
+#include "core/kernel/bvh.h"
+
+namespace tandem {
+
+struct BvhLayouts {
+  std::vector<KBvhNode> nodes;           // binary layout, root at 0
+  std::vector<uint32_t> prims;           // primitive ids in the binary layout's leaf order
+  std::vector<KWideBvhNode> wide_nodes;  // wide layout, root at 0
+  std::vector<uint32_t> wide_prims;      // primitive ids of the wide layout's leaves
+  Aabb bounds;                           // box of all primitives in the hierarchy
+  uint32_t depth = 0;                    // levels of the binary build tree
+  double sah_cost = 0.0;                 // of the binary tree (C_trav, C_isect of the build)
+  double wide_sah_cost = 0.0;            // of the wide tree, same constants
+  bool empty() const { return nodes.empty(); }
+};
+
+// Where a hierarchy starts in each concatenated kernel array.
+struct LayoutBases {
+  uint32_t node = 0, prim = 0, wide_node = 0, wide_prim = 0;
+};
+
+// Builds both layouts from a tree. prim_boxes are the boxes the tree was
+// built from (to bound the leaves that the wide layout splits);
+// max_wide_leaf_prims is the number of primitives per wide leaf slot (3 for
+// triangles, 1 for instances). Leaves of the tree may hold at most
+// 8 * max_wide_leaf_prims primitives.
+BvhLayouts make_layouts(const BuildTree& tree, std::span<const Aabb> prim_boxes,
+                        uint32_t max_wide_leaf_prims, float traversal_cost,
+                        float intersection_cost);
+
+// Binary layout only (also used by make_layouts).
+void flatten_binary(const BuildTree& tree, BvhLayouts& out);
+// Wide layout only (also used by make_layouts). Sets wide_sah_cost.
+void collapse_wide(const BuildTree& tree, std::span<const Aabb> prim_boxes,
+                   uint32_t max_wide_leaf_prims, float traversal_cost, float intersection_cost,
+                   BvhLayouts& out);
+
+// Recomputes every box of both layouts bottom-up from the primitives' current
+// boxes (topology unchanged), in O(n), in parallel for large hierarchies.
+// Invalid primitive boxes count as empty. Updates `bounds`.
+void refit_layouts(BvhLayouts& layouts, std::span<const Aabb> prim_boxes);
+
+// Structural check of an untrusted hierarchy (e.g. read from disk): every
+// index in range, children after their parents (no cycles), depth within the
+// kernel stacks, primitive ids below prim_count. Boxes are not checked.
+bool validate_layouts(const BvhLayouts& layouts, uint32_t prim_count);
+
+// Copies a hierarchy into the kernel arrays at `bases`, making its indices
+// absolute. The destination ranges must hold nodes.size(), prims.size(),
+// wide_nodes.size() and wide_prims.size() elements.
+void emit_layouts(const BvhLayouts& layouts, const LayoutBases& bases, KBvhNode* nodes,
+                  uint32_t* prims, KWideBvhNode* wide_nodes, uint32_t* wide_prims);
+
+// Decoded box of a wide node's slot (for tests and refits).
+Aabb wide_slot_box(const KWideBvhNode& node, uint32_t slot);
+
+}  // namespace tandem

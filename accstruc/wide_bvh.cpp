@@ -1,0 +1,348 @@
+// The 8-wide compressed layout (Ylitie, Karras & Laine 2017) made from the
+// binary build tree: collapse, slot ordering, quantisation and refit.
+#include "accstruc/wide_bvh.h"
+
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace tandem {
+
+namespace {
+
+// Largest exponent whose scale keeps 255 * 2^e far from overflow.
+constexpr int kMaxExponent = 119;
+constexpr int kMinExponent = -126;
+
+float exp2_int(int e) {
+  return uint_as_float(uint32_t(e + 127) << 23);
+}
+
+// Plane value exactly as the traversal decodes it (wide_child_box).
+float decode(float origin, uint32_t q, float scale) {
+  return origin + float(q) * scale;
+}
+
+// Smallest-ish power of two such that origin + 255 * 2^e, in float, reaches hi.
+int choose_exponent(float lo, float hi) {
+  const float ext = hi - lo;
+  int e = kMinExponent;
+  if (ext > 0.0f) {
+    int exp2 = 0;
+    std::frexp(ext / 255.0f, &exp2);  // ext / 255 <= 2^exp2
+    e = std::max(exp2, kMinExponent);
+  }
+  while (e < kMaxExponent && decode(lo, 255, exp2_int(e)) < hi)
+    ++e;
+  return e;
+}
+
+// Quantises the boxes of the slots in `used` (bit per slot) conservatively:
+// the decoded box always contains the real one. Empty boxes decode inverted.
+void quantize(KWideBvhNode& n, const Aabb boxes[kWideBvhWidth], uint32_t used) {
+  Aabb all;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if (((used >> s) & 1u) && !boxes[s].empty()) all.grow(boxes[s]);
+  }
+  if (all.empty()) all = Aabb{{0, 0, 0}, {0, 0, 0}};
+  n.origin = all.lo;
+  float scale[3];
+  for (int a = 0; a < 3; ++a) {
+    const int e = choose_exponent(component(all.lo, a), component(all.hi, a));
+    n.exponent[a] = uint8_t(e + 127);
+    scale[a] = exp2_int(e);
+  }
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    const bool live = ((used >> s) & 1u) && !boxes[s].empty();
+    for (int a = 0; a < 3; ++a) {
+      if (!live) {
+        n.qlo[a][s] = 255;
+        n.qhi[a][s] = 0;
+        continue;
+      }
+      const float o = component(n.origin, a), sc = scale[a];
+      const float lo = component(boxes[s].lo, a), hi = component(boxes[s].hi, a);
+      float f = std::floor((lo - o) / sc);
+      uint32_t qlo = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
+      while (qlo > 0 && decode(o, qlo, sc) > lo)
+        --qlo;
+      f = std::ceil((hi - o) / sc);
+      uint32_t qhi = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
+      while (qhi < 255 && decode(o, qhi, sc) < hi)
+        ++qhi;
+      n.qlo[a][s] = uint8_t(qlo);
+      n.qhi[a][s] = uint8_t(qhi);
+    }
+  }
+}
+
+uint32_t leaf_count_from_meta(uint32_t meta) {
+  const uint32_t unary = meta >> 5;
+  return unary == 7 ? 3u : (unary == 3 ? 2u : 1u);
+}
+
+// One child of a wide node before it gets a slot.
+struct Entry {
+  Aabb box;
+  bool interior = false;
+  uint32_t build_node = kInvalidIndex;  // interior: the build node it becomes
+  uint32_t first = 0, count = 0;        // leaf: range in BuildTree::prims
+};
+
+class WideCollapser {
+ public:
+  WideCollapser(const BuildTree& tree, std::span<const Aabb> prim_boxes, uint32_t leaf_prims,
+                float ct, float ci, BvhLayouts& out)
+      : tree_(tree), boxes_(prim_boxes), leaf_prims_(leaf_prims), ct_(ct), ci_(ci), out_(out) {
+    if (leaf_prims_ < 1 || leaf_prims_ > kWideMaxLeafPrims) {
+      throw std::invalid_argument("wide BVH: primitives per leaf slot must be 1 to 3");
+    }
+  }
+
+  void run() {
+    out_.wide_nodes.assign(1, KWideBvhNode{});
+    out_.wide_prims.clear();
+    out_.wide_prims.reserve(tree_.prims.size());
+    sah_sum_ = 0.0;
+    std::vector<std::pair<uint32_t, uint32_t>> work{{0u, tree_.root}};  // (wide, build)
+    while (!work.empty()) {
+      const auto [wide, build] = work.back();
+      work.pop_back();
+      process(wide, build, work);
+    }
+    const double root_area = tree_.nodes[tree_.root].box.half_area();
+    out_.wide_sah_cost = root_area > 0.0 ? sah_sum_ / root_area : 0.0;
+  }
+
+ private:
+  uint32_t slots(const BuildNode& n) const {
+    return leaf_like(n) ? (n.count + leaf_prims_ - 1) / leaf_prims_ : 1u;
+  }
+  // Becomes one or more leaf slots of its parent (at most half the slots, so
+  // two such siblings always fit).
+  bool leaf_like(const BuildNode& n) const {
+    return n.count <= leaf_prims_ || (n.is_leaf() && n.count <= 4 * leaf_prims_);
+  }
+
+  void add_leaf_entries(const BuildNode& n, std::vector<Entry>& entries) const {
+    if (n.count > kWideBvhWidth * leaf_prims_) {
+      throw std::invalid_argument("wide BVH: a leaf of the build tree has too many primitives");
+    }
+    for (uint32_t first = n.first; first < n.first + n.count; first += leaf_prims_) {
+      Entry e;
+      e.first = first;
+      e.count = std::min(leaf_prims_, n.first + n.count - first);
+      if (e.count == n.count) {
+        e.box = n.box;
+      } else {
+        for (uint32_t i = e.first; i < e.first + e.count; ++i)
+          e.box.grow(boxes_[tree_.prims[i]]);
+      }
+      entries.push_back(e);
+    }
+  }
+
+  // The children of a wide node: open the largest interior candidate while
+  // its children still fit in the free slots.
+  std::vector<Entry> gather(uint32_t build) const {
+    std::vector<Entry> entries;
+    const BuildNode& b = tree_.nodes[build];
+    if (b.is_leaf()) {
+      add_leaf_entries(b, entries);
+      return entries;
+    }
+    uint32_t cands[kWideBvhWidth] = {b.child[0], b.child[1]};
+    uint32_t n = 2;
+    for (;;) {
+      uint32_t used = 0;
+      for (uint32_t i = 0; i < n; ++i)
+        used += slots(tree_.nodes[cands[i]]);
+      int best = -1;
+      float best_area = -1.0f;
+      for (uint32_t i = 0; i < n; ++i) {
+        const BuildNode& c = tree_.nodes[cands[i]];
+        if (c.is_leaf() || leaf_like(c)) continue;
+        const uint32_t grown =
+            used - 1 + slots(tree_.nodes[c.child[0]]) + slots(tree_.nodes[c.child[1]]);
+        if (grown > kWideBvhWidth || n + 1 > kWideBvhWidth) continue;
+        const float area = c.box.half_area();
+        if (area > best_area) {
+          best_area = area;
+          best = int(i);
+        }
+      }
+      if (best < 0) break;
+      const BuildNode& c = tree_.nodes[cands[best]];
+      cands[best] = c.child[0];
+      cands[n++] = c.child[1];
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+      const BuildNode& c = tree_.nodes[cands[i]];
+      if (leaf_like(c)) {
+        add_leaf_entries(c, entries);
+      } else {
+        Entry e;
+        e.box = c.box;
+        e.interior = true;
+        e.build_node = cands[i];
+        entries.push_back(e);
+      }
+    }
+    return entries;
+  }
+
+  // Slot s gets the entry met first by rays of octant s (smallest projection
+  // on that octant's diagonal), greedily by cost.
+  static void assign_slots(const std::vector<Entry>& entries, int slot_of[kWideBvhWidth]) {
+    Aabb all;
+    for (const Entry& e : entries)
+      all.grow(e.box);
+    const Vec3 pc = all.center();
+    float cost[kWideBvhWidth][kWideBvhWidth];
+    for (size_t e = 0; e < entries.size(); ++e) {
+      const Vec3 d = entries[e].box.center() - pc;
+      for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+        cost[e][s] = ((s & 1u) ? -d.x : d.x) + ((s & 2u) ? -d.y : d.y) + ((s & 4u) ? -d.z : d.z);
+      }
+    }
+    bool slot_taken[kWideBvhWidth] = {};
+    for (size_t e = 0; e < entries.size(); ++e)
+      slot_of[e] = -1;
+    for (size_t round = 0; round < entries.size(); ++round) {
+      int be = -1, bs = -1;
+      for (size_t e = 0; e < entries.size(); ++e) {
+        if (slot_of[e] >= 0) continue;
+        for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+          if (slot_taken[s]) continue;
+          if (be < 0 || cost[e][s] < cost[be][bs]) {
+            be = int(e);
+            bs = int(s);
+          }
+        }
+      }
+      slot_of[be] = bs;
+      slot_taken[bs] = true;
+    }
+  }
+
+  void process(uint32_t wide, uint32_t build, std::vector<std::pair<uint32_t, uint32_t>>& work) {
+    const std::vector<Entry> entries = gather(build);
+    int slot_of[kWideBvhWidth];
+    assign_slots(entries, slot_of);
+    const Entry* by_slot[kWideBvhWidth] = {};
+    for (size_t e = 0; e < entries.size(); ++e)
+      by_slot[slot_of[e]] = &entries[e];
+
+    KWideBvhNode node{};
+    node.child_base = uint32_t(out_.wide_nodes.size());
+    node.prim_base = uint32_t(out_.wide_prims.size());
+    Aabb boxes[kWideBvhWidth];
+    uint32_t used = 0, rank = 0;
+    std::vector<std::pair<uint32_t, uint32_t>> children;
+    Aabb all;
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      const Entry* e = by_slot[s];
+      if (!e) continue;
+      used |= 1u << s;
+      boxes[s] = e->box;
+      all.grow(e->box);
+      if (e->interior) {
+        node.imask |= uint8_t(1u << s);
+        node.meta[s] = uint8_t(kWideMetaInterior | (24u + s));
+        children.push_back({node.child_base + rank++, e->build_node});
+      } else {
+        const uint32_t offset = uint32_t(out_.wide_prims.size()) - node.prim_base;
+        node.meta[s] = uint8_t((((1u << e->count) - 1u) << 5) | offset);
+        for (uint32_t i = e->first; i < e->first + e->count; ++i) {
+          out_.wide_prims.push_back(tree_.prims[i]);
+        }
+        sah_sum_ += double(e->box.half_area()) * e->count * ci_;
+      }
+    }
+    sah_sum_ += double(all.half_area()) * ct_;
+    quantize(node, boxes, used);
+    out_.wide_nodes[wide] = node;
+    out_.wide_nodes.resize(out_.wide_nodes.size() + rank);
+    // Reverse so the first child is processed next: depth-first order.
+    for (size_t i = children.size(); i-- > 0;)
+      work.push_back(children[i]);
+  }
+
+  const BuildTree& tree_;
+  std::span<const Aabb> boxes_;
+  uint32_t leaf_prims_;
+  float ct_, ci_;
+  BvhLayouts& out_;
+  double sah_sum_ = 0.0;
+};
+
+Aabb refit_node(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
+                uint32_t parallel_depth) {
+  KWideBvhNode& n = l.wide_nodes[index];
+  Aabb boxes[kWideBvhWidth];
+  uint32_t child_of[kWideBvhWidth];
+  uint32_t used = 0, rank = 0;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if (n.meta[s] != 0) used |= 1u << s;
+    child_of[s] = ((n.imask >> s) & 1u) ? n.child_base + rank++ : kInvalidIndex;
+  }
+  auto slot = [&](uint32_t s) {
+    if (!((used >> s) & 1u)) return;
+    if (child_of[s] != kInvalidIndex) {
+      boxes[s] = refit_node(l, child_of[s], prim_boxes, parallel_depth ? parallel_depth - 1 : 0);
+      return;
+    }
+    const uint32_t first = n.prim_base + (n.meta[s] & 31u);
+    const uint32_t count = leaf_count_from_meta(n.meta[s]);
+    for (uint32_t i = first; i < first + count; ++i) {
+      const Aabb& pb = prim_boxes[l.wide_prims[i]];
+      if (aabb_valid(pb)) boxes[s].grow(pb);
+    }
+  };
+  if (parallel_depth > 0 && rank > 1) {
+    tbb::parallel_for(0u, kWideBvhWidth, [&](uint32_t s) { slot(s); });
+  } else {
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s)
+      slot(s);
+  }
+  quantize(n, boxes, used);
+  Aabb all;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if ((used >> s) & 1u) all.grow(boxes[s]);
+  }
+  return all;
+}
+
+}  // namespace
+
+void collapse_wide(const BuildTree& tree, std::span<const Aabb> prim_boxes,
+                   uint32_t max_wide_leaf_prims, float traversal_cost, float intersection_cost,
+                   BvhLayouts& out) {
+  out.wide_nodes.clear();
+  out.wide_prims.clear();
+  if (tree.empty()) return;
+  WideCollapser(tree, prim_boxes, max_wide_leaf_prims, traversal_cost, intersection_cost, out)
+      .run();
+}
+
+Aabb refit_wide(BvhLayouts& l, std::span<const Aabb> prim_boxes, uint32_t parallel_depth) {
+  if (l.wide_nodes.empty()) return Aabb{};
+  // The wide tree is about a third as deep as the binary one.
+  return refit_node(l, 0, prim_boxes, (parallel_depth + 2) / 3);
+}
+
+Aabb wide_slot_box(const KWideBvhNode& n, uint32_t slot) {
+  Aabb b;
+  for (int a = 0; a < 3; ++a) {
+    const float sc = wide_node_scale(n, a);
+    const float o = component(n.origin, a);
+    const float lo = decode(o, n.qlo[a][slot], sc), hi = decode(o, n.qhi[a][slot], sc);
+    (a == 0 ? b.lo.x : a == 1 ? b.lo.y : b.lo.z) = lo;
+    (a == 0 ? b.hi.x : a == 1 ? b.hi.y : b.hi.z) = hi;
+  }
+  return b;
+}
+
+}  // namespace tandem

@@ -1,0 +1,14 @@
+// Internal to accstruc/: the wide layout's refit, used by refit_layouts().
+#pragma once
+
+#include <span>
+
+#include "accstruc/bvh_layouts.h"
+
+namespace tandem {
+
+// Re-quantises every wide node bottom-up from the primitives' current boxes,
+// keeping the topology and slot assignment. Returns the root's box.
+Aabb refit_wide(BvhLayouts& layouts, std::span<const Aabb> prim_boxes, uint32_t parallel_depth);
+
+}  // namespace tandem

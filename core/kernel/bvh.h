@@ -1,0 +1,76 @@
+// Tandem's own bounding volume hierarchies, as the kernels see them.
+//
+// Every mesh has a BLAS over its triangles (object space) and the scene has
+// one TLAS over its instances (world space). Both exist in two layouts built
+// from the same binary SAH tree on the host (accstruc/):
+//   - binary: Aila & Laine 2009 style, both child boxes stored inline in the
+//     parent so one 64-byte load decides which children to visit;
+//   - wide: 8-wide compressed nodes after Ylitie, Karras & Laine 2017
+//     ("Efficient incoherent ray traversal on GPUs through compressed wide
+//     BVHs"): child boxes quantised to 8 bits per plane relative to a
+//     per-node origin and power-of-two scale, 80 bytes for 8 children.
+// Each layout is one concatenated array holding all BLAS followed by the
+// TLAS; indices stored in nodes are absolute within their array.
+#pragma once
+
+#include "core/kernel/math.h"
+
+namespace tandem {
+
+enum KBvhLayout : uint32_t { kBvhLayoutBinary = 0, kBvhLayoutWide = 1 };
+
+// Binary layout: a child reference with this bit set is a leaf; the low 31
+// bits are then the first entry of its primitive range in bvh_prim_indices.
+constexpr uint32_t kBvhLeafFlag = 0x80000000u;
+// Traversal stack entries (per level of the hierarchy). The builder limits
+// the depth of every tree so that this can never overflow (see
+// kBvhMaxDepth in accstruc/bvh_builder.h).
+constexpr uint32_t kBvhStackSize = 64;
+
+// Binary node. Child c's box is (lo.x, hi.x, lo.y, hi.y) in cC_xy and
+// (lo.z, hi.z) in c01_z.{x,y} (c = 0) or c01_z.{z,w} (c = 1). An empty child
+// (only in a root whose tree is a single leaf) has an inverted box and a
+// zero count so it is never entered.
+struct alignas(16) KBvhNode {
+  Vec4 c0_xy;
+  Vec4 c1_xy;
+  Vec4 c01_z;
+  uint32_t child[2];  // interior: node index; leaf: kBvhLeafFlag | first primitive entry
+  uint32_t count[2];  // leaf: number of primitives; interior: 0
+};
+static_assert(sizeof(KBvhNode) == 64 && alignof(KBvhNode) == 16, "GPU layout");
+
+constexpr uint32_t kWideBvhWidth = 8;
+// Primitives per leaf slot in a wide node (the meta byte encodes the count
+// in unary in its top three bits). The TLAS uses one instance per slot.
+constexpr uint32_t kWideMaxLeafPrims = 3;
+// meta byte of an interior child: unary count 1, bit index 24 + slot.
+constexpr uint32_t kWideMetaInterior = 1u << 5;
+
+// Wide node: up to 8 children. Interior children are stored contiguously from
+// child_base in slot order (child node = child_base + number of interior
+// slots before it, from imask). Leaf children reference primitives
+// prim_base + (meta & 31) onwards in bvh_wide_prim_indices, (meta >> 5) in
+// unary (1, 3 or 7 for 1, 2 or 3 primitives). meta == 0: empty slot.
+// Child box planes: origin + q * 2^(exponent - 127) per axis; the builder
+// rounds so that the decoded box, evaluated in float exactly as the
+// traversal does, always contains the child.
+// Slot s holds the child nearest for rays whose direction octant is s, so
+// visiting slots in the order (slot ^ octant) is roughly front to back.
+struct alignas(16) KWideBvhNode {
+  Vec3 origin;
+  uint8_t exponent[3];  // biased like a float exponent: scale = uint_as_float(e << 23)
+  uint8_t imask;        // bit s: slot s is an interior node
+  uint32_t child_base;
+  uint32_t prim_base;
+  uint8_t meta[8];
+  uint8_t qlo[3][8];  // [axis][slot]
+  uint8_t qhi[3][8];
+};
+static_assert(sizeof(KWideBvhNode) == 80 && alignof(KWideBvhNode) == 16, "GPU layout");
+
+TANDEM_HD float wide_node_scale(const KWideBvhNode& n, int axis) {
+  return uint_as_float(uint32_t(n.exponent[axis]) << 23);
+}
+
+}  // namespace tandem

@@ -1,0 +1,111 @@
+// Ray-by-ray comparison of Tandem's BVH (both layouts) with Embree on every
+// shared glTF model, the built-in scenes and a procedural scene of over a
+// million triangles: primary, shadow and diffuse rays must give the same
+// hit (instance, primitive, distance) or the same occlusion for >= 99.9%.
+#include <algorithm>
+#include <filesystem>
+
+#include "accstruc_test_util.h"
+#include "scenes/builtin_scenes.h"
+#include "scenes/procedural_scenes.h"
+
+namespace tandem {
+namespace {
+
+using namespace accstruc_test;
+
+constexpr double kRequiredAgreement = 0.999;
+constexpr uint32_t kRaysPerKind = 20000;
+
+std::vector<std::string> gltf_files() {
+  std::vector<std::string> files;
+  const std::filesystem::path dir = std::filesystem::path(TANDEM_SHARED_DIR) / "scenes" / "gltf";
+  std::error_code ec;
+  for (auto it = std::filesystem::recursive_directory_iterator(dir, ec);
+       !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
+    const std::string ext = it->path().extension().string();
+    if (ext == ".gltf" || ext == ".glb") files.push_back(it->path().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+void compare_scene(TracedScene& s, const std::string& name) {
+  const KernelData kd = s.kd();
+  const DistanceTolerance tol = distance_tolerance(s.bounds);
+  const auto primary = primary_rays(s, kRaysPerKind, 1);
+  const auto shadow = shadow_rays(s, kRaysPerKind, 2);
+  const auto diffuse = diffuse_rays(s, kRaysPerKind, 3);
+  auto embree_hit = [&](const RaySample& r) { return s.embree.intersect(r.ray, r.alpha_key); };
+  auto embree_occ = [&](const RaySample& r) { return s.embree.occluded(r.ray, r.alpha_key); };
+  for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
+    auto our_hit = [&](const RaySample& r) {
+      return bvh_intersect(kd, r.ray, r.alpha_key, layout);
+    };
+    auto our_occ = [&](const RaySample& r) { return bvh_occluded(kd, r.ray, r.alpha_key, layout); };
+    const Agreement p = compare_closest(kd, tol, primary, our_hit, embree_hit);
+    const Agreement d = compare_closest(kd, tol, diffuse, our_hit, embree_hit);
+    const Agreement o = compare_occlusion(shadow, our_occ, embree_occ);
+    std::printf("[accstruc] %-40s %-6s primary %s\n", name.c_str(), layout_name(layout),
+                p.summary().c_str());
+    std::printf("[accstruc] %-40s %-6s diffuse %s\n", name.c_str(), layout_name(layout),
+                d.summary().c_str());
+    std::printf("[accstruc] %-40s %-6s shadow  %s\n", name.c_str(), layout_name(layout),
+                o.summary().c_str());
+    EXPECT_GE(p.fraction(), kRequiredAgreement) << name << " primary " << layout_name(layout);
+    EXPECT_GE(d.fraction(), kRequiredAgreement) << name << " diffuse " << layout_name(layout);
+    EXPECT_GE(o.fraction(), kRequiredAgreement) << name << " shadow " << layout_name(layout);
+    // A comparison where nothing is hit proves nothing.
+    EXPECT_GT(p.hits + d.hits + o.hits, 0u) << name;
+  }
+  // The tracer wrapper follows kd.constants.bvh_layout.
+  KernelData wide_kd = kd;
+  wide_kd.constants.bvh_layout = kBvhLayoutWide;
+  const BvhTracer tracer{&wide_kd};
+  for (size_t i = 0; i < std::min<size_t>(primary.size(), 200); ++i) {
+    const Hit a = tracer.intersect(primary[i].ray, primary[i].alpha_key);
+    const Hit b = bvh_intersect(kd, primary[i].ray, primary[i].alpha_key, kBvhLayoutWide);
+    EXPECT_EQ(a.prim, b.prim);
+    EXPECT_EQ(tracer.occluded(primary[i].ray, 0),
+              bvh_occluded(kd, primary[i].ray, 0, kBvhLayoutWide));
+  }
+}
+
+class GltfVsEmbree : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(GltfVsEmbree, SameHitsAsEmbree) {
+  TracedScene s(load_scene(GetParam()));
+  ASSERT_GT(s.scene.triangle_count_instanced(), 0u);
+  compare_scene(s, std::filesystem::path(GetParam()).filename().string());
+}
+
+std::string param_name(const ::testing::TestParamInfo<std::string>& info) {
+  const std::filesystem::path p(info.param);
+  std::string name = p.parent_path().filename().string() + "_" + p.stem().string();
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedModels, GltfVsEmbree, ::testing::ValuesIn(gltf_files()), param_name);
+GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(GltfVsEmbree);
+
+TEST(BuiltinVsEmbree, SameHitsAsEmbree) {
+  for (const char* name : {"cornell", "furnace", "sky-plane"}) {
+    TracedScene s(make_builtin_scene(name));
+    compare_scene(s, std::string("builtin:") + name);
+  }
+}
+
+TEST(ProceduralVsEmbree, MillionTriangles) {
+  TracedScene s(make_procedural_scene(1'000'000, 1));
+  ASSERT_GE(s.scene.triangle_count_unique(), 1'000'000u);
+  std::printf("[accstruc] procedural: %zu unique triangles, %zu instanced, %zu instances\n",
+              s.scene.triangle_count_unique(), s.scene.triangle_count_instanced(),
+              s.scene.instances().size());
+  compare_scene(s, "builtin:procedural (1M)");
+}
+
+}  // namespace
+}  // namespace tandem
