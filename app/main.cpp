@@ -16,9 +16,11 @@ void print_usage() {
       "usage: tandem <command> [options]\n\n"
       "commands:\n"
       "  render SCENE   render a .gltf/.glb file or builtin:NAME to an image\n"
-      "  info SCENE     print what a scene contains\n\n"
+      "  info SCENE     print what a scene contains\n"
+      "  compare A B    check that two linear renders agree up to Monte Carlo noise\n"
+      "  bench [SCENE]  measure throughput against a plain Embree loop in the same run\n\n"
       "Run 'tandem <command> --help' for the options of a command.\n"
-      "Built-in scenes: builtin:cornell, builtin:furnace, builtin:sky-plane\n");
+      "Built-in scenes: builtin:cornell, builtin:furnace, builtin:sky-plane, builtin:procedural\n");
 }
 
 }  // namespace
@@ -37,6 +39,8 @@ int main(int argc, char** argv) {
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (args[0] == "render") return tandem::run_render(rest);
     if (args[0] == "info") return tandem::run_info(rest);
+    if (args[0] == "compare") return tandem::run_compare(rest);
+    if (args[0] == "bench") return tandem::run_bench(rest);
     throw tandem::UsageError("unknown command '" + args[0] + "'");
   } catch (const tandem::UsageError& e) {
     std::fprintf(stderr, "tandem: error: %s\nRun 'tandem --help' for usage.\n", e.what());
