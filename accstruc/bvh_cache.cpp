@@ -104,10 +104,13 @@ std::filesystem::path BvhCache::default_directory() {
     if (s == "off" || s == "0") return {};
     return std::filesystem::path(s);
   }
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) {
+  // Relative values are ignored, as the XDG base directory spec asks: they
+  // would scatter caches over whatever directory tandem runs in (a source
+  // tree, say).
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg == '/') {
     return std::filesystem::path(xdg) / "tandem" / "bvh";
   }
-  if (const char* home = std::getenv("HOME"); home && *home) {
+  if (const char* home = std::getenv("HOME"); home && *home == '/') {
     return std::filesystem::path(home) / ".cache" / "tandem" / "bvh";
   }
   return {};

@@ -12,7 +12,7 @@
 //
 // Default directory: $TANDEM_BVH_CACHE if set (the value "off" or "0"
 // disables the cache), else $XDG_CACHE_HOME/tandem/bvh, else
-// $HOME/.cache/tandem/bvh.
+// $HOME/.cache/tandem/bvh (relative XDG_CACHE_HOME / HOME are ignored).
 #pragma once
 
 #include <cstdint>

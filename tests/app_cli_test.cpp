@@ -3,15 +3,20 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
 #include "core/image/image.h"
+#include "tests/test_temp_dir.h"
 
 namespace fs = std::filesystem;
+using tandem::TempDir;
 
 namespace {
 
@@ -39,24 +44,6 @@ RunResult run_tandem(const std::string& args) {
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return r;
 }
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("tandem_cli_" + std::to_string(::getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 const fs::path kShared = fs::path(TANDEM_SHARED_DIR) / "scenes";
 
@@ -114,7 +101,7 @@ TEST(CliTest, EveryBadGltfFileIsRejectedByTheCli) {
 }
 
 TEST(CliTest, RendersPngExrAndPfm) {
-  TempDir dir;
+  TempDir dir("tandem_cli");
   for (const char* ext : {"png", "exr", "pfm"}) {
     const fs::path out = dir.path() / (std::string("cornell.") + ext);
     const RunResult r =
@@ -146,7 +133,7 @@ TEST(CliTest, UnwritableOutputFailsCleanly) {
 }
 
 TEST(CliTest, FailedRenderKeepsPreviousOutput) {
-  TempDir dir;
+  TempDir dir("tandem_cli");
   const fs::path out = dir.path() / "keep.png";
   { std::ofstream(out) << "previous"; }
   const RunResult r = run_tandem("render /nonexistent.gltf --output " + shell_quote(out.string()));
@@ -174,13 +161,53 @@ TEST(CliTest, AutoBackendFallsBackToCpuWithNotice) {
 }
 
 TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {
-  TempDir dir;
+  TempDir dir("tandem_cli");
   const RunResult r =
       run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --backend cuda --output " +
                  shell_quote((dir.path() / "x.png").string()));
   if (r.exit_code == 0) GTEST_SKIP() << "a CUDA device is available here";
   EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_NE(r.output.find("cuda"), std::string::npos) << r.output;
+  // One clear line: which option failed and why (no driver, no device, a
+  // driver too old, or a build without CUDA), not a CUDA error dump.
+  EXPECT_NE(r.output.find("tandem: error: --backend cuda: "), std::string::npos) << r.output;
+  const bool explained = r.output.find("driver") != std::string::npos ||
+                         r.output.find("no CUDA device") != std::string::npos ||
+                         r.output.find("no CUDA backend") != std::string::npos ||
+                         r.output.find("GPU") != std::string::npos;
+  EXPECT_TRUE(explained) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+// The host backend (our BVH + the shared kernels) end to end: the CLI must
+// build the BVH before syncing it, and trace the same paths as the Embree
+// backend (same seed, so almost every value is identical or within 1e-4; see
+// render_backends_test for the exact bounds).
+TEST(CliTest, HostBackendRendersLikeCpuBackend) {
+  TempDir dir("tandem_cli");
+  // Any BVH cache file goes to the temporary directory, never to ~/.cache.
+  ::setenv("TANDEM_BVH_CACHE", dir.path().c_str(), 1);
+  tandem::ImageRGB images[2];
+  const char* backends[2] = {"host", "cpu"};
+  for (int i = 0; i < 2; ++i) {
+    const fs::path out = dir.path() / (std::string(backends[i]) + ".pfm");
+    const RunResult r =
+        run_tandem("render builtin:cornell --width 32 --height 24 --spp 2 --seed 3 --backend " +
+                   std::string(backends[i]) + " --output " + shell_quote(out.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find(std::string(" on ") + backends[i]), std::string::npos) << r.output;
+    images[i] = tandem::read_image(out);
+  }
+  ::unsetenv("TANDEM_BVH_CACHE");
+  ASSERT_EQ(images[0].rgb.size(), images[1].rgb.size());
+  size_t same = 0;
+  double sum = 0.0;
+  for (size_t i = 0; i < images[0].rgb.size(); ++i) {
+    const float a = images[0].rgb[i], b = images[1].rgb[i];
+    same += a == b || std::abs(a - b) <= 1e-4f * std::max(std::abs(a), std::abs(b));
+    sum += images[0].rgb[i];
+  }
+  EXPECT_GT(sum, 0.0) << "host image is black";
+  EXPECT_GE(double(same), 0.95 * double(images[0].rgb.size()));
 }
 
 }  // namespace
@@ -188,7 +215,7 @@ TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {
 namespace {
 
 TEST(CliTest, RendersWithEnvironmentMapAndDepthOfField) {
-  TempDir dir;
+  TempDir dir("tandem_cli");
   // A small sky: bright down to 22.5 degrees below the horizon, dark below.
   tandem::ImageRGB env(16, 8);
   for (uint32_t y = 0; y < env.height; ++y) {
@@ -211,7 +238,7 @@ TEST(CliTest, RendersWithEnvironmentMapAndDepthOfField) {
 }
 
 TEST(CliTest, BadEnvironmentMapExitsOneNamingIt) {
-  TempDir dir;
+  TempDir dir("tandem_cli");
   const fs::path bad = dir.path() / "broken.hdr";
   { std::ofstream(bad) << "#?RADIANCE\nthis is not an image"; }
   const RunResult r = run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --env " +

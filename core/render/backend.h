@@ -17,6 +17,10 @@ namespace tandem {
 struct RenderPass {
   uint32_t sample_begin = 0;
   uint32_t sample_count = 1;
+  // Optional, indexed by Tile::index: a backend writes the seconds each tile
+  // took (for one worker), from which the tile scheduler learns which parts
+  // of the frame are expensive. Backends that cannot time tiles skip it.
+  double* tile_seconds = nullptr;
 };
 
 struct BackendStats {
@@ -25,6 +29,7 @@ struct BackendStats {
   uint64_t samples = 0;  // pixel samples (camera paths) traced
   uint32_t tiles = 0;
   uint64_t pixels = 0;
+  uint64_t commit_bytes = 0;  // scene data sent to a device since the last render()
 
   BackendStats& operator+=(const BackendStats& o) {
     seconds += o.seconds;
@@ -32,6 +37,7 @@ struct BackendStats {
     samples += o.samples;
     tiles += o.tiles;
     pixels += o.pixels;
+    commit_bytes += o.commit_bytes;
     return *this;
   }
 };
@@ -40,6 +46,17 @@ class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string name() const = 0;
+
+  // Whether the backend traces Tandem's own BVH (the kernel arrays bvh_nodes
+  // etc.) rather than building its own structure. The caller runs
+  // AccelStructure::update_and_mark() on the KernelScene before sync() when
+  // any of its backends needs it; the others never pay for the build.
+  virtual bool needs_bvh() const { return false; }
+
+  // Whether render() runs on the host's CPU cores (TBB workers). Two such
+  // backends compete for the same cores, so splitting a frame between them
+  // cannot beat the faster one alone; the core tracer uses this to decide.
+  virtual bool uses_host_cores() const { return false; }
 
   // Makes the backend's copy of the scene match `scene`, given what changed.
   // `scene` must outlive the next render() calls (backends may keep

@@ -1,0 +1,254 @@
+#include "app/bench_accstruc.h"
+
+#include <embree3/rtcore.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+
+#include "accstruc/accel_structure.h"
+#include "backends/cpu/embree_backend.h"
+#include "core/kernel/bvh_traverse.h"
+#include "core/kernel/integrator.h"
+
+namespace tandem {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// The machine is shared and timings are noisy: every figure is the best of
+// a few runs (the least disturbed one).
+constexpr int kRepeats = 3;
+
+template <class F>
+double best_seconds(F&& run) {
+  double best = 1e300;
+  for (int i = 0; i < kRepeats; ++i) {
+    const auto start = Clock::now();
+    run();
+    best = std::min(best, seconds_since(start));
+  }
+  return best;
+}
+
+uint64_t unique_triangles(const KernelScene& ks) {
+  uint64_t n = 0;
+  for (const KMesh& m : ks.meshes)
+    n += m.triangle_count;
+  return n;
+}
+
+// Every BLAS from scratch with our builder (binned SAH, then the binary and
+// wide layouts), as AccelStructure builds them: meshes in parallel, and in
+// parallel within each mesh. No disk cache: this measures the build.
+double our_blas_seconds(KernelScene& ks, const AccelSettings& settings) {
+  AccelSettings s = settings;
+  s.cache.enabled = false;
+  return best_seconds([&] {
+    AccelStructure accel(s);
+    SceneDelta full;
+    full.full = true;
+    full.instances_changed = true;
+    accel.update(ks, full);
+  });
+}
+
+// The same meshes through Embree's builder (rtcCommitScene of one scene per
+// mesh, in parallel across meshes as ours), at the given build quality.
+// Embree runs on the same TBB, so the same global_control limits both.
+double embree_blas_seconds(const KernelScene& ks, RTCBuildQuality quality) {
+  RTCDevice device = rtcNewDevice(nullptr);
+  if (!device) throw std::runtime_error("cannot create an Embree device");
+  const double s = best_seconds([&] {
+    std::vector<RTCScene> scenes(ks.meshes.size(), nullptr);
+    tbb::parallel_for(size_t(0), ks.meshes.size(), [&](size_t m) {
+      const KMesh& km = ks.meshes[m];
+      RTCScene scene = rtcNewScene(device);
+      rtcSetSceneBuildQuality(scene, quality);
+      if (km.triangle_count > 0) {
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                   ks.positions.data(), size_t(km.vertex_offset) * sizeof(Vec3),
+                                   sizeof(Vec3), km.vertex_count);
+        rtcSetSharedGeometryBuffer(
+            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
+            size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle), km.triangle_count);
+        rtcSetGeometryBuildQuality(g, quality);
+        rtcCommitGeometry(g);
+        rtcAttachGeometryByID(scene, g, 0);
+        rtcReleaseGeometry(g);
+      }
+      rtcCommitScene(scene);
+      scenes[m] = scene;
+    });
+    for (RTCScene sc : scenes)
+      rtcReleaseScene(sc);
+  });
+  rtcReleaseDevice(device);
+  return s;
+}
+
+// Triangle-weighted mean SAH cost of every mesh's BLAS built with `method`
+// (the binary tree; costs are relative to each root's area).
+double mean_sah_cost(const KernelScene& ks, const BuildSettings& settings) {
+  double weighted = 0.0, weight = 0.0;
+  for (uint32_t m = 0; m < ks.meshes.size(); ++m) {
+    const std::vector<Aabb> boxes = triangle_boxes(mesh_geometry(ks, m));
+    const BuildTree tree = build_bvh(boxes, settings);
+    if (tree.empty()) continue;
+    weighted += sah_cost(tree, settings.traversal_cost, settings.intersection_cost) * boxes.size();
+    weight += double(boxes.size());
+  }
+  return weight > 0.0 ? weighted / weight : 0.0;
+}
+
+// Mrays/s of one tracer over the rays of one kind (closest hit, or any hit
+// for shadow rays). The checksum keeps the compiler from dropping the work
+// and lets the tracers be compared for sanity.
+struct Throughput {
+  double mrays = 0.0;
+  uint64_t hits = 0;
+};
+
+template <class Tracer>
+Throughput trace_kind(const Tracer& tracer, const std::vector<Ray>& rays, bool shadow) {
+  Throughput t;
+  std::atomic<uint64_t> hits{0};
+  const double s = best_seconds([&] {
+    hits = 0;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 1024),
+                      [&](const tbb::blocked_range<size_t>& r) {
+                        uint64_t h = 0;
+                        for (size_t i = r.begin(); i != r.end(); ++i) {
+                          h += shadow ? uint64_t(tracer.occluded(rays[i], 0))
+                                      : uint64_t(hit_valid(tracer.intersect(rays[i], 0)));
+                        }
+                        hits += h;
+                      });
+  });
+  t.mrays = double(rays.size()) / s * 1e-6;
+  t.hits = hits.load();
+  return t;
+}
+
+}  // namespace
+
+BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
+                          uint32_t height) {
+  BenchRays set;
+  for (uint32_t y = 0; y < height; ++y) {
+    for (uint32_t x = 0; x < width; ++x) {
+      const uint32_t pixel = y * width + x;
+      PathRng rng = make_path_rng(pixel, 0, 12345);
+      const Ray primary = generate_camera_ray(kd.constants.camera, float(x) + rng_1d(rng, 0),
+                                              float(y) + rng_1d(rng, 1), 0.5f, 0.5f);
+      set.rays.push_back(primary);
+      set.kind.push_back(BenchRayKind::kPrimary);
+      const Hit hit = embree.intersect(primary);
+      if (!hit_valid(hit)) continue;
+      const SurfacePoint sp = make_surface_point(kd, hit);
+      rng = make_path_rng(pixel, 1, 777);
+      const Frame frame =
+          make_frame(dot(sp.geometric_normal, primary.dir) < 0.0f ? sp.geometric_normal
+                                                                  : -sp.geometric_normal);
+      const Vec3 d = to_world(frame, sample_cosine_hemisphere(rng_1d(rng, 2), rng_1d(rng, 3)));
+      set.rays.push_back(spawn_ray(sp, d));
+      set.kind.push_back(BenchRayKind::kDiffuse);
+      LightSample ls;
+      if (sample_light(kd, sp.position, rng_1d(rng, 4), rng_1d(rng, 5), rng_1d(rng, 6), &ls)) {
+        set.rays.push_back(ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point));
+        set.kind.push_back(BenchRayKind::kShadow);
+      }
+    }
+  }
+  return set;
+}
+
+void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+                        int threads) {
+  const uint64_t tris = unique_triangles(ks);
+  std::printf("\naccstruc (issue 3): %zu meshes, %llu unique triangles, best of %d runs\n",
+              ks.meshes.size(), static_cast<unsigned long long>(tris), kRepeats);
+
+  // --- BLAS builds, same meshes, same threads.
+  const AccelSettings settings;
+  const double ours = our_blas_seconds(ks, settings);
+  const double emb_medium = embree_blas_seconds(ks, RTC_BUILD_QUALITY_MEDIUM);
+  const double emb_high = embree_blas_seconds(ks, RTC_BUILD_QUALITY_HIGH);
+  auto mtris = [&](double s) { return double(tris) / s * 1e-6; };
+  std::printf("BLAS build, %d threads (Mtris/s; ours = binned SAH + binary & wide layouts):\n",
+              threads);
+  std::printf(
+      "  ours %8.2f | embree medium %8.2f (ours/embree %.2f) | embree high %8.2f "
+      "(ours/embree %.2f)\n",
+      mtris(ours), mtris(emb_medium), emb_medium / ours, mtris(emb_high), emb_high / ours);
+
+  // --- SAH cost of our BLAS (binary and wide, as stored) vs a median split.
+  AccelStructure accel([&] {
+    AccelSettings s = settings;
+    s.cache.enabled = false;
+    return s;
+  }());
+  SceneDelta full;
+  full.full = true;
+  full.instances_changed = true;
+  accel.update(ks, full);
+  double sah = 0.0, wide_sah = 0.0, weight = 0.0;
+  for (uint32_t m = 0; m < accel.blas_count(); ++m) {
+    const double w = ks.meshes[m].triangle_count;
+    sah += accel.blas(m).sah_cost * w;
+    wide_sah += accel.blas(m).wide_sah_cost * w;
+    weight += w;
+  }
+  BuildSettings median = settings.blas;
+  median.method = SplitMethod::kMedian;
+  const double median_sah = mean_sah_cost(ks, median);
+  if (weight > 0.0) {
+    sah /= weight;
+    wide_sah /= weight;
+  }
+  std::printf("SAH cost (C_trav = C_isect = 1, triangle-weighted mean over BLAS):\n");
+  std::printf("  binned SAH binary %.2f, wide %.2f | median split binary %.2f (median/SAH %.2f)\n",
+              sah, wide_sah, median_sah, sah > 0.0 ? median_sah / sah : 0.0);
+
+  // --- Traversal of the same rays.
+  std::vector<Ray> by_kind[3];
+  for (size_t i = 0; i < rays.rays.size(); ++i)
+    by_kind[size_t(rays.kind[i])].push_back(rays.rays[i]);
+  KernelData binary = ks.view(), wide = ks.view();
+  binary.constants.bvh_layout = kBvhLayoutBinary;
+  wide.constants.bvh_layout = kBvhLayoutWide;
+  const BvhTracer ours_binary{&binary}, ours_wide{&wide};
+  // Embree through the backend's own tracer (its alpha filter needs the
+  // extended context), the exact query the CPU backend renders with.
+  const EmbreeTracer emb{embree.top_level(), &embree.kernel_data()};
+  const char* kinds[3] = {"primary", "diffuse", "shadow"};
+  for (const int t : {1, threads}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(t));
+    std::printf("traversal, %d thread%s (Mrays/s; ratio ours/embree):\n", t, t == 1 ? "" : "s");
+    for (int k = 0; k < 3; ++k) {
+      const bool shadow = k == 2;
+      const Throughput e = trace_kind(emb, by_kind[k], shadow);
+      const Throughput b = trace_kind(ours_binary, by_kind[k], shadow);
+      const Throughput w = trace_kind(ours_wide, by_kind[k], shadow);
+      std::printf(
+          "  %-7s %7zu rays: embree %7.2f | binary %7.2f (%.2f) | wide %7.2f (%.2f)"
+          "   hits %llu/%llu/%llu\n",
+          kinds[k], by_kind[k].size(), e.mrays, b.mrays, b.mrays / e.mrays, w.mrays,
+          w.mrays / e.mrays, static_cast<unsigned long long>(e.hits),
+          static_cast<unsigned long long>(b.hits), static_cast<unsigned long long>(w.hits));
+    }
+    if (threads == 1) break;
+  }
+}
+
+}  // namespace tandem

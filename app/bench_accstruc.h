@@ -1,0 +1,35 @@
+// `tandem bench --accstruc`: Tandem's own BVH (accstruc/, issue 3) measured
+// against Embree on the same meshes and the same rays in the same run; and
+// the ray mix both benchmarks trace.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/scene/kernel_scene.h"
+
+namespace tandem {
+
+class EmbreeBackend;
+
+enum class BenchRayKind : uint8_t { kPrimary, kDiffuse, kShadow };
+
+// The ray mix of a path's first bounce: one camera ray per pixel, a
+// cosine-distributed ray from each camera hit, and a shadow ray from each hit
+// to a point sampled on the lights (the integrator's own sampling code).
+struct BenchRays {
+  std::vector<Ray> rays;
+  std::vector<BenchRayKind> kind;
+};
+BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
+                          uint32_t height);
+
+// Prints BLAS build throughput (ours vs Embree's builder), the SAH cost of
+// our BLAS (vs a median-split build), and closest-hit / any-hit throughput
+// of our two layouts vs Embree for primary, diffuse and shadow rays, on one
+// thread and on `threads` threads. `embree` must be synced to `ks`, whose
+// BVH arrays this fills.
+void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+                        int threads);
+
+}  // namespace tandem
