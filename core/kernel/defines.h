@@ -16,7 +16,9 @@
 #define TANDEM_DEVICE_COMPILE 0
 #endif
 
-#if !TANDEM_DEVICE_COMPILE
+// nvcc's host pass compiles the host branches below (std::memcpy) too, so
+// only NVRTC, which has no standard headers, goes without them.
+#if !defined(__CUDACC_RTC__)
 #include <cmath>
 #include <cstring>
 #endif
@@ -51,6 +53,8 @@ TANDEM_HD float uint_as_float(uint32_t u) {
 #endif
 }
 
-TANDEM_HD bool is_finite(float x) { return (float_as_uint(x) & 0x7f800000u) != 0x7f800000u; }
+TANDEM_HD bool is_finite(float x) {
+  return (float_as_uint(x) & 0x7f800000u) != 0x7f800000u;
+}
 
 }  // namespace tandem

@@ -1,0 +1,94 @@
+#include "backends/cuda/commit_plan.h"
+
+#include <algorithm>
+
+namespace tandem {
+
+size_t CommitPlan::array_bytes() const {
+  size_t total = 0;
+  for (const ArrayCopy& c : copies)
+    total += c.bytes();
+  return total;
+}
+
+size_t CommitPlan::total_bytes() const {
+  return array_bytes() + (view_changed ? sizeof(KernelData) : 0);
+}
+
+bool DoubleBufferedCommits::pending(uint32_t set) const {
+  const SetState& s = sets_[set];
+  if (s.constants_pending) return true;
+  for (const ArrayChange& c : s.pending)
+    if (c.any()) return true;
+  return false;
+}
+
+void DoubleBufferedCommits::add_delta(SetState& s, const SceneDelta& delta) {
+  for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
+    const ArrayChange& c = kernel_array_change(delta, a);
+    ArrayChange& p = s.pending[a];
+    if (delta.full || c.reallocated) {
+      p.reallocated = true;
+    } else if (c.end > c.begin) {
+      p.mark(c.begin, c.end);
+    }
+  }
+  // KernelData carries the constants by value, so any constant change means
+  // re-sending it (176 bytes of constants inside ~500 bytes of view).
+  s.constants_pending = s.constants_pending || delta.constants || delta.full;
+}
+
+CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& delta) {
+  for (SetState& s : sets_)
+    add_delta(s, delta);
+  const uint32_t target = (current_ + 1) % kSets;
+  SetState& s = sets_[target];
+  CommitPlan plan;
+  plan.set = target;
+  plan.view_changed = s.constants_pending || !s.view_uploaded;
+  for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
+    const size_t host_count = kernel_array_host_count(ks, a);
+    const uint32_t n = uint32_t(host_count);
+    ArrayChange& p = s.pending[a];
+    // A size change the delta did not flag still needs the whole array:
+    // never trust a range against a buffer of a different length.
+    const bool whole = p.reallocated || n != s.count[a];
+    if (whole) {
+      ArrayCopy c;
+      c.array = a;
+      c.begin = 0;
+      c.end = n;
+      c.resize = true;
+      c.count = n;
+      if (host_count > s.capacity[a]) {
+        // 25% headroom: scenes that grow a little every frame (spawned
+        // instances) do not reallocate every frame.
+        c.new_capacity = host_count + host_count / 4;
+        s.capacity[a] = c.new_capacity;
+      }
+      // A resize changes KernelData's count (and maybe its pointer).
+      if (n != s.count[a] || c.new_capacity != 0) plan.view_changed = true;
+      s.count[a] = n;
+      // Pushed even when empty: the copy also carries the new count.
+      plan.copies.push_back(c);
+    } else if (p.end > p.begin) {
+      const uint32_t end = std::min(p.end, n);
+      if (end > p.begin) {
+        ArrayCopy c;
+        c.array = a;
+        c.begin = p.begin;
+        c.end = end;
+        c.count = n;
+        plan.copies.push_back(c);
+      }
+    }
+    p = ArrayChange{};
+  }
+  s.constants_pending = false;
+  s.view_uploaded = true;
+  current_ = target;
+  committed_ = true;
+  return plan;
+}
+
+}  // namespace tandem

@@ -1,0 +1,84 @@
+// Bookkeeping of the CUDA backend's double-buffered scene commits, kept free
+// of CUDA so it can be unit-tested on machines without a GPU.
+//
+// The device holds two complete buffer sets (one device buffer per kernel
+// array plus a device-side KernelData each). Frame N renders from one set
+// while frame N+1's deltas are uploaded into the other, so an upload never
+// waits for the GPU to finish the frame in flight (Brigade's SyncAccStruc).
+// The price is that every change has to reach *both* sets: a range rewritten
+// in frame N is uploaded into set A at frame N and must be uploaded into set
+// B when B is next committed (frame N+1), even if frame N+1 did not touch it.
+// Each set therefore keeps its own pending list of changes that it has not
+// received yet; a commit adds the frame's delta to both lists and then
+// empties the target set's list by uploading it. Ranges of one array merge
+// into their bounding range, which at worst re-sends unchanged elements in
+// between (never misses one).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "backends/cuda/kernel_arrays.h"
+
+namespace tandem {
+
+// One host -> device copy of elements [begin, end) of an array. `resize`:
+// the set's buffer must first hold `count` elements (reallocated when its
+// capacity is below count; capacity given in elements).
+struct ArrayCopy {
+  uint32_t array = 0;
+  uint32_t begin = 0, end = 0;
+  bool resize = false;
+  uint32_t count = 0;       // the array's element count after this commit
+  size_t new_capacity = 0;  // elements to allocate; 0 = keep the buffer
+  size_t bytes() const { return size_t(end - begin) * kernel_array_element_size(array); }
+};
+
+struct CommitPlan {
+  uint32_t set = 0;  // which buffer set receives the copies
+  std::vector<ArrayCopy> copies;
+  // KernelData (pointers, counts, constants) must be re-sent to the set.
+  bool view_changed = false;
+  size_t array_bytes() const;
+  // Everything the commit moves host -> device, KernelData included.
+  size_t total_bytes() const;
+};
+
+class DoubleBufferedCommits {
+ public:
+  static constexpr uint32_t kSets = 2;
+
+  // Adds `delta` to both sets' pending lists and plans the upload of the
+  // target set's whole pending list from the current contents of `ks`. The
+  // target is the set the previous commit did not use; after plan() it is
+  // the set render() should read. Capacities recorded for the set assume the
+  // caller performs every copy of the plan.
+  CommitPlan plan(const KernelScene& ks, const SceneDelta& delta);
+
+  // The set the most recent plan() targeted (the one to render from).
+  uint32_t current_set() const { return current_; }
+  bool has_committed() const { return committed_; }
+  // Element count and capacity of an array in a set, as the plans left them.
+  uint32_t count(uint32_t set, uint32_t array) const { return sets_[set].count[array]; }
+  size_t capacity(uint32_t set, uint32_t array) const { return sets_[set].capacity[array]; }
+  // Whether the set still has changes it has not received.
+  bool pending(uint32_t set) const;
+
+ private:
+  struct SetState {
+    std::array<ArrayChange, kKernelArrayCount> pending{};
+    std::array<uint32_t, kKernelArrayCount> count{};
+    std::array<size_t, kKernelArrayCount> capacity{};
+    bool constants_pending = false;
+    bool view_uploaded = false;  // its device KernelData was ever written
+  };
+  static void add_delta(SetState& s, const SceneDelta& delta);
+
+  std::array<SetState, kSets> sets_{};
+  uint32_t current_ = kSets - 1;  // so the first commit goes to set 0
+  bool committed_ = false;
+};
+
+}  // namespace tandem
