@@ -37,7 +37,8 @@ ParsedArgs::ParsedArgs(const std::string& command, const std::vector<OptionSpec>
     }
     if (!spec) throw UsageError(command_ + ": unknown option '--" + name + "'");
     if (spec->takes_value && !inline_value) {
-      if (i + 1 >= args.size()) throw UsageError(command_ + ": option '--" + name + "' needs a value");
+      if (i + 1 >= args.size())
+        throw UsageError(command_ + ": option '--" + name + "' needs a value");
       value = args[++i];
     } else if (!spec->takes_value && inline_value) {
       throw UsageError(command_ + ": option '--" + name + "' takes no value");
@@ -64,21 +65,22 @@ int ParsedArgs::get_int(const std::string& name, int fallback, int min, int max)
   char* end = nullptr;
   const long n = std::strtol(v->c_str(), &end, 10);
   if (v->empty() || *end != '\0' || errno == ERANGE || n < min || n > max) {
-    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "], got '" + *v + "'");
+    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) +
+                     ", " + std::to_string(max) + "], got '" + *v + "'");
   }
   return int(n);
 }
 
-uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_t min, uint32_t max) const {
+uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_t min,
+                             uint32_t max) const {
   const auto v = value(name);
   if (!v) return fallback;
   errno = 0;
   char* end = nullptr;
   const unsigned long long n = std::strtoull(v->c_str(), &end, 10);
   if (v->empty() || (*v)[0] == '-' || *end != '\0' || errno == ERANGE || n < min || n > max) {
-    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "], got '" + *v + "'");
+    throw UsageError(command_ + ": --" + name + " expects an integer in [" + std::to_string(min) +
+                     ", " + std::to_string(max) + "], got '" + *v + "'");
   }
   return uint32_t(n);
 }
@@ -90,8 +92,8 @@ float ParsedArgs::get_float(const std::string& name, float fallback, float min, 
   char* end = nullptr;
   const float f = std::strtof(v->c_str(), &end);
   if (v->empty() || *end != '\0' || errno == ERANGE || !std::isfinite(f) || f < min || f > max) {
-    throw UsageError(command_ + ": --" + name + " expects a number in [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "], got '" + *v + "'");
+    throw UsageError(command_ + ": --" + name + " expects a number in [" + std::to_string(min) +
+                     ", " + std::to_string(max) + "], got '" + *v + "'");
   }
   return f;
 }
@@ -99,9 +101,12 @@ float ParsedArgs::get_float(const std::string& name, float fallback, float min, 
 std::string format_options_help(const std::vector<OptionSpec>& specs) {
   std::string out;
   for (const OptionSpec& s : specs) {
-    std::string left = "  --" + s.name + (s.takes_value ? " " + (s.value_name.empty() ? "X" : s.value_name) : "");
-    if (left.size() < 28) left.resize(28, ' ');
-    else left += "  ";
+    std::string left =
+        "  --" + s.name + (s.takes_value ? " " + (s.value_name.empty() ? "X" : s.value_name) : "");
+    if (left.size() < 28)
+      left.resize(28, ' ');
+    else
+      left += "  ";
     out += left + s.help + "\n";
   }
   return out;

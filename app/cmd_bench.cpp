@@ -2,8 +2,9 @@
 // the same run. The peer for the CPU backend is a plain Embree ray-casting
 // loop (rtcIntersect1 / rtcOccluded1 with no shading) over rays of the same
 // kinds the path tracer casts, so the ratio shows what shading and sampling
-// cost on top of Embree itself.
-#include <embree3/rtcore.h>
+// cost on top of Embree itself. With --accstruc it also measures Tandem's own
+// BVH against Embree (app/bench_accstruc.h) and path traces on the host
+// backend.
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -11,10 +12,14 @@
 #include <chrono>
 #include <cstdio>
 
+#include "app/bench_accstruc.h"
+#include "app/bench_hetero.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
+#include "app/view/bench_frames.h"
 #include "backends/backend_factory.h"
 #include "backends/cpu/embree_backend.h"
+#include "backends/host/host_backend.h"
 #include "core/kernel/integrator.h"
 #include "core/render/renderer.h"
 #include "core/util/errors.h"
@@ -32,6 +37,14 @@ const std::vector<OptionSpec>& bench_options() {
       {"max-depth", true, "maximum scattering events (default 8)", "D"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"env-color", true, "constant environment radiance (default 0; 1 for glTF files)", "X"},
+      {"accstruc", false,
+       "also measure Tandem's BVH against Embree: build, SAH cost, traversal; and the host "
+       "backend"},
+      {"hetero", true,
+       "also run the core tracer with each backend of LIST (e.g. cpu+host, cuda+cpu) alone and all "
+       "together",
+       "LIST"},
+      {"hetero-frames", true, "frames of 1 spp for --hetero (default 16)", "N"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -42,75 +55,21 @@ double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-struct RaySet {
-  std::vector<Ray> rays;
-  std::vector<uint8_t> is_shadow;
-};
-
-// Builds the ray mix of the first bounce: camera rays, cosine-distributed
-// rays from their hit points, and shadow rays from the hit points to points
-// on the lights (the same sampling code the integrator uses).
-RaySet make_ray_set(const KernelData& kd, const EmbreeBackend& backend, uint32_t width,
-                    uint32_t height) {
-  RaySet set;
-  std::vector<Ray> primary;
-  for (uint32_t y = 0; y < height; ++y) {
-    for (uint32_t x = 0; x < width; ++x) {
-      const PathRng rng = make_path_rng(y * width + x, 0, 12345);
-      primary.push_back(generate_camera_ray(kd.constants.camera, float(x) + rng_1d(rng, 0),
-                                            float(y) + rng_1d(rng, 1), 0.5f, 0.5f));
-    }
-  }
-  for (size_t i = 0; i < primary.size(); ++i) {
-    set.rays.push_back(primary[i]);
-    set.is_shadow.push_back(0);
-    const Hit hit = backend.intersect(primary[i]);
-    if (!hit_valid(hit)) continue;
-    const SurfacePoint sp = make_surface_point(kd, hit);
-    const PathRng rng = make_path_rng(uint32_t(i), 1, 777);
-    const Frame frame =
-        make_frame(dot(sp.geometric_normal, primary[i].dir) < 0.0f ? sp.geometric_normal
-                                                                   : -sp.geometric_normal);
-    const Vec3 d = to_world(frame, sample_cosine_hemisphere(rng_1d(rng, 2), rng_1d(rng, 3)));
-    set.rays.push_back(spawn_ray(sp, d));
-    set.is_shadow.push_back(0);
-    LightSample ls;
-    if (sample_light(kd, sp.position, rng_1d(rng, 4), rng_1d(rng, 5), rng_1d(rng, 6), &ls)) {
-      set.rays.push_back(ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point));
-      set.is_shadow.push_back(1);
-    }
-  }
-  return set;
-}
-
-// Plain Embree: no filters, no shading, default context.
-double embree_loop_mrays(RTCScene scene, const RaySet& set, int repeats) {
+// The Embree peer loop: rtcIntersect1 / rtcOccluded1 with no shading. It
+// goes through EmbreeTracer because the CPU backend's alpha-test filter
+// reads the tracer's extended ray context (a bare RTCIntersectContext would
+// hand it garbage on scenes with alpha-tested meshes).
+double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int repeats) {
+  const EmbreeTracer tracer{backend.top_level(), &backend.kernel_data()};
   const auto start = Clock::now();
   for (int r = 0; r < repeats; ++r) {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.rays.size(), 1024),
                       [&](const tbb::blocked_range<size_t>& range) {
-                        RTCIntersectContext ctx;
-                        rtcInitIntersectContext(&ctx);
                         for (size_t i = range.begin(); i != range.end(); ++i) {
-                          const Ray& in = set.rays[i];
-                          RTCRayHit rh;
-                          rh.ray.org_x = in.origin.x;
-                          rh.ray.org_y = in.origin.y;
-                          rh.ray.org_z = in.origin.z;
-                          rh.ray.dir_x = in.dir.x;
-                          rh.ray.dir_y = in.dir.y;
-                          rh.ray.dir_z = in.dir.z;
-                          rh.ray.tnear = in.tmin;
-                          rh.ray.tfar = in.tmax;
-                          rh.ray.time = 0.0f;
-                          rh.ray.mask = 0xffffffffu;
-                          rh.ray.id = 0;
-                          rh.ray.flags = 0;
-                          if (set.is_shadow[i]) {
-                            rtcOccluded1(scene, &ctx, &rh.ray);
+                          if (set.kind[i] == BenchRayKind::kShadow) {
+                            tracer.occluded(set.rays[i], 0);
                           } else {
-                            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                            rtcIntersect1(scene, &ctx, &rh);
+                            tracer.intersect(set.rays[i], 0);
                           }
                         }
                       });
@@ -121,6 +80,7 @@ double embree_loop_mrays(RTCScene scene, const RaySet& set, int repeats) {
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
+  if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
@@ -163,9 +123,9 @@ int run_bench(const std::vector<std::string>& argv) {
               settings.max_depth, workers);
   std::printf("embree build:           %8.3f s\n", build_s);
 
-  const RaySet rays = make_ray_set(kd, backend, settings.width, settings.height);
-  embree_loop_mrays(backend.top_level(), rays, 1);  // warm-up
-  const double raw = embree_loop_mrays(backend.top_level(), rays, 3);
+  const BenchRays rays = make_bench_rays(kd, backend, settings.width, settings.height);
+  embree_loop_mrays(backend, rays, 1);  // warm-up
+  const double raw = embree_loop_mrays(backend, rays, 3);
 
   OfflineRenderOptions options;
   options.spp = spp;
@@ -177,6 +137,22 @@ int run_bench(const std::vector<std::string>& argv) {
   std::printf("path tracing (cpu):     %8.2f Mrays/s, %.3f M samples/s, %.2f s\n", pt_mrays,
               double(result.stats.samples) / result.seconds * 1e-6, result.seconds);
   std::printf("ratio path/plain:       %8.2f\n", pt_mrays / raw);
+
+  if (args.has("accstruc")) {
+    run_accstruc_bench(ks, backend, rays, workers);
+    // The same path tracing on the host backend: our BVH (binary layout,
+    // filled in by run_accstruc_bench) under the same kernels.
+    HostBackend host;
+    host.sync(ks, delta);
+    const OfflineRenderResult h = render_offline(host, settings.width, settings.height, options);
+    const double host_mrays = double(h.stats.rays) / h.seconds * 1e-6;
+    std::printf("path tracing (host):    %8.2f Mrays/s, %.3f M samples/s, %.2f s (host/cpu %.2f)\n",
+                host_mrays, double(h.stats.samples) / h.seconds * 1e-6, h.seconds,
+                host_mrays / pt_mrays);
+  }
+  if (auto list = args.value("hetero")) {
+    run_hetero_bench(scene, settings, args.get_u32("hetero-frames", 16, 1, 1u << 20), *list);
+  }
   return 0;
 }
 

@@ -19,7 +19,8 @@ const std::vector<OptionSpec>& info_options() {
 }
 
 bool material_emits(const Material& m) {
-  return m.emissive_strength > 0.0f && (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f);
+  return m.emissive_strength > 0.0f &&
+         (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f);
 }
 }  // namespace
 
@@ -39,31 +40,35 @@ int run_info(const std::vector<std::string>& argv) {
   for (const Instance& inst : scene.instances()) {
     const Mesh& mesh = scene.meshes()[inst.mesh];
     for (uint32_t mat : mesh.triangle_materials) {
-      if (mat < scene.materials().size() && material_emits(scene.materials()[mat])) ++emissive_triangles;
+      if (mat < scene.materials().size() && material_emits(scene.materials()[mat]))
+        ++emissive_triangles;
     }
   }
   size_t vertices = 0;
-  for (const Mesh& m : scene.meshes()) vertices += m.positions.size();
+  for (const Mesh& m : scene.meshes())
+    vertices += m.positions.size();
   const SceneBounds b = scene.bounds();
   std::printf("scene:      %s\n", args.positionals()[0].c_str());
-  std::printf("triangles:  %zu (%zu unique in %zu meshes, %zu vertices)\n", scene.triangle_count_instanced(),
-              scene.triangle_count_unique(), scene.meshes().size(), vertices);
+  std::printf("triangles:  %zu (%zu unique in %zu meshes, %zu vertices)\n",
+              scene.triangle_count_instanced(), scene.triangle_count_unique(),
+              scene.meshes().size(), vertices);
   std::printf("instances:  %zu\n", scene.instances().size());
   std::printf("materials:  %zu\n", scene.materials().size());
   std::printf("textures:   %zu\n", scene.textures().size());
-  std::printf("lights:     %zu punctual, %zu emissive triangles%s\n", scene.lights().size(), emissive_triangles,
-              scene.environment().texels.empty() ? "" : ", environment map");
+  std::printf("lights:     %zu punctual, %zu emissive triangles%s\n", scene.lights().size(),
+              emissive_triangles, scene.environment().texels.empty() ? "" : ", environment map");
   if (b.empty) {
     std::printf("bounds:     empty\n");
   } else {
-    std::printf("bounds:     (%.4g, %.4g, %.4g) - (%.4g, %.4g, %.4g), size %.4g x %.4g x %.4g\n", b.lo.x, b.lo.y,
-                b.lo.z, b.hi.x, b.hi.y, b.hi.z, b.hi.x - b.lo.x, b.hi.y - b.lo.y, b.hi.z - b.lo.z);
+    std::printf("bounds:     (%.4g, %.4g, %.4g) - (%.4g, %.4g, %.4g), size %.4g x %.4g x %.4g\n",
+                b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z, b.hi.x - b.lo.x, b.hi.y - b.lo.y,
+                b.hi.z - b.lo.z);
   }
   if (scene.has_camera()) {
     const Camera& c = scene.camera();
     std::printf("camera:     %s at (%.4g, %.4g, %.4g) looking (%.3f, %.3f, %.3f)\n",
-                c.type == CameraType::kPerspective ? "perspective" : "orthographic", c.position.x, c.position.y,
-                c.position.z, c.forward.x, c.forward.y, c.forward.z);
+                c.type == CameraType::kPerspective ? "perspective" : "orthographic", c.position.x,
+                c.position.y, c.position.z, c.forward.x, c.forward.y, c.forward.z);
   } else {
     std::printf("camera:     none (render frames the bounds automatically)\n");
   }

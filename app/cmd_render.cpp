@@ -2,17 +2,19 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
 #include <sstream>
 
+#include "app/backend_list.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
 #include "app/progress.h"
 #include "backends/backend_factory.h"
-#include "core/render/renderer.h"
 #include "core/scene/kernel_scene.h"
+#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
 #include "scenes/scene_loader.h"
@@ -26,20 +28,30 @@ const std::vector<OptionSpec>& render_options() {
       {"width", true, "image width in pixels (default: from the camera aspect, height 720)", "W"},
       {"height", true, "image height in pixels", "H"},
       {"spp", true, "samples per pixel (default 64)", "N"},
-      {"max-depth", true, "maximum scattering events per path; 1 = direct light only (default 8)", "D"},
-      {"backend", true, "cpu | host | cuda | hetero | auto (default auto)", "B"},
+      {"max-depth", true, "maximum scattering events per path; 1 = direct light only (default 8)",
+       "D"},
+      {"backend", true,
+       "cpu | host | cuda | hetero | auto (default auto), or a list such as cpu+host to split each "
+       "frame "
+       "between backends",
+       "B"},
+      {"split", true,
+       "fixed share of each frame for the first backend, 0..1 (default: balanced from measured "
+       "throughput)",
+       "F"},
+      {"no-stealing", false, "backends never take tiles planned for another"},
       {"seed", true, "random seed; same seed, same image (default 0)", "S"},
       {"exposure", true, "exposure in stops applied to PNG output (default 0)", "E"},
       {"tonemap", true, "PNG tone curve: standard | aces | reinhard (default standard)", "T"},
-      {"output", true, "output file: .png (tone mapped sRGB), .exr or .pfm (linear) (default render.png)",
-       "FILE"},
+      {"output", true,
+       "output file: .png (tone mapped sRGB), .exr or .pfm (linear) (default render.png)", "FILE"},
       {"gltf-scene", true, "glTF scene index to render (default: the file's default scene)", "N"},
       {"env", true, "equirectangular environment map (.hdr, .exr, .pfm)", "FILE"},
       {"env-color", true, "constant environment radiance, e.g. 0.5 or 0.2,0.3,0.4", "RGB"},
       {"env-intensity", true, "multiplier of the environment (default 1)", "X"},
       {"env-rotation", true, "environment rotation about +y in degrees (default 0)", "DEG"},
-      {"aperture", true, "thin-lens aperture radius in scene units (default: the camera's, usually 0)",
-       "R"},
+      {"aperture", true,
+       "thin-lens aperture radius in scene units (default: the camera's, usually 0)", "R"},
       {"focus-distance", true, "distance to the plane in focus, scene units", "F"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"tile-size", true, "tile edge in pixels (default 32)", "N"},
@@ -83,7 +95,8 @@ int run_render(const std::vector<std::string>& argv) {
     return 0;
   }
   if (args.positionals().size() != 1) {
-    throw UsageError("render: expected exactly one SCENE argument (a .gltf/.glb file or builtin:NAME)");
+    throw UsageError(
+        "render: expected exactly one SCENE argument (a .gltf/.glb file or builtin:NAME)");
   }
   const std::string scene_spec = args.positionals()[0];
   const bool quiet = args.has("quiet");
@@ -92,7 +105,9 @@ int run_render(const std::vector<std::string>& argv) {
   settings.max_depth = args.get_u32("max-depth", 8, 0, 1024);
   settings.seed = args.get_u32("seed", 0, 0, 0xffffffffu);
   settings.radiance_clamp = args.get_float("clamp", 0.0f, 0.0f, 1e30f);
-  const BackendKind backend_kind = parse_backend_kind(args.get_string("backend", "auto"));
+  const std::string backend_spec = args.get_string("backend", "auto");
+  make_backend_list(backend_spec, /*validate_only=*/true);  // usage errors before loading
+  const float split = args.has("split") ? args.get_float("split", 0.5f, 0.0f, 1.0f) : -1.0f;
   ImageWriteOptions write_options;
   write_options.exposure = args.get_float("exposure", 0.0f, -50.0f, 50.0f);
   write_options.tone_map = parse_tone_map(args.get_string("tonemap", "standard"));
@@ -107,7 +122,8 @@ int run_render(const std::vector<std::string>& argv) {
   // Check the output extension before spending time on loading/rendering.
   {
     std::string ext = std::filesystem::path(output).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    for (char& c : ext)
+      c = char(std::tolower(static_cast<unsigned char>(c)));
     if (ext != ".png" && ext != ".exr" && ext != ".pfm") {
       throw UsageError("render: --output must end in .png, .exr or .pfm, got '" + output + "'");
     }
@@ -124,12 +140,15 @@ int run_render(const std::vector<std::string>& argv) {
     scene.edit_environment().intensity = args.get_float("env-intensity", 1.0f, 0.0f, 1e9f);
   }
   if (args.has("env-rotation")) {
-    scene.edit_environment().rotation = args.get_float("env-rotation", 0.0f, -1e6f, 1e6f) * float(M_PI) / 180.0f;
+    scene.edit_environment().rotation =
+        args.get_float("env-rotation", 0.0f, -1e6f, 1e6f) * float(M_PI) / 180.0f;
   }
-  if (scene.triangle_count_instanced() == 0) log_warning(scene_spec + ": the scene has no triangles");
+  if (scene.triangle_count_instanced() == 0)
+    log_warning(scene_spec + ": the scene has no triangles");
 
   // Resolution: explicit, or from the camera's aspect ratio.
-  const float aspect = scene.camera().aspect_ratio > 0.0f ? scene.camera().aspect_ratio : 16.0f / 9.0f;
+  const float aspect =
+      scene.camera().aspect_ratio > 0.0f ? scene.camera().aspect_ratio : 16.0f / 9.0f;
   if (args.has("width") && args.has("height")) {
     settings.width = args.get_u32("width", 0, 1, 32768);
     settings.height = args.get_u32("height", 0, 1, 32768);
@@ -155,33 +174,78 @@ int run_render(const std::vector<std::string>& argv) {
     cam.focus_distance = args.get_float("focus-distance", cam.focus_distance, 1e-6f, 1e9f);
   }
 
-  KernelScene kernel_scene;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, kernel_scene);
-
-  std::vector<std::unique_ptr<Backend>> backends = create_backends(backend_kind);
-  Backend& backend = *backends.front();
-  backend.sync(kernel_scene, delta);
+  TracerSettings tracer_settings;
+  tracer_settings.render = settings;
+  tracer_settings.tile_size = tile_size;
+  tracer_settings.scheduler.forced_split = split;
+  tracer_settings.scheduler.stealing = !args.has("no-stealing");
+  // The samples are rendered as a few frames of the core tracer: the tile
+  // split is rebalanced between them, and they drive the progress bar.
+  const uint32_t frames = std::min(spp, 32u);
+  const uint32_t per_frame = (spp + frames - 1) / frames;
+  tracer_settings.samples_per_frame = per_frame;
+  CoreTracer tracer(make_backend_list(backend_spec), tracer_settings);
 
   ProgressBar bar(!quiet && stderr_is_terminal());
-  OfflineRenderOptions render_options;
-  render_options.spp = spp;
-  render_options.tile_size = tile_size;
-  if (bar.enabled()) render_options.progress = [&bar](double f) { bar.update(f); };
-  const OfflineRenderResult result = render_offline(backend, settings.width, settings.height, render_options);
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<BackendFrameMetrics> totals;
+  double render_seconds = 0.0;
+  while (tracer.accumulated_spp() < spp) {
+    const uint32_t left = spp - tracer.accumulated_spp();
+    if (left < tracer_settings.samples_per_frame) {
+      tracer_settings.samples_per_frame = left;  // does not restart accumulation
+      tracer.set_settings(tracer_settings);
+    }
+    const FrameMetrics& m = tracer.render_frame(scene);
+    render_seconds += m.render_seconds;
+    totals.resize(m.backends.size());
+    for (size_t b = 0; b < m.backends.size(); ++b) {
+      BackendFrameMetrics& t = totals[b];
+      const BackendFrameMetrics& f = m.backends[b];
+      t.name = f.name;
+      t.tiles += f.tiles;
+      t.stolen += f.stolen;
+      t.seconds += f.seconds;
+      t.idle_seconds += f.idle_seconds;
+      t.rays += f.rays;
+      t.samples += f.samples;
+      t.commit_bytes += f.commit_bytes;
+      t.planned_share = f.planned_share;  // the last frame's plan
+    }
+    if (bar.enabled()) bar.update(double(tracer.accumulated_spp()) / double(spp));
+  }
   bar.finish();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  write_image(output, result.image, write_options);
+  write_image(output, tracer.image(), write_options);
 
   if (!quiet) {
-    const double samples_per_s = double(result.stats.samples) / result.seconds;
-    const double rays_per_s = double(result.stats.rays) / result.seconds;
+    uint64_t samples = 0, rays = 0;
+    std::string names;
+    for (const BackendFrameMetrics& t : totals) {
+      samples += t.samples;
+      rays += t.rays;
+      names += (names.empty() ? "" : "+") + t.name;
+    }
     const int worker_threads = threads ? int(threads) : tbb::info::default_concurrency();
-    std::fprintf(stderr,
-                 "tandem: %ux%u, %u spp, max depth %u on %s (%d threads): %.2f s, %.2f M samples/s, "
-                 "%.1f Mrays/s -> %s\n",
-                 settings.width, settings.height, spp, settings.max_depth, backend.name().c_str(),
-                 worker_threads, result.seconds, samples_per_s * 1e-6, rays_per_s * 1e-6, output.c_str());
+    if (totals.size() > 1) {
+      for (const BackendFrameMetrics& t : totals) {
+        std::fprintf(
+            stderr,
+            "tandem:   %-5s %5u tiles (%u stolen), %.1f%% of samples, busy %.2f s, idle %.2f s, "
+            "%.1f Mrays/s, last planned share %.2f, %llu commit bytes\n",
+            t.name.c_str(), t.tiles, t.stolen,
+            samples ? 100.0 * double(t.samples) / double(samples) : 0.0, t.seconds, t.idle_seconds,
+            t.mrays_per_second(), t.planned_share, static_cast<unsigned long long>(t.commit_bytes));
+      }
+    }
+    std::fprintf(
+        stderr,
+        "tandem: %ux%u, %u spp, max depth %u on %s (%d threads): %.2f s, %.2f M samples/s, "
+        "%.1f Mrays/s -> %s\n",
+        settings.width, settings.height, spp, settings.max_depth, names.c_str(), worker_threads,
+        seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6, output.c_str());
   }
   return 0;
 }

@@ -24,6 +24,7 @@ BackendStats render_tiles_on_cpu(const KernelData& kd, const Tracer& tracer, con
     BackendStats& st = per_worker[size_t(w)];
     Tile tile;
     while (tiles.next(&tile)) {
+      const auto tile_start = std::chrono::steady_clock::now();
       for (uint32_t y = tile.y0; y < tile.y1; ++y) {
         for (uint32_t x = tile.x0; x < tile.x1; ++x) {
           uint32_t rays = 0;
@@ -40,13 +41,18 @@ BackendStats render_tiles_on_cpu(const KernelData& kd, const Tracer& tracer, con
           st.rays += rays;
         }
       }
+      if (pass.tile_seconds) {
+        pass.tile_seconds[tile.index] =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - tile_start).count();
+      }
       st.tiles += 1;
       st.pixels += tile.pixel_count();
       st.samples += uint64_t(tile.pixel_count()) * pass.sample_count;
     }
   });
   BackendStats total;
-  for (const BackendStats& s : per_worker) total += s;
+  for (const BackendStats& s : per_worker)
+    total += s;
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return total;
 }

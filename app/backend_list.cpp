@@ -1,0 +1,34 @@
+#include "app/backend_list.h"
+
+#include <sstream>
+
+#include "backends/backend_factory.h"
+#include "core/util/errors.h"
+
+namespace tandem {
+
+std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
+                                                        bool validate_only) {
+  std::vector<BackendKind> kinds;
+  std::stringstream parts(spec);
+  std::string part;
+  while (std::getline(parts, part, '+'))
+    kinds.push_back(parse_backend_kind(part));
+  if (kinds.empty()) throw UsageError("--backend: empty backend list");
+  if (kinds.size() > 1) {
+    for (BackendKind k : kinds) {
+      if (k == BackendKind::kAuto || k == BackendKind::kHetero) {
+        throw UsageError("--backend " + spec + ": auto and hetero cannot be part of a list");
+      }
+    }
+  }
+  std::vector<std::unique_ptr<Backend>> out;
+  if (validate_only) return out;
+  for (BackendKind k : kinds) {
+    for (auto& b : create_backends(k))
+      out.push_back(std::move(b));
+  }
+  return out;
+}
+
+}  // namespace tandem

@@ -1,0 +1,256 @@
+#include "core/tracer/core_tracer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <stdexcept>
+#include <thread>
+
+#include "accstruc/accel_structure.h"
+#include "core/util/errors.h"
+
+namespace tandem {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// Settings that change what a pixel converges to (or which samples it gets).
+bool same_image(const TracerSettings& a, const TracerSettings& b) {
+  const RenderSettings &x = a.render, &y = b.render;
+  return x.width == y.width && x.height == y.height && x.max_depth == y.max_depth &&
+         x.rr_start_depth == y.rr_start_depth && x.seed == y.seed &&
+         x.radiance_clamp == y.radiance_clamp;
+}
+
+}  // namespace
+
+uint64_t FrameMetrics::rays() const {
+  uint64_t r = 0;
+  for (const BackendFrameMetrics& b : backends)
+    r += b.rays;
+  return r;
+}
+
+uint64_t FrameMetrics::samples() const {
+  uint64_t s = 0;
+  for (const BackendFrameMetrics& b : backends)
+    s += b.samples;
+  return s;
+}
+
+CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSettings settings)
+    : backends_(std::move(backends)), settings_(settings), scheduler_(settings.scheduler) {
+  if (backends_.empty()) throw InputError("core tracer: no backend to render with");
+  for (size_t i = 0; i < backends_.size(); ++i) {
+    if (backends_[i]->needs_bvh() && !accel_) accel_ = std::make_unique<AccelStructure>();
+    if (backends_[i]->uses_host_cores()) host_core_backends_.push_back(i);
+  }
+  probe_rate_.assign(backends_.size(), 0.0);
+}
+
+CoreTracer::~CoreTracer() {
+  for (std::thread& th : flight_.threads)
+    th.join();
+}
+
+void CoreTracer::set_settings(const TracerSettings& settings) {
+  // The backends read the film and the scheduler while a frame is in
+  // flight: changes wait for the next begin_frame().
+  if (in_flight_) {
+    pending_settings_ = settings;
+    return;
+  }
+  apply_settings(settings);
+}
+
+void CoreTracer::apply_settings(const TracerSettings& settings) {
+  if (!same_image(settings, settings_)) reset_pending_ = true;
+  if (settings.render.width != settings_.render.width ||
+      settings.render.height != settings_.render.height ||
+      settings.tile_size != settings_.tile_size) {
+    grid_stale_ = true;
+  }
+  settings_ = settings;
+  scheduler_.set_settings(settings.scheduler);
+}
+
+const FrameMetrics& CoreTracer::render_frame(Scene& scene) {
+  begin_frame(scene);
+  return end_frame();
+}
+
+void CoreTracer::begin_frame(Scene& scene) {
+  if (in_flight_)
+    throw std::logic_error("CoreTracer::begin_frame: the previous frame was not ended");
+  if (pending_settings_) {
+    apply_settings(*pending_settings_);
+    pending_settings_.reset();
+  }
+  frame_start_ = Clock::now();
+  FrameMetrics& m = metrics_;
+  m = FrameMetrics{};
+  m.frame = frame_++;
+
+  // SyncScene (the compiler also notices changed render settings).
+  auto t = Clock::now();
+  SceneDelta delta = compiler_.compile(scene, settings_.render, kernel_scene_);
+  m.sync_scene_seconds = seconds_since(t);
+
+  // UpdateAccStruc: only for backends that traverse Tandem's BVH.
+  t = Clock::now();
+  if (accel_) accel_->update_and_mark(kernel_scene_, delta);
+  m.update_accstruc_seconds = seconds_since(t);
+  m.delta_bytes = delta.any() ? delta.bytes(kernel_scene_) : 0;
+
+  // SyncAccStruc: each backend commits what changed (the CUDA backend
+  // queues the upload on its copy stream and returns).
+  t = Clock::now();
+  for (auto& b : backends_)
+    b->sync(kernel_scene_, delta);
+  m.sync_accstruc_seconds = seconds_since(t);
+
+  if (delta.any()) reset_pending_ = true;
+  if (grid_stale_) {
+    film_.resize(settings_.render.width, settings_.render.height);
+    scheduler_.reset(
+        make_tile_grid(settings_.render.width, settings_.render.height, settings_.tile_size),
+        backends_.size());
+    grid_stale_ = false;
+    reset_pending_ = true;
+  }
+  if (reset_pending_) {
+    film_.clear();
+    accumulated_spp_ = 0;
+    m.accumulation_reset = true;
+    reset_pending_ = false;
+  }
+  choose_host_core_backends();
+  launch_render();
+}
+
+namespace {
+// Frames between re-checks of which host-core backend is fastest, and how
+// many frames alone each of them gets per check (alternating).
+constexpr uint64_t kHostCoreReprobeFrames = 240;
+constexpr size_t kHostCoreProbeRounds = 2;
+}  // namespace
+
+void CoreTracer::choose_host_core_backends() {
+  std::vector<bool> enabled(backends_.size(), true);
+  const size_t n = host_core_backends_.size();
+  const bool exclusive =
+      settings_.exclusive_host_cores && settings_.scheduler.forced_split < 0.0f && n >= 2;
+  if (exclusive && frames_since_probe_ >= kHostCoreReprobeFrames) {
+    probe_ = 0;
+    frames_since_probe_ = 0;
+    std::fill(probe_rate_.begin(), probe_rate_.end(), 0.0);
+  }
+  // Frame 0 warms every backend up (thread pools, caches) with the usual
+  // split; then each host-core backend renders one frame alone.
+  if (exclusive && metrics_.frame > 0) {
+    for (size_t i : host_core_backends_)
+      enabled[i] = false;
+    if (probe_ < kHostCoreProbeRounds * n) {
+      enabled[host_core_backends_[probe_ % n]] = true;
+    } else {
+      size_t best = host_core_backends_[0];
+      for (size_t i : host_core_backends_) {
+        if (probe_rate_[i] > probe_rate_[best]) best = i;
+      }
+      enabled[best] = true;
+    }
+  }
+  scheduler_.set_enabled(enabled);
+}
+
+void CoreTracer::record_host_core_probe() {
+  ++frames_since_probe_;
+  const size_t n = host_core_backends_.size();
+  if (metrics_.frame == 0 || probe_ >= kHostCoreProbeRounds * n) return;
+  const size_t b = host_core_backends_[probe_ % n];
+  const BackendStats& st = flight_.stats[b];
+  // The best of the rounds: other load on the machine only ever slows a
+  // probe down.
+  if (st.seconds > 0.0) probe_rate_[b] = std::max(probe_rate_[b], double(st.samples) / st.seconds);
+  ++probe_;
+}
+
+void CoreTracer::launch_render() {
+  Flight& f = flight_;
+  f.pass = RenderPass{};
+  f.pass.sample_begin = accumulated_spp_;
+  f.pass.sample_count = std::max(settings_.samples_per_frame, 1u);
+  f.tile_seconds.assign(scheduler_.tile_count(), -1.0);
+  f.pass.tile_seconds = f.tile_seconds.data();
+  const std::vector<TileSource*> sources = scheduler_.begin_frame();
+  const size_t n = backends_.size();
+  f.stats.assign(n, BackendStats{});
+  f.errors.assign(n, nullptr);
+  f.start = Clock::now();
+  // Every backend renders on its own thread (CPU backends fan out further
+  // through TBB; the CUDA backend mostly waits on its stream), so the caller
+  // is free to prepare the next frame's Scene meanwhile.
+  f.threads.clear();
+  for (size_t b = 0; b < n; ++b) {
+    f.threads.emplace_back([this, b, source = sources[b]] {
+      try {
+        flight_.stats[b] = backends_[b]->render(flight_.pass, *source, film_);
+      } catch (...) {
+        flight_.errors[b] = std::current_exception();
+      }
+    });
+  }
+  in_flight_ = true;
+}
+
+const FrameMetrics& CoreTracer::end_frame() {
+  if (!in_flight_) throw std::logic_error("CoreTracer::end_frame: no frame in flight");
+  Flight& f = flight_;
+  for (std::thread& th : f.threads)
+    th.join();
+  f.threads.clear();
+  in_flight_ = false;
+  FrameMetrics& m = metrics_;
+  m.render_seconds = seconds_since(f.start);
+  const size_t n = backends_.size();
+  std::vector<double> backend_seconds(n);
+  for (size_t b = 0; b < n; ++b)
+    backend_seconds[b] = f.stats[b].seconds;
+  const std::vector<uint32_t> stolen = scheduler_.stolen_counts();
+  m.backends.resize(n);
+  for (size_t b = 0; b < n; ++b) {
+    BackendFrameMetrics& bm = m.backends[b];
+    bm.name = backends_[b]->name();
+    bm.enabled = scheduler_.enabled(b);
+    bm.tiles = f.stats[b].tiles;
+    bm.stolen = stolen[b];
+    bm.planned_share = scheduler_.planned_shares()[b];
+    bm.seconds = f.stats[b].seconds;
+    bm.idle_seconds = std::max(0.0, m.render_seconds - f.stats[b].seconds);
+    bm.rays = f.stats[b].rays;
+    bm.samples = f.stats[b].samples;
+    bm.commit_bytes = f.stats[b].commit_bytes;
+  }
+  for (const std::exception_ptr& e : f.errors) {
+    if (e) {
+      // The frame's samples are incomplete: start over next frame.
+      reset_pending_ = true;
+      std::rethrow_exception(e);
+    }
+  }
+  scheduler_.end_frame(backend_seconds, f.tile_seconds);
+  if (settings_.exclusive_host_cores && settings_.scheduler.forced_split < 0.0f &&
+      host_core_backends_.size() >= 2) {
+    record_host_core_probe();
+  }
+  accumulated_spp_ += f.pass.sample_count;
+  m.accumulated_spp = accumulated_spp_;
+  m.total_seconds = seconds_since(frame_start_);
+  return m;
+}
+
+}  // namespace tandem

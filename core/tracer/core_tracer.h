@@ -1,0 +1,159 @@
+// The core tracer: Brigade's frame loop over any set of backends.
+//
+//   SyncScene      SceneCompiler turns the scene's dirty objects into kernel
+//                  array ranges (a SceneDelta)
+//   UpdateAccStruc AccelStructure rebuilds/refits BLAS and the TLAS (only
+//                  when some backend traverses Tandem's own BVH)
+//   SyncAccStruc   every backend commits the delta (the CUDA backend
+//                  uploads only the changed ranges, asynchronously)
+//   Render         all backends render concurrently, each pulling tiles of
+//                  the frame from the TileScheduler
+//   Combine        tiles land in one Film; pixels may change owner from one
+//                  frame to the next because the Film holds sums, not means
+//   Present        the caller's: image() / film()
+//
+// Accumulation is progressive: every frame adds samples_per_frame samples
+// per pixel with consecutive sample indices, and any scene change or
+// settings change starts over.
+#pragma once
+
+#include <chrono>
+#include <exception>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/render/backend.h"
+#include "core/scene/kernel_scene.h"
+#include "core/scene/scene.h"
+#include "core/tracer/tile_scheduler.h"
+
+namespace tandem {
+
+class AccelStructure;
+
+struct TracerSettings {
+  RenderSettings render;  // resolution, depth, seed, clamp
+  uint32_t samples_per_frame = 1;
+  uint32_t tile_size = 32;
+  SchedulerSettings scheduler;
+  // Backends that run on the host's CPU cores (cpu, host) compete for them:
+  // splitting a frame between two of them cannot beat the faster one alone.
+  // When set (and no --split is forced), the tracer times each of them alone
+  // for a frame, then lets only the fastest render, and re-checks now and
+  // then. GPU backends are unaffected.
+  bool exclusive_host_cores = true;
+};
+
+struct BackendFrameMetrics {
+  std::string name;
+  uint32_t tiles = 0;
+  uint32_t stolen = 0;         // tiles taken from another backend's share
+  bool enabled = true;         // false: left out to keep the CPU cores for a faster backend
+  double planned_share = 0.0;  // of the frame's estimated cost
+  double seconds = 0.0;        // inside render()
+  double idle_seconds = 0.0;   // waiting for the slowest backend
+  uint64_t rays = 0, samples = 0;
+  uint64_t commit_bytes = 0;  // scene data this backend sent to its device
+  double mrays_per_second() const { return seconds > 0.0 ? double(rays) / seconds * 1e-6 : 0.0; }
+};
+
+struct FrameMetrics {
+  uint64_t frame = 0;
+  uint32_t accumulated_spp = 0;  // after this frame
+  bool accumulation_reset = false;
+  double sync_scene_seconds = 0.0, update_accstruc_seconds = 0.0, sync_accstruc_seconds = 0.0;
+  double render_seconds = 0.0, total_seconds = 0.0;
+  uint64_t delta_bytes = 0;  // size of the frame's changed kernel-array ranges
+  std::vector<BackendFrameMetrics> backends;
+  uint64_t rays() const;
+  uint64_t samples() const;
+};
+
+class CoreTracer {
+ public:
+  CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSettings settings = {});
+  ~CoreTracer();
+  CoreTracer(const CoreTracer&) = delete;
+  CoreTracer& operator=(const CoreTracer&) = delete;
+
+  // Runs one frame of the loop on `scene` (whose dirty flags it consumes):
+  // begin_frame() then end_frame().
+  const FrameMetrics& render_frame(Scene& scene);
+  // The same in two halves. begin_frame() runs SyncScene, UpdateAccStruc and
+  // SyncAccStruc and starts every backend rendering on its own thread;
+  // the renderers read only the compiled KernelScene, so between the two
+  // calls the caller may advance the Scene to the next frame (simulation,
+  // animation, input) while this one renders. end_frame() waits for the
+  // backends, combines and updates the split. Film and image are only valid
+  // after end_frame().
+  void begin_frame(Scene& scene);
+  const FrameMetrics& end_frame();
+  bool frame_in_flight() const { return in_flight_; }
+
+  // Changing anything that alters the image restarts accumulation; a new
+  // resolution or tile size also restarts the scheduler's estimates. While a
+  // frame is in flight the change applies from the next begin_frame().
+  void set_settings(const TracerSettings& settings);
+  const TracerSettings& settings() const {
+    return pending_settings_ ? *pending_settings_ : settings_;
+  }
+  void reset_accumulation() { reset_pending_ = true; }
+
+  uint32_t accumulated_spp() const { return accumulated_spp_; }
+  const Film& film() const { return film_; }
+  ImageRGB image() const { return film_.resolve(); }
+  const FrameMetrics& last_frame() const { return metrics_; }
+
+  size_t backend_count() const { return backends_.size(); }
+  const Backend& backend(size_t i) const { return *backends_[i]; }
+  // Which backend rendered each tile of the last frame (index into
+  // backends; -1: none), for the split overlay.
+  const std::vector<Tile>& tiles() const { return scheduler_.tiles(); }
+  const std::vector<int32_t>& tile_owners() const { return scheduler_.owners(); }
+  const TileScheduler& scheduler() const { return scheduler_; }
+  const KernelScene& kernel_scene() const { return kernel_scene_; }
+
+ private:
+  void apply_settings(const TracerSettings& settings);
+  void choose_host_core_backends();
+  void record_host_core_probe();
+  void launch_render();
+
+  // State of the frame between begin_frame() and end_frame().
+  struct Flight {
+    RenderPass pass;
+    std::vector<double> tile_seconds;
+    std::vector<BackendStats> stats;
+    std::vector<std::exception_ptr> errors;
+    std::vector<std::thread> threads;
+    std::chrono::steady_clock::time_point start;
+  };
+
+  std::vector<std::unique_ptr<Backend>> backends_;
+  TracerSettings settings_;
+  SceneCompiler compiler_;
+  KernelScene kernel_scene_;
+  std::unique_ptr<AccelStructure> accel_;  // null when no backend needs it
+  TileScheduler scheduler_;
+  Film film_;
+  FrameMetrics metrics_;
+  // Among backends that use the host's cores: which one is being timed
+  // alone (probe_ < its count), and the samples/s each achieved alone.
+  std::vector<size_t> host_core_backends_;
+  size_t probe_ = 0;
+  std::vector<double> probe_rate_;
+  uint64_t frames_since_probe_ = 0;
+  Flight flight_;
+  bool in_flight_ = false;
+  std::optional<TracerSettings> pending_settings_;
+  std::chrono::steady_clock::time_point frame_start_;
+  uint64_t frame_ = 0;
+  uint32_t accumulated_spp_ = 0;
+  bool reset_pending_ = true;
+  bool grid_stale_ = true;
+};
+
+}  // namespace tandem

@@ -1,0 +1,212 @@
+// The core tracer's frame loop: the image never depends on which backend
+// rendered which tile, progressive accumulation stays exact when tiles change
+// owner between frames, and scene changes restart it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "backends/cpu/embree_backend.h"
+#include "backends/host/host_backend.h"
+#include "core/render/renderer.h"
+#include "core/tracer/core_tracer.h"
+#include "scenes/builtin_scenes.h"
+
+namespace tandem {
+namespace {
+
+TracerSettings small_settings(float split, bool stealing) {
+  TracerSettings s;
+  s.render.width = 64;
+  s.render.height = 48;
+  s.render.seed = 3;
+  s.samples_per_frame = 2;
+  s.tile_size = 8;
+  s.scheduler.forced_split = split;
+  s.scheduler.stealing = stealing;
+  // Most tests want both backends rendering every frame, not the tracer's
+  // choice of the faster CPU backend (tested on its own below).
+  s.exclusive_host_cores = false;
+  return s;
+}
+
+std::vector<std::unique_ptr<Backend>> make(const std::vector<std::string>& names) {
+  std::vector<std::unique_ptr<Backend>> out;
+  for (const std::string& n : names) {
+    if (n == "cpu")
+      out.push_back(std::make_unique<EmbreeBackend>());
+    else
+      out.push_back(std::make_unique<HostBackend>());
+  }
+  return out;
+}
+
+ImageRGB render_frames(const std::vector<std::string>& backends, const TracerSettings& settings,
+                       int frames, CoreTracer** keep = nullptr) {
+  Scene scene = make_cornell_box();
+  CoreTracer tracer(make(backends), settings);
+  for (int f = 0; f < frames; ++f)
+    tracer.render_frame(scene);
+  EXPECT_EQ(tracer.accumulated_spp(), uint32_t(frames) * settings.samples_per_frame);
+  return tracer.image();
+}
+
+bool bitwise_equal(const ImageRGB& a, const ImageRGB& b) {
+  return a.width == b.width && a.height == b.height &&
+         std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)) == 0;
+}
+
+TEST(CoreTracer, SplitInvarianceWithIdenticalBackends) {
+  // Two Embree backends trace bit-identical paths, so any split, with or
+  // without stealing, must give exactly the single-backend image.
+  const ImageRGB alone = render_frames({"cpu"}, small_settings(-1.0f, true), 3);
+  for (bool stealing : {true, false}) {
+    for (float split : {0.0f, 0.2f, 0.5f, 0.8f, 1.0f, -1.0f}) {
+      const ImageRGB split_image =
+          render_frames({"cpu", "cpu"}, small_settings(split, stealing), 3);
+      EXPECT_TRUE(bitwise_equal(alone, split_image))
+          << "split " << split << " stealing " << stealing;
+    }
+  }
+}
+
+TEST(CoreTracer, SplitInvarianceAcrossCpuAndHostBackends) {
+  // Embree and Tandem's BVH may disagree in the last ulp of a hit point,
+  // which can send a path elsewhere; seams between tiles of different owners
+  // may differ only that much.
+  const ImageRGB cpu = render_frames({"cpu"}, small_settings(-1.0f, true), 2);
+  for (float split : {0.0f, 0.3f, 0.7f, 1.0f}) {
+    const ImageRGB mixed = render_frames({"cpu", "host"}, small_settings(split, true), 2);
+    size_t identical = 0;
+    for (size_t i = 0; i < cpu.rgb.size(); ++i) {
+      identical +=
+          std::fabs(cpu.rgb[i] - mixed.rgb[i]) <= 1e-4f * std::max(1.0f, std::fabs(cpu.rgb[i]));
+    }
+    EXPECT_GE(double(identical), 0.97 * double(cpu.rgb.size())) << "split " << split;
+  }
+}
+
+TEST(CoreTracer, AccumulationIsExactWhenTilesChangeOwner) {
+  // The split moves every frame, so pixels change owner between frames; the
+  // accumulated image must equal a single backend's, bit for bit.
+  const TracerSettings base = small_settings(-1.0f, true);
+  const ImageRGB alone = render_frames({"cpu"}, base, 6);
+  Scene scene = make_cornell_box();
+  CoreTracer tracer(make({"cpu", "cpu"}), base);
+  std::vector<int32_t> first_owners;
+  bool owner_changed = false;
+  for (int f = 0; f < 6; ++f) {
+    TracerSettings s = base;
+    s.scheduler.forced_split = float(f % 3) * 0.4f + 0.1f;
+    tracer.set_settings(s);  // scheduler settings only: accumulation continues
+    const FrameMetrics& m = tracer.render_frame(scene);
+    EXPECT_EQ(m.accumulation_reset, f == 0);
+    if (f == 0)
+      first_owners = tracer.tile_owners();
+    else
+      owner_changed |= tracer.tile_owners() != first_owners;
+  }
+  EXPECT_TRUE(owner_changed);
+  EXPECT_TRUE(bitwise_equal(alone, tracer.image()));
+}
+
+TEST(CoreTracer, HeteroAccumulationMatchesSingleBackendStatistically) {
+  // cpu + host over many frames against cpu alone with another seed: the
+  // per-channel means must agree within their standard errors.
+  TracerSettings a = small_settings(-1.0f, true);
+  a.samples_per_frame = 4;
+  TracerSettings b = a;
+  b.render.seed = 11;
+  const ImageRGB hetero = render_frames({"cpu", "host"}, a, 8);
+  const ImageRGB single = render_frames({"cpu"}, b, 8);
+  for (int c = 0; c < 3; ++c) {
+    double sum_d = 0, sum_d2 = 0;
+    const size_t n = size_t(hetero.width) * hetero.height;
+    for (size_t i = 0; i < n; ++i) {
+      const double d = double(hetero.rgb[3 * i + c]) - double(single.rgb[3 * i + c]);
+      sum_d += d;
+      sum_d2 += d * d;
+    }
+    const double mean = sum_d / double(n);
+    const double se = std::sqrt((sum_d2 / double(n) - mean * mean) / double(n));
+    EXPECT_LT(std::fabs(mean), 5.0 * se + 1e-6) << "channel " << c;
+  }
+}
+
+TEST(CoreTracer, SceneChangeRestartsAccumulationAndReportsDelta) {
+  Scene scene = make_cornell_box();
+  CoreTracer tracer(make({"cpu", "host"}), small_settings(-1.0f, true));
+  const FrameMetrics& first = tracer.render_frame(scene);
+  EXPECT_TRUE(first.accumulation_reset);
+  EXPECT_GT(first.delta_bytes, 0u);
+  const FrameMetrics& second = tracer.render_frame(scene);
+  EXPECT_FALSE(second.accumulation_reset);
+  EXPECT_EQ(second.delta_bytes, 0u);
+  EXPECT_EQ(second.accumulated_spp, 4u);
+  // Move the first instance: a TLAS-only change.
+  Instance moved = scene.instances()[0];
+  moved.transform[3][1] += 0.01f;
+  scene.set_instance_transform(0, moved.transform);
+  const FrameMetrics& third = tracer.render_frame(scene);
+  EXPECT_TRUE(third.accumulation_reset);
+  EXPECT_GT(third.delta_bytes, 0u);
+  EXPECT_EQ(third.accumulated_spp, 2u);
+  ASSERT_EQ(third.backends.size(), 2u);
+  uint32_t tiles = 0;
+  for (const BackendFrameMetrics& b : third.backends)
+    tiles += b.tiles;
+  EXPECT_EQ(tiles, uint32_t(tracer.tiles().size()));
+}
+
+TEST(CoreTracer, ResolutionChangeRebuildsTheTileGrid) {
+  Scene scene = make_cornell_box();
+  TracerSettings s = small_settings(-1.0f, true);
+  CoreTracer tracer(make({"cpu"}), s);
+  tracer.render_frame(scene);
+  s.render.width = 40;
+  s.render.height = 24;
+  tracer.set_settings(s);
+  const FrameMetrics& m = tracer.render_frame(scene);
+  EXPECT_TRUE(m.accumulation_reset);
+  EXPECT_EQ(tracer.image().width, 40u);
+  EXPECT_EQ(tracer.tiles().size(), 5u * 3u);
+}
+
+TEST(CoreTracer, BackendsSharingTheCpuCoresAreTimedAloneThenTheFastestRenders) {
+  // cpu and host both run on the host's cores: after a warm-up frame each is
+  // timed alone, then only the faster one renders (splitting between them
+  // could only be slower). The image stays the same throughout.
+  Scene scene = make_cornell_box();
+  TracerSettings s = small_settings(-1.0f, true);
+  s.exclusive_host_cores = true;
+  CoreTracer tracer(make({"cpu", "host"}), s);
+  std::vector<std::vector<uint32_t>> tiles;
+  for (int f = 0; f < 8; ++f) {
+    const FrameMetrics& m = tracer.render_frame(scene);
+    tiles.push_back({m.backends[0].tiles, m.backends[1].tiles});
+  }
+  const uint32_t all = uint32_t(tracer.tiles().size());
+  // Frames 1-4 alternate: cpu alone, host alone, twice.
+  for (int f = 1; f <= 4; ++f) {
+    const bool cpu_turn = f % 2 == 1;
+    EXPECT_EQ(tiles[f][0], cpu_turn ? all : 0u) << "frame " << f;
+    EXPECT_EQ(tiles[f][1], cpu_turn ? 0u : all) << "frame " << f;
+  }
+  // From then on one of them has every tile.
+  for (int f = 5; f < 8; ++f) {
+    EXPECT_TRUE((tiles[f][0] == all && tiles[f][1] == 0) ||
+                (tiles[f][0] == 0 && tiles[f][1] == all));
+    EXPECT_EQ(tiles[f], tiles[5]);
+  }
+  // Without the policy both keep rendering.
+  s.exclusive_host_cores = false;
+  CoreTracer shared(make({"cpu", "host"}), s);
+  for (int f = 0; f < 3; ++f) {
+    const FrameMetrics& m = shared.render_frame(scene);
+    EXPECT_GT(m.backends[0].tiles, 0u);
+    EXPECT_GT(m.backends[1].tiles, 0u);
+  }
+}
+
+}  // namespace
+}  // namespace tandem
