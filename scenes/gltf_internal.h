@@ -19,6 +19,7 @@
 #include <tiny_gltf.h>
 
 #include "core/scene/scene.h"
+#include "scenes/gltf_animation.h"
 
 namespace tandem::gltf {
 
@@ -125,5 +126,18 @@ MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded);
 // RGBA8 (grey -> RGB = grey, missing alpha -> 255, 16 bit -> 8 bit rounded).
 // Returns false when the layout is not one of those.
 bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out);
+
+// --- gltf_animation.cpp -----------------------------------------------------------
+// A node reached by the loader's walk of the chosen scene, in walk order
+// (parents before children); parent is -1 for the scene's roots.
+struct WalkedNode {
+  int node;
+  int parent;
+};
+// Converts the file's node animations for the walked hierarchy; `bindings`
+// say which scene instance shows which node. Unusable channels are dropped
+// with a warning.
+void load_animations(Context& ctx, AccessorCache& cache, const std::vector<WalkedNode>& walked,
+                     std::vector<GltfInstanceBinding> bindings, GltfAnimations& out);
 
 }  // namespace tandem::gltf

@@ -144,18 +144,20 @@ class SceneBuilder {
     struct Item {
       int node;
       glm::dmat4 parent;
+      int parent_node;
     };
     std::vector<Item> stack;
     for (auto it = roots.rbegin(); it != roots.rend(); ++it)
-      stack.push_back({*it, glm::dmat4(1.0)});
+      stack.push_back({*it, glm::dmat4(1.0), -1});
     while (!stack.empty()) {
       const Item item = stack.back();
       stack.pop_back();
       const tinygltf::Node& node = ctx_.model.nodes[size_t(item.node)];
       const glm::dmat4 world = item.parent * local_transform(node);
+      walked_.push_back({item.node, item.parent_node});  // for the animation player
       visit(item.node, node, world);
       for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) {
-        stack.push_back({*it, world});
+        stack.push_back({*it, world, item.node});
       }
     }
   }
@@ -166,6 +168,8 @@ class SceneBuilder {
   const std::vector<Light>& lights() const { return lights_; }
   bool has_camera() const { return has_camera_; }
   const Camera& camera() const { return camera_; }
+  const std::vector<gltf::WalkedNode>& walked() const { return walked_; }
+  const std::vector<GltfInstanceBinding>& bindings() const { return bindings_; }
 
  private:
   static constexpr int kNotAdded = -2;
@@ -193,8 +197,11 @@ class SceneBuilder {
     return id = it->second;
   }
 
-  void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index) {
-    const glm::mat4 transform(world);
+  // `local`: an EXT_mesh_gpu_instancing entry's transform under the node.
+  void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index,
+                    const glm::dmat4& local = glm::dmat4(1.0)) {
+    const glm::mat4 transform(world * local);
+    bindings_.push_back({uint32_t(instances_.size()), uint32_t(node_index), glm::mat4(local)});
     if (!finite(transform)) {
       ctx_.fail("node " + std::to_string(node_index) + " has a world transform that is not finite");
     }
@@ -256,7 +263,7 @@ class SceneBuilder {
         m *= glm::mat4_cast(q / len);
       }
       if (s) m = glm::scale(m, glm::dvec3((*s)[3 * i], (*s)[3 * i + 1], (*s)[3 * i + 2]));
-      add_instance(base + "[" + std::to_string(i) + "]", mesh, world * m, index);
+      add_instance(base + "[" + std::to_string(i) + "]", mesh, world, index, m);
     }
   }
 
@@ -349,14 +356,16 @@ class SceneBuilder {
   Camera camera_;
   bool has_camera_ = false;
   bool needs_default_material_ = false;
+  std::vector<gltf::WalkedNode> walked_;
+  std::vector<GltfInstanceBinding> bindings_;  // one per instance, in order
 };
 
-void warn_about_extensions(Context& ctx) {
+void warn_about_extensions(Context& ctx, bool loading_animations) {
   for (const std::string& ext : ctx.model.extensionsUsed) {
     if (gltf::extension_supported(ext) || ext == "KHR_xmp" || ext == "KHR_xmp_json_ld") continue;
     ctx.warn("extension " + ext + " is not supported; its data is ignored");
   }
-  if (!ctx.model.animations.empty()) {
+  if (!ctx.model.animations.empty() && !loading_animations) {
     ctx.warn("animations are not supported yet; the scene is shown in its static pose");
   }
 }
@@ -411,7 +420,7 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
 
   Context ctx(label, model);
   gltf::validate_model(ctx);
-  warn_about_extensions(ctx);
+  warn_about_extensions(ctx, options.animations != nullptr);
 
   int scene_index = options.scene_index;
   if (scene_index < -1) fail(label, "scene index " + std::to_string(scene_index) + " is invalid");
@@ -445,6 +454,9 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
   }
   SceneBuilder builder(ctx, cache, meshes);
   builder.walk(roots);
+  if (options.animations != nullptr) {
+    gltf::load_animations(ctx, cache, builder.walked(), builder.bindings(), *options.animations);
+  }
 
   Scene scene;
   for (Texture& t : materials.textures)

@@ -17,10 +17,15 @@
 
 namespace tandem {
 
+struct GltfAnimations;
+
 struct GltfOptions {
   // Which of the file's scenes to load. -1: the file's default scene (its
   // "scene" property, or scene 0 when it has none).
   int scene_index = -1;
+  // When set, node animations are loaded into it (see gltf_animation.h) so
+  // the caller can play them; otherwise they are ignored with a warning.
+  GltfAnimations* animations = nullptr;
 };
 
 // Summary numbers for tests and `tandem info`: counts taken from the file
@@ -42,7 +47,7 @@ struct GltfSummary {
   size_t samplers = 0;
   size_t cameras = 0;
   size_t lights = 0;      // KHR_lights_punctual lights defined in the file
-  size_t animations = 0;  // ignored by the loader
+  size_t animations = 0;  // loaded only when GltfOptions::animations is set
   size_t skins = 0;       // ignored by the loader
   std::vector<std::string> extensions_used;
   std::vector<std::string> extensions_required;

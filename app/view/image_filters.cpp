@@ -1,0 +1,100 @@
+#include "app/view/image_filters.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tandem {
+
+ImageRGB denoise_edge_aware(const ImageRGB& in, int radius, float range_sigma) {
+  ImageRGB out(in.width, in.height);
+  const int w = int(in.width), h = int(in.height);
+  std::vector<float> log_lum(size_t(w) * h);
+  for (size_t i = 0; i < log_lum.size(); ++i) {
+    const float* p = &in.rgb[3 * i];
+    log_lum[i] = std::log1p(std::max(0.0f, 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]));
+  }
+  const float spatial = 1.0f / (2.0f * float(radius * radius) + 1e-6f);
+  const float range = 1.0f / (2.0f * range_sigma * range_sigma);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float center = log_lum[size_t(y) * w + x];
+      float sum[3] = {0, 0, 0}, wsum = 0.0f;
+      for (int dy = -radius; dy <= radius; ++dy) {
+        const int yy = y + dy;
+        if (yy < 0 || yy >= h) continue;
+        for (int dx = -radius; dx <= radius; ++dx) {
+          const int xx = x + dx;
+          if (xx < 0 || xx >= w) continue;
+          const size_t j = size_t(yy) * w + xx;
+          const float d = log_lum[j] - center;
+          const float wt = std::exp(-float(dx * dx + dy * dy) * spatial - d * d * range);
+          for (int c = 0; c < 3; ++c)
+            sum[c] += wt * in.rgb[3 * j + c];
+          wsum += wt;
+        }
+      }
+      float* o = out.pixel(uint32_t(x), uint32_t(y));
+      for (int c = 0; c < 3; ++c)
+        o[c] = sum[c] / wsum;  // wsum >= 1: the centre weighs exp(0)
+    }
+  }
+  return out;
+}
+
+void backend_color(size_t i, float rgb[3]) {
+  static const float palette[4][3] = {
+      {0.2f, 0.9f, 0.3f}, {0.25f, 0.5f, 1.0f}, {1.0f, 0.55f, 0.1f}, {0.9f, 0.2f, 0.9f}};
+  for (int c = 0; c < 3; ++c)
+    rgb[c] = palette[i % 4][c];
+}
+
+void tint_tile_owners(std::vector<uint8_t>& rgb, uint32_t width, uint32_t height,
+                      const std::vector<Tile>& tiles, const std::vector<int32_t>& owners,
+                      float strength) {
+  for (size_t t = 0; t < tiles.size() && t < owners.size(); ++t) {
+    if (owners[t] < 0) continue;
+    float col[3];
+    backend_color(size_t(owners[t]), col);
+    const Tile& tile = tiles[t];
+    for (uint32_t y = tile.y0; y < std::min(tile.y1, height); ++y) {
+      for (uint32_t x = tile.x0; x < std::min(tile.x1, width); ++x) {
+        uint8_t* p = &rgb[(size_t(y) * width + x) * 3];
+        const bool border = x == tile.x0 || y == tile.y0;
+        for (int c = 0; c < 3; ++c) {
+          float v = float(p[c]) * (1.0f - strength) + 255.0f * col[c] * strength;
+          if (border) v *= 0.5f;
+          p[c] = uint8_t(std::clamp(v, 0.0f, 255.0f));
+        }
+      }
+    }
+  }
+}
+
+std::vector<uint8_t> resize_rgb8(const std::vector<uint8_t>& rgb, uint32_t w, uint32_t h,
+                                 uint32_t ow, uint32_t oh) {
+  if (w == ow && h == oh) return rgb;
+  std::vector<uint8_t> out(size_t(ow) * oh * 3);
+  for (uint32_t y = 0; y < oh; ++y) {
+    const float fy =
+        std::clamp((float(y) + 0.5f) * float(h) / float(oh) - 0.5f, 0.0f, float(h - 1));
+    const uint32_t y0 = uint32_t(fy), y1 = std::min(y0 + 1, h - 1);
+    const float ty = fy - float(y0);
+    for (uint32_t x = 0; x < ow; ++x) {
+      const float fx =
+          std::clamp((float(x) + 0.5f) * float(w) / float(ow) - 0.5f, 0.0f, float(w - 1));
+      const uint32_t x0 = uint32_t(fx), x1 = std::min(x0 + 1, w - 1);
+      const float tx = fx - float(x0);
+      for (int c = 0; c < 3; ++c) {
+        auto at = [&](uint32_t xx, uint32_t yy) {
+          return float(rgb[(size_t(yy) * w + xx) * 3 + c]);
+        };
+        const float v = (at(x0, y0) * (1 - tx) + at(x1, y0) * tx) * (1 - ty) +
+                        (at(x0, y1) * (1 - tx) + at(x1, y1) * tx) * ty;
+        out[(size_t(y) * ow + x) * 3 + c] = uint8_t(std::lround(std::clamp(v, 0.0f, 255.0f)));
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace tandem

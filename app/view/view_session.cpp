@@ -1,0 +1,165 @@
+#include "app/view/view_session.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "app/view/image_filters.h"
+#include "core/util/errors.h"
+#include "scenes/builtin_scenes.h"
+#include "scenes/gltf_loader.h"
+
+namespace tandem {
+
+namespace {
+
+Scene load_view_scene(const std::string& spec, GltfAnimations& animations) {
+  const std::string prefix = "builtin:";
+  if (spec.rfind(prefix, 0) == 0) return make_builtin_scene(spec.substr(prefix.size()));
+  std::string ext = std::filesystem::path(spec).extension().string();
+  for (char& c : ext)
+    c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".gltf" && ext != ".glb") {
+    throw InputError(spec +
+                     ": unsupported scene format (expected a .gltf or .glb file, or builtin:NAME)");
+  }
+  GltfOptions gltf;
+  gltf.animations = &animations;  // tandem-view plays node animations
+  return load_gltf(spec, gltf);
+}
+
+AdaptiveSettings adaptive_settings(const ViewOptions& o) {
+  AdaptiveSettings a;
+  a.target_fps = o.target_fps;
+  a.max_spp = o.max_spp_per_frame;
+  if (o.fixed_scale > 0.0f) {
+    a.enabled = false;
+    a.max_scale = o.fixed_scale;
+  }
+  return a;
+}
+
+}  // namespace
+
+ViewSession::ViewSession(const ViewOptions& options)
+    : options_(options), adaptive_(adaptive_settings(options)) {
+  scene_ = load_view_scene(options.scene, animations_);
+  if (scene_.source == "builtin:arena") arena_ = std::make_unique<ArenaSimulation>(scene_);
+  if (!scene_.has_camera()) {
+    scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,
+                                          float(options.width) / float(options.height)));
+  }
+  // glTF files without lights or sky would be black: give them a sky.
+  if (scene_.source != "builtin:arena" && scene_.lights().empty() &&
+      scene_.environment().color == glm::vec3(0.0f) && scene_.environment().texels.empty()) {
+    scene_.edit_environment().color = glm::vec3(1.0f);
+  }
+  for (const Light& l : scene_.lights())
+    light_intensity_.push_back(l.intensity);
+  for (const Material& m : scene_.materials())
+    emissive_strength_.push_back(m.emissive_strength);
+  tracer_ = std::make_unique<CoreTracer>(create_backends(options_.backend), tracer_settings());
+}
+
+TracerSettings ViewSession::tracer_settings() const {
+  TracerSettings s;
+  const float scale = quality_.scale;
+  s.render.width = std::max(8u, uint32_t(std::lround(float(options_.width) * scale)));
+  s.render.height = std::max(8u, uint32_t(std::lround(float(options_.height) * scale)));
+  s.render.max_depth = options_.max_depth;
+  s.samples_per_frame = quality_.samples_per_frame;
+  s.tile_size = 32;
+  return s;
+}
+
+bool ViewSession::advance_scene(double t) {
+  if (paused || !has_motion()) return false;
+  if (arena_) arena_->advance_to(t, scene_);
+  if (!animations_.empty()) apply_gltf_animations(animations_, t, scene_);
+  return true;
+}
+
+void ViewSession::set_camera(const Camera& camera) {
+  scene_.edit_camera() = camera;
+}
+
+const FrameMetrics& ViewSession::render(bool moving) {
+  quality_ = adaptive_.next(moving, last_seconds_);
+  // Only a change of resolution or depth restarts accumulation; samples per
+  // frame just add more samples to the same pixels.
+  tracer_->set_settings(tracer_settings());
+  const FrameMetrics& m = tracer_->render_frame(scene_);
+  last_seconds_ = m.total_seconds;
+  ++frames_;
+  make_display(moving);
+  return m;
+}
+
+void ViewSession::make_display(bool moving) {
+  ImageRGB img = tracer_->image();
+  if (options_.denoise && moving && tracer_->accumulated_spp() <= 2) img = denoise_edge_aware(img);
+  display_ = tone_map_to_srgb8(img, options_.exposure, ToneMap::kAces);
+  display_w_ = img.width;
+  display_h_ = img.height;
+  if (options_.split_view) {
+    tint_tile_owners(display_, display_w_, display_h_, tracer_->tiles(), tracer_->tile_owners());
+  }
+}
+
+void ViewSession::screenshot(const std::filesystem::path& path) const {
+  if (display_.empty()) throw InputError(path.string() + ": no frame has been rendered yet");
+  write_png_rgb8(path, options_.width, options_.height,
+                 resize_rgb8(display_, display_w_, display_h_, options_.width, options_.height));
+}
+
+void ViewSession::set_backend(BackendKind kind) {
+  if (kind == options_.backend) return;
+  // A new tracer compiles the scene from scratch on its first frame.
+  tracer_ = std::make_unique<CoreTracer>(create_backends(kind), tracer_settings());
+  options_.backend = kind;
+  last_seconds_ = 0.0;
+}
+
+void ViewSession::set_output_size(uint32_t width, uint32_t height) {
+  options_.width = std::max(width, 8u);
+  options_.height = std::max(height, 8u);
+}
+
+void ViewSession::set_max_depth(uint32_t depth) {
+  options_.max_depth = depth;
+}
+
+void ViewSession::set_max_spp_per_frame(uint32_t spp) {
+  options_.max_spp_per_frame = std::max(spp, 1u);
+  adaptive_ = AdaptiveQuality(adaptive_settings(options_));
+  tracer_->reset_accumulation();
+}
+
+void ViewSession::set_target_fps(double fps) {
+  options_.target_fps = std::max(fps, 1.0);
+  adaptive_.set_target_fps(options_.target_fps);
+}
+
+void ViewSession::set_exposure(float stops) {
+  options_.exposure = stops;
+}
+
+void ViewSession::set_light_scale(float scale) {
+  if (scale == light_scale_) return;
+  light_scale_ = scale;
+  for (size_t i = 0; i < light_intensity_.size(); ++i)
+    scene_.edit_light(uint32_t(i)).intensity = light_intensity_[i] * scale;
+  for (size_t i = 0; i < emissive_strength_.size(); ++i) {
+    if (scene_.materials()[i].emissive == glm::vec3(0.0f)) continue;  // not a light
+    scene_.edit_material(uint32_t(i)).emissive_strength = emissive_strength_[i] * scale;
+  }
+}
+
+void ViewSession::set_lens(float aperture, float focus_distance) {
+  const Camera& c = scene_.camera();
+  if (c.aperture_radius == aperture && c.focus_distance == focus_distance) return;
+  Camera& e = scene_.edit_camera();
+  e.aperture_radius = std::max(aperture, 0.0f);
+  e.focus_distance = std::max(focus_distance, 1e-3f);
+}
+
+}  // namespace tandem

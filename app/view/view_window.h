@@ -1,0 +1,28 @@
+// The SDL2 + OpenGL 2 + Dear ImGui front end of tandem-view.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "app/view/view_session.h"
+
+namespace tandem {
+
+struct WindowRunOptions {
+  // > 0: headless script: N frames along the scripted camera path with the
+  // scene at fixed time steps, then write `screenshot` and return.
+  uint32_t scripted_frames = 0;
+  std::string screenshot;  // also the F12 target when set
+  bool hidden = false;     // do not show the window (scripted runs)
+};
+
+// Opens the window and runs until Esc / close (or the script ends). Returns
+// false without side effects when no window can be created (no display),
+// with the reason in `error`.
+bool run_view_window(ViewSession& session, const WindowRunOptions& options, std::string* error);
+
+// The same frames as a scripted window run, without any window (for
+// machines with no display at all).
+void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot);
+
+}  // namespace tandem
