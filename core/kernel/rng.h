@@ -21,10 +21,14 @@ TANDEM_HD uint32_t hash_u32(uint32_t x) {
   return x;
 }
 
-TANDEM_HD uint32_t hash_combine(uint32_t seed, uint32_t v) { return hash_u32(seed ^ hash_u32(v)); }
+TANDEM_HD uint32_t hash_combine(uint32_t seed, uint32_t v) {
+  return hash_u32(seed ^ hash_u32(v));
+}
 
 // Maps 24 random bits to [0, 1): exactly representable, never returns 1.
-TANDEM_HD float u32_to_unit_float(uint32_t x) { return float(x >> 8) * (1.0f / 16777216.0f); }
+TANDEM_HD float u32_to_unit_float(uint32_t x) {
+  return float(x >> 8) * (1.0f / 16777216.0f);
+}
 
 // Well-known dimension offsets so a sampling decision always reads the same
 // stream position regardless of what the path did before (keeps CPU/GPU paths
@@ -56,12 +60,95 @@ TANDEM_HD PathRng make_path_rng(uint32_t pixel_index, uint32_t sample_index, uin
   return {hash_combine(hash_u32(seed ^ 0x9e3779b9u), pixel_index), sample_index};
 }
 
+// Uniform random bits with no stratification (keys for stochastic alpha).
 TANDEM_HD uint32_t rng_bits(const PathRng& r, uint32_t dimension) {
   return hash_combine(r.key ^ hash_u32(dimension * 0x632be5abu + 0x85ebca6bu), r.sample);
 }
 
+// --- Low-discrepancy samples ----------------------------------------------
+// Sampling decisions draw from the first two dimensions of the Sobol
+// sequence, randomised with hash-based Owen scrambling (Burley 2020,
+// "Practical Hash-based Owen Scrambling"): each pair of dimensions that is
+// used together (pixel jitter, lens, light uv, BSDF uv) gets its own
+// per-pixel scramble and its own shuffle of the sample index, so pairs are
+// decorrelated while each pair stays stratified over any power-of-two prefix
+// of the samples, including when samples accumulate over many frames. One-
+// dimensional decisions (light selection, lobe, roulette) use the scrambled
+// van der Corput sequence the same way. Everything remains a pure function of
+// (pixel, sample, seed, dimension).
+
+TANDEM_HD uint32_t reverse_bits_u32(uint32_t x) {
+#if defined(__CUDA_ARCH__)
+  return __brev(x);
+#else
+  x = __builtin_bswap32(x);  // bytes, then the bits within each byte
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  return ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+#endif
+}
+
+// A random permutation of 32-bit integers in which each bit is flipped
+// depending only on the bits below it (the Laine & Karras 2011 form, in the
+// improved variant of Burley 2020). Applied to bit-reversed input it is a
+// nested uniform (Owen) scramble: owen(x) = reverse(lk_permute(reverse(x))).
+TANDEM_HD uint32_t lk_permute(uint32_t x, uint32_t seed) {
+  x ^= x * 0x3d20adeau;
+  x += seed;
+  x *= (seed >> 16) | 1u;
+  x ^= x * 0x05526c56u;
+  x ^= x * 0x53a22864u;
+  return x;
+}
+
+TANDEM_HD uint32_t owen_scramble_u32(uint32_t x, uint32_t seed) {
+  return reverse_bits_u32(lk_permute(reverse_bits_u32(x), seed));
+}
+
+// Pascal's triangle mod 2 applied to x's bits: bit i of the result is the
+// parity of the bits j of x whose positions contain i's (Lucas' theorem).
+TANDEM_HD uint32_t pascal_mod2(uint32_t x) {
+  x ^= (x & 0xaaaaaaaau) >> 1;
+  x ^= (x & 0xccccccccu) >> 2;
+  x ^= (x & 0xf0f0f0f0u) >> 4;
+  x ^= (x & 0xff00ff00u) >> 8;
+  x ^= (x & 0xffff0000u) >> 16;
+  return x;
+}
+
+// Second Sobol dimension (primitive polynomial x + 1), whose generator matrix
+// is Pascal's triangle mod 2; the first dimension is the bit reversal of the
+// index.
+TANDEM_HD uint32_t sobol_dimension1(uint32_t index) {
+  return reverse_bits_u32(pascal_mod2(index));
+}
+
+// The pair a dimension belongs to (first dimension of the pair) and its
+// component in it (0 or 1); dimensions used alone are pairs of one.
+TANDEM_HD void rng_pair_of(uint32_t dimension, uint32_t* pair, uint32_t* component) {
+  uint32_t first = dimension;
+  if (dimension < kDimBounceBase) {
+    first = dimension & ~1u;  // jitter (0, 1), lens (2, 3)
+  } else {
+    const uint32_t which = (dimension - kDimBounceBase) % kDimsPerBounce;
+    if (which == kBounceLightV || which == kBounceBsdfV) first = dimension - 1;
+  }
+  *pair = first;
+  *component = dimension - first;
+}
+
 TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
-  return u32_to_unit_float(rng_bits(r, dimension));
+  uint32_t pair, component;
+  rng_pair_of(dimension, &pair, &component);
+  // r.key is already a hash of (pixel, seed): one more round per pair suffices.
+  const uint32_t pair_seed = hash_u32(r.key ^ (pair * 0x9e3779b9u + 0x632be5abu));
+  // index = owen(sample); point = sobol_c(index); value = owen(point), with
+  // the reversals that cancel left out: reverse(sobol_0(i)) = i and
+  // reverse(sobol_1(i)) = pascal_mod2(i).
+  const uint32_t index = owen_scramble_u32(r.sample, pair_seed);
+  const uint32_t reversed_point = component == 0 ? index : pascal_mod2(index);
+  return u32_to_unit_float(
+      reverse_bits_u32(lk_permute(reversed_point, hash_u32(pair_seed + component + 1u))));
 }
 
 TANDEM_HD uint32_t bounce_dimension(uint32_t bounce, uint32_t which) {

@@ -1,0 +1,125 @@
+// The counter-based sampler: Owen-scrambled Sobol pairs must be stratified
+// (a (0, m, 2)-net for every power-of-two prefix), uniform, and independent
+// between pairs and pixels.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "core/kernel/rng.h"
+
+namespace tandem {
+namespace {
+
+// Every elementary interval of area 2^-m holds exactly one of the first 2^m
+// points, for every split 2^a x 2^(m - a) of the unit square.
+void expect_net(uint32_t pixel, uint32_t dim_x, uint32_t dim_y, uint32_t m,
+                uint32_t first_sample = 0) {
+  const uint32_t n = 1u << m;
+  for (uint32_t a = 0; a <= m; ++a) {
+    const uint32_t cols = 1u << a, rows = 1u << (m - a);
+    std::vector<int> count(n, 0);
+    for (uint32_t s = 0; s < n; ++s) {
+      const PathRng r = make_path_rng(pixel, first_sample + s, 17);
+      const float x = rng_1d(r, dim_x), y = rng_1d(r, dim_y);
+      ASSERT_GE(x, 0.0f);
+      ASSERT_LT(x, 1.0f);
+      const uint32_t cx = uint32_t(x * float(cols)), cy = uint32_t(y * float(rows));
+      count[cy * cols + cx] += 1;
+    }
+    for (uint32_t c = 0; c < n; ++c) {
+      ASSERT_EQ(count[c], 1) << "pixel " << pixel << " dims " << dim_x << "," << dim_y
+                             << " interval " << cols << "x" << rows << " cell " << c;
+    }
+  }
+}
+
+TEST(KernelRng, PairsAreStratifiedForEveryPowerOfTwoPrefix) {
+  const uint32_t light_u = bounce_dimension(2, kBounceLightU),
+                 light_v = bounce_dimension(2, kBounceLightV);
+  const uint32_t bsdf_u = bounce_dimension(0, kBounceBsdfU),
+                 bsdf_v = bounce_dimension(0, kBounceBsdfV);
+  for (uint32_t pixel : {0u, 1u, 12345u, 999999u}) {
+    for (uint32_t m : {2u, 4u, 8u}) {
+      expect_net(pixel, kDimPixelJitter, kDimPixelJitter + 1, m);
+      expect_net(pixel, kDimLens, kDimLens + 1, m);
+      expect_net(pixel, light_u, light_v, m);
+      expect_net(pixel, bsdf_u, bsdf_v, m);
+    }
+  }
+}
+
+TEST(KernelRng, OneDimensionalDecisionsAreStratified) {
+  for (uint32_t dim : {bounce_dimension(0, kBounceLightSelect), bounce_dimension(3, kBounceLobe),
+                       bounce_dimension(1, kBounceRoulette)}) {
+    std::vector<int> count(64, 0);
+    for (uint32_t s = 0; s < 64; ++s)
+      count[uint32_t(rng_1d(make_path_rng(77, s, 5), dim) * 64.0f)] += 1;
+    for (int c : count)
+      EXPECT_EQ(c, 1) << "dimension " << dim;
+  }
+}
+
+TEST(KernelRng, DifferentPairsAndPixelsAreUncorrelated) {
+  // Pearson correlation over many (pixel, sample) draws: pairs that share the
+  // Sobol structure must not share its points (the per-pair index shuffle).
+  const uint32_t dims[][2] = {
+      {kDimPixelJitter, bounce_dimension(0, kBounceLightU)},
+      {kDimLens, bounce_dimension(0, kBounceBsdfU)},
+      {bounce_dimension(0, kBounceBsdfU), bounce_dimension(1, kBounceBsdfU)},
+      {bounce_dimension(0, kBounceLightSelect), bounce_dimension(0, kBounceLobe)}};
+  constexpr int kPixels = 256, kSamples = 64;
+  for (const auto& d : dims) {
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    const double n = double(kPixels * kSamples);
+    for (uint32_t p = 0; p < kPixels; ++p) {
+      for (uint32_t s = 0; s < kSamples; ++s) {
+        const PathRng r = make_path_rng(p, s, 3);
+        const double x = rng_1d(r, d[0]), y = rng_1d(r, d[1]);
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+      }
+    }
+    const double cov = sxy / n - (sx / n) * (sy / n);
+    const double corr =
+        cov / std::sqrt((sxx / n - (sx / n) * (sx / n)) * (syy / n - (sy / n) * (sy / n)));
+    // Independent draws: standard error 1/sqrt(n) = 0.0078.
+    EXPECT_LT(std::fabs(corr), 5.0 / std::sqrt(n)) << "dims " << d[0] << ", " << d[1];
+  }
+  // Neighbouring pixels get different scrambles of the same sample.
+  int equal = 0;
+  for (uint32_t p = 0; p < 1000; ++p) {
+    equal += rng_1d(make_path_rng(p, 0, 1), kDimPixelJitter) ==
+             rng_1d(make_path_rng(p + 1, 0, 1), kDimPixelJitter);
+  }
+  EXPECT_LT(equal, 3);
+}
+
+TEST(KernelRng, SobolSecondDimensionMatchesItsDirectionNumbers) {
+  // Definition: v_1 = 1 << 31, v_(k+1) = v_k ^ (v_k >> 1); x(i) = xor of the
+  // v_k whose index bit k is set.
+  uint32_t state = 1;
+  for (int t = 0; t < 20000; ++t) {
+    state = state * 1664525u + 1013904223u;
+    const uint32_t index = t < 64 ? uint32_t(t) : state;
+    uint32_t expected = 0;
+    uint32_t v = 1u << 31;
+    for (uint32_t i = index; i != 0; i >>= 1, v ^= v >> 1) {
+      if (i & 1u) expected ^= v;
+    }
+    ASSERT_EQ(sobol_dimension1(index), expected) << "index " << index;
+  }
+}
+
+TEST(KernelRng, ValuesAreAPureFunctionOfTheirKey) {
+  const PathRng a = make_path_rng(42, 1000, 9), b = make_path_rng(42, 1000, 9);
+  for (uint32_t d = 0; d < 64; ++d)
+    EXPECT_EQ(rng_1d(a, d), rng_1d(b, d));
+  EXPECT_NE(rng_1d(make_path_rng(42, 1000, 9), 0), rng_1d(make_path_rng(42, 1000, 10), 0));
+}
+
+}  // namespace
+}  // namespace tandem
