@@ -236,6 +236,29 @@ void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
   }
 }
 
+namespace {
+
+// Whether two affine maps scale every area alike: their linear parts have the
+// same Gram matrix (A^T A), up to float rounding (rotations, translations).
+bool same_areas(const Mat34& a, const Mat34& b) {
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      double ga = 0.0, gb = 0.0, scale = 0.0;
+      for (int r = 0; r < 3; ++r) {
+        const float* ra = &a.rows[r].x;
+        const float* rb = &b.rows[r].x;
+        ga += double(ra[i]) * ra[j];
+        gb += double(rb[i]) * rb[j];
+        scale += double(ra[i]) * ra[i] + double(ra[j]) * ra[j];
+      }
+      if (std::fabs(ga - gb) > 1e-5 * std::max(scale, 1e-30)) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 KInstance SceneCompiler::compile_instance(const Instance& inst) const {
   KInstance k{};
   k.object_to_world = to_mat34(inst.transform);
@@ -250,6 +273,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   std::vector<double> power;
   const SceneBounds bounds = scene.bounds();
   const float radius = std::max(bounds.radius(), 1e-3f);
+  lights_radius_ = radius;
 
   for (const Light& l : scene.lights()) {
     KLight k{};
@@ -486,16 +510,32 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
     }
     for (uint32_t i = 0; i < scene.instances().size(); ++i) {
       if (!scene.instance_dirty()[i]) continue;
+      const KInstance before = out.instances[i];
       out.instances[i] = compile_instance(scene.instances()[i]);
       delta.instances.mark(i, i + 1);
       delta.instances_changed = true;
-      lights_dirty |= mesh_emissive_[out.instances[i].mesh];
+      // Triangle lights are stored as (instance, prim): moving an emissive
+      // instance rigidly changes neither the light list nor any light's
+      // power, so the (large) light arrays stay as they are.
+      const KInstance& after = out.instances[i];
+      lights_dirty |=
+          (mesh_emissive_[before.mesh] || mesh_emissive_[after.mesh]) &&
+          (before.mesh != after.mesh || !same_areas(before.object_to_world, after.object_to_world));
     }
     for (uint32_t d : scene.light_dirty())
       lights_dirty |= d != 0;
     if (scene.environment_dirty()) {
       compile_environment(scene, out, delta);
       lights_dirty = true;
+    }
+    // Directional and environment light powers scale with the scene's size,
+    // which bodies moving about change a little every frame. The powers only
+    // steer light selection (the alias table and total_light_power are
+    // rebuilt together, so pdfs stay consistent), so they are refreshed only
+    // when the size changed by more than 10%.
+    if (!lights_dirty && delta.instances_changed) {
+      const float radius = std::max(scene.bounds().radius(), 1e-3f);
+      lights_dirty = std::fabs(radius - lights_radius_) > 0.1f * lights_radius_;
     }
     if (structural) {
       delta = SceneDelta{};

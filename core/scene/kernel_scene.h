@@ -46,9 +46,9 @@ struct SceneDelta {
 #define TANDEM_DECLARE_CHANGE(T, name) ArrayChange name;
   TANDEM_KERNEL_ARRAYS(TANDEM_DECLARE_CHANGE)
 #undef TANDEM_DECLARE_CHANGE
-  bool full = false;              // everything was rebuilt
-  bool constants = false;         // camera / environment / integrator scalars
-  bool instances_changed = false; // TLAS must be rebuilt
+  bool full = false;                     // everything was rebuilt
+  bool constants = false;                // camera / environment / integrator scalars
+  bool instances_changed = false;        // TLAS must be rebuilt
   std::vector<uint32_t> meshes_rebuilt;  // BLAS to rebuild (new topology)
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
 
@@ -91,6 +91,7 @@ class SceneCompiler {
   std::vector<uint32_t> texture_texel_offset_;
   std::vector<float> texture_mean_luminance_;  // sRGB-decoded, for emissive power
   std::vector<bool> mesh_emissive_;            // mesh uses an emissive material
+  float lights_radius_ = -1.0f;                // scene radius the light powers were computed with
   RenderSettings last_settings_{};
 };
 
