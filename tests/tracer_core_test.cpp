@@ -8,12 +8,46 @@
 
 #include "backends/cpu/embree_backend.h"
 #include "backends/host/host_backend.h"
+#include "core/kernel/bvh_traverse.h"
+#include "core/render/cpu_tile_loop.h"
 #include "core/render/renderer.h"
 #include "core/tracer/core_tracer.h"
 #include "scenes/builtin_scenes.h"
 
 namespace tandem {
 namespace {
+
+// Stands in for a GPU backend on machines without one: sync() copies the
+// whole KernelScene (as the CUDA backend uploads it) and render() traces
+// only that copy, with the kernels the GPU runs.
+class SnapshotBackend final : public Backend {
+ public:
+  std::string name() const override { return "snapshot"; }
+  bool needs_bvh() const override { return true; }
+  bool reads_host_scene_while_rendering() const override { return false; }
+  // Applies exactly the delta, as a device upload would: a change the
+  // tracer forgets to report leaves the copy stale.
+  void sync(const KernelScene& scene, const SceneDelta& delta) override {
+#define TANDEM_APPLY_CHANGE(T, name)                                                      \
+  if (delta.name.reallocated || copy_.name.size() != scene.name.size()) {                 \
+    copy_.name = scene.name;                                                              \
+  } else if (delta.name.end > delta.name.begin) {                                         \
+    std::copy(scene.name.begin() + delta.name.begin, scene.name.begin() + delta.name.end, \
+              copy_.name.begin() + delta.name.begin);                                     \
+  }
+    TANDEM_KERNEL_ARRAYS(TANDEM_APPLY_CHANGE)
+#undef TANDEM_APPLY_CHANGE
+    if (delta.constants || delta.full) copy_.constants = scene.constants;
+    kd_ = copy_.view();
+  }
+  BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
+    return render_tiles_on_cpu(kd_, BvhTracer{&kd_}, pass, tiles, film);
+  }
+
+ private:
+  KernelScene copy_;
+  KernelData kd_{};
+};
 
 TracerSettings small_settings(float split, bool stealing) {
   TracerSettings s;
@@ -35,6 +69,8 @@ std::vector<std::unique_ptr<Backend>> make(const std::vector<std::string>& names
   for (const std::string& n : names) {
     if (n == "cpu")
       out.push_back(std::make_unique<EmbreeBackend>());
+    else if (n == "snapshot")
+      out.push_back(std::make_unique<SnapshotBackend>());
     else
       out.push_back(std::make_unique<HostBackend>());
   }
@@ -170,6 +206,54 @@ TEST(CoreTracer, ResolutionChangeRebuildsTheTileGrid) {
   EXPECT_TRUE(m.accumulation_reset);
   EXPECT_EQ(tracer.image().width, 40u);
   EXPECT_EQ(tracer.tiles().size(), 5u * 3u);
+}
+
+// The scene of frame f: the first instance moves a little every frame (a
+// TLAS-only change); from frame 3 on the first material is darker as well.
+void move_first_instance(Scene& scene, int frame) {
+  glm::mat4 t = scene.instances()[0].transform;
+  t[3][0] = 0.02f * float(frame);
+  scene.set_instance_transform(0, t);
+}
+void darken_first_material(Scene& scene) {
+  scene.edit_material(0).base_color *= glm::vec4(0.5f, 0.5f, 0.5f, 1.0f);
+}
+
+TEST(CoreTracer, PreparingTheNextFrameDuringRenderGivesTheSameFrames) {
+  // Brigade's overlap: with a backend that renders from its own copy of the
+  // scene, the next frame is compiled (and its BVH updated) while the
+  // current one renders. Every frame must equal the one rendered without
+  // overlap.
+  const TracerSettings s = small_settings(-1.0f, true);
+  Scene plain_scene = make_cornell_box(), piped_scene = make_cornell_box();
+  CoreTracer plain(make({"snapshot"}), s), piped(make({"snapshot"}), s);
+  for (int f = 0; f < 4; ++f) {
+    move_first_instance(plain_scene, f);
+    if (f == 3) darken_first_material(plain_scene);
+    plain.render_frame(plain_scene);
+  }
+  move_first_instance(piped_scene, 0);
+  bool overlapped_every_frame = true;
+  for (int f = 0; f < 4; ++f) {
+    piped.begin_frame(piped_scene);
+    move_first_instance(piped_scene, f + 1);  // the game advances meanwhile
+    if (f + 1 < 4) EXPECT_TRUE(piped.prepare_next_frame(piped_scene));
+    // An edit after the next frame was prepared must still reach it.
+    if (f == 2) darken_first_material(piped_scene);
+    const FrameMetrics& m = piped.end_frame();
+    if (f > 0) overlapped_every_frame &= m.overlapped_prepare;
+  }
+  EXPECT_TRUE(overlapped_every_frame);
+  EXPECT_TRUE(bitwise_equal(plain.image(), piped.image()));
+}
+
+TEST(CoreTracer, NoOverlapWhenABackendReadsTheHostScene) {
+  Scene scene = make_cornell_box();
+  CoreTracer tracer(make({"cpu"}), small_settings(-1.0f, true));
+  tracer.begin_frame(scene);
+  EXPECT_FALSE(tracer.prepare_next_frame(scene));
+  tracer.end_frame();
+  EXPECT_FALSE(tracer.render_frame(scene).overlapped_prepare);
 }
 
 TEST(CoreTracer, BackendsSharingTheCpuCoresAreTimedAloneThenTheFastestRenders) {

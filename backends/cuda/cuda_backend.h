@@ -47,6 +47,9 @@ class CudaBackend final : public Backend {
 
   std::string name() const override { return "cuda"; }
   bool needs_bvh() const override { return true; }
+  // sync() stages every changed range into pinned memory before returning,
+  // and render() reads only device buffers.
+  bool reads_host_scene_while_rendering() const override { return false; }
   // Throws std::logic_error when the scene's BVH arrays are missing.
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;

@@ -58,6 +58,12 @@ class Backend {
   // cannot beat the faster one alone; the core tracer uses this to decide.
   virtual bool uses_host_cores() const { return false; }
 
+  // Whether render() reads the host KernelScene (CPU backends trace it in
+  // place). A backend that works from its own copy made in sync() (the CUDA
+  // backend's device buffers) lets the core tracer compile the next frame
+  // into the KernelScene while this one renders: Brigade's overlap.
+  virtual bool reads_host_scene_while_rendering() const { return true; }
+
   // Makes the backend's copy of the scene match `scene`, given what changed.
   // `scene` must outlive the next render() calls (backends may keep
   // pointers into it).

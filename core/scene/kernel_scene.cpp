@@ -36,6 +36,24 @@ size_t KernelScene::byte_size() const {
   return bytes;
 }
 
+void SceneDelta::merge(const SceneDelta& later) {
+#define TANDEM_MERGE_CHANGE(T, name)                             \
+  name.reallocated = name.reallocated || later.name.reallocated; \
+  name.mark(later.name.begin, later.name.end);
+  TANDEM_KERNEL_ARRAYS(TANDEM_MERGE_CHANGE)
+#undef TANDEM_MERGE_CHANGE
+  full = full || later.full;
+  constants = constants || later.constants;
+  instances_changed = instances_changed || later.instances_changed;
+  auto add_unique = [](std::vector<uint32_t>& to, const std::vector<uint32_t>& from) {
+    for (uint32_t m : from) {
+      if (std::find(to.begin(), to.end(), m) == to.end()) to.push_back(m);
+    }
+  };
+  add_unique(meshes_rebuilt, later.meshes_rebuilt);
+  add_unique(meshes_refit, later.meshes_refit);
+}
+
 void ArrayChange::mark(uint32_t b, uint32_t e) {
   if (e <= b) return;
   if (end <= begin) {

@@ -53,6 +53,8 @@ struct SceneDelta {
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
 
   bool any() const;
+  // Adds `later`'s changes (what a second compile found) to this delta.
+  void merge(const SceneDelta& later);
   // Bytes an upload of exactly the changed ranges moves (what the CUDA
   // backend reports as "commit bytes").
   size_t bytes(const KernelScene& ks) const;

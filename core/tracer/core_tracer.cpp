@@ -95,15 +95,22 @@ void CoreTracer::begin_frame(Scene& scene) {
   m = FrameMetrics{};
   m.frame = frame_++;
 
-  // SyncScene (the compiler also notices changed render settings).
+  // SyncScene (the compiler also notices changed render settings) and
+  // UpdateAccStruc; prepare_next_frame() may have done most of it already.
   auto t = Clock::now();
   SceneDelta delta = compiler_.compile(scene, settings_.render, kernel_scene_);
   m.sync_scene_seconds = seconds_since(t);
-
-  // UpdateAccStruc: only for backends that traverse Tandem's BVH.
   t = Clock::now();
   if (accel_) accel_->update_and_mark(kernel_scene_, delta);
   m.update_accstruc_seconds = seconds_since(t);
+  if (prepared_delta_) {
+    prepared_delta_->merge(delta);
+    delta = std::move(*prepared_delta_);
+    prepared_delta_.reset();
+    m.sync_scene_seconds += prepared_sync_seconds_;
+    m.update_accstruc_seconds += prepared_accstruc_seconds_;
+    m.overlapped_prepare = true;
+  }
   m.delta_bytes = delta.any() ? delta.bytes(kernel_scene_) : 0;
 
   // SyncAccStruc: each backend commits what changed (the CUDA backend
@@ -205,6 +212,24 @@ void CoreTracer::launch_render() {
     });
   }
   in_flight_ = true;
+}
+
+bool CoreTracer::prepare_next_frame(Scene& scene) {
+  if (!in_flight_) throw std::logic_error("CoreTracer::prepare_next_frame: no frame in flight");
+  if (prepared_delta_) return true;
+  for (const auto& b : backends_) {
+    if (b->reads_host_scene_while_rendering()) return false;
+  }
+  // The settings the next frame will use (a pending change applies then).
+  const RenderSettings& next = pending_settings_ ? pending_settings_->render : settings_.render;
+  auto t = Clock::now();
+  SceneDelta delta = compiler_.compile(scene, next, kernel_scene_);
+  prepared_sync_seconds_ = seconds_since(t);
+  t = Clock::now();
+  if (accel_) accel_->update_and_mark(kernel_scene_, delta);
+  prepared_accstruc_seconds_ = seconds_since(t);
+  prepared_delta_ = std::move(delta);
+  return true;
 }
 
 const FrameMetrics& CoreTracer::end_frame() {

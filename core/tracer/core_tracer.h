@@ -64,6 +64,8 @@ struct FrameMetrics {
   uint64_t frame = 0;
   uint32_t accumulated_spp = 0;  // after this frame
   bool accumulation_reset = false;
+  bool overlapped_prepare =
+      false;  // SyncScene/UpdateAccStruc ran during the previous frame's render
   double sync_scene_seconds = 0.0, update_accstruc_seconds = 0.0, sync_accstruc_seconds = 0.0;
   double render_seconds = 0.0, total_seconds = 0.0;
   uint64_t delta_bytes = 0;  // size of the frame's changed kernel-array ranges
@@ -91,6 +93,12 @@ class CoreTracer {
   // after end_frame().
   void begin_frame(Scene& scene);
   const FrameMetrics& end_frame();
+  // Between begin_frame() and end_frame(): runs the next frame's SyncScene
+  // and UpdateAccStruc now, while this frame renders, when no backend reads
+  // the host KernelScene during render() (GPU-only rendering). Returns false
+  // (and does nothing) otherwise; the next begin_frame() then does it. Scene
+  // edits made after this call still reach the next frame.
+  bool prepare_next_frame(Scene& scene);
   bool frame_in_flight() const { return in_flight_; }
 
   // Changing anything that alters the image restarts accumulation; a new
@@ -146,6 +154,9 @@ class CoreTracer {
   size_t probe_ = 0;
   std::vector<double> probe_rate_;
   uint64_t frames_since_probe_ = 0;
+  // What prepare_next_frame() compiled for the next frame.
+  std::optional<SceneDelta> prepared_delta_;
+  double prepared_sync_seconds_ = 0.0, prepared_accstruc_seconds_ = 0.0;
   Flight flight_;
   bool in_flight_ = false;
   std::optional<TracerSettings> pending_settings_;
