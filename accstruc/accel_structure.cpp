@@ -208,7 +208,29 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   laid_out_ = true;
 }
 
-void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
+namespace {
+
+// How many times worse than right after its build a refit TLAS may get
+// before it is rebuilt.
+constexpr double kTlasRefitQualityLimit = 1.3;
+
+// Expected traversal work of a binary layout, relative to its root: the sum
+// of all child-box surface areas over the root's (the SAH's node term).
+double tlas_quality(const BvhLayouts& l) {
+  const double root = l.bounds.half_area();
+  if (l.empty() || !(root > 0.0)) return 0.0;
+  double sum = 0.0;
+  for (const KBvhNode& n : l.nodes) {
+    const Aabb c0{{n.c0_xy.x, n.c0_xy.z, n.c01_z.x}, {n.c0_xy.y, n.c0_xy.w, n.c01_z.y}};
+    const Aabb c1{{n.c1_xy.x, n.c1_xy.z, n.c01_z.z}, {n.c1_xy.y, n.c1_xy.w, n.c01_z.w}};
+    sum += double(c0.half_area()) + double(c1.half_area());
+  }
+  return sum / root;
+}
+
+}  // namespace
+
+void AccelStructure::compute_tlas_boxes(const KernelScene& ks) {
   const uint32_t instances = uint32_t(ks.instances.size());
   tlas_boxes_.resize(instances);
   auto body = [&](uint32_t i) {
@@ -224,6 +246,11 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
     for (uint32_t i = 0; i < instances; ++i)
       body(i);
   }
+}
+
+void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
+  compute_tlas_boxes(ks);
+  const uint32_t instances = uint32_t(ks.instances.size());
   const BuildSettings& ts = settings_.tlas;
   const BuildTree tree = build_bvh(tlas_boxes_, ts);
   tlas_ = BvhLayouts{};
@@ -236,16 +263,43 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
   if (tlas_.nodes.size() > cap_nodes || tlas_.wide_nodes.size() > cap_nodes) {
     throw std::logic_error("TLAS larger than its region");  // cannot happen, see layout_arrays
   }
+  tlas_members_.resize(instances);
+  for (uint32_t i = 0; i < instances; ++i)
+    tlas_members_[i] = aabb_valid(tlas_boxes_[i]);
+  tlas_built_quality_ = tlas_quality(tlas_);
+  emit_tlas(ks, up, /*prims_changed=*/true);
+  up.tlas_rebuilt = true;
+}
+
+bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up) {
+  const uint32_t instances = uint32_t(ks.instances.size());
+  if (tlas_.empty() || tlas_members_.size() != instances) return false;
+  compute_tlas_boxes(ks);
+  for (uint32_t i = 0; i < instances; ++i) {
+    if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
+  }
+  // In place: when the refit turns out too poor, rebuild_tlas starts from
+  // the boxes alone.
+  refit_layouts(tlas_, tlas_boxes_);
+  if (tlas_quality(tlas_) > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+  emit_tlas(ks, up, /*prims_changed=*/false);
+  up.tlas_refit = true;
+  return true;
+}
+
+void AccelStructure::emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_changed) {
   emit_layouts(tlas_, tlas_base_, ks.bvh_nodes.data() + tlas_base_.node,
                ks.bvh_prim_indices.data() + tlas_base_.prim,
                ks.bvh_wide_nodes.data() + tlas_base_.wide_node,
                ks.bvh_wide_prim_indices.data() + tlas_base_.wide_prim);
   up.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
-  up.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
   up.bvh_wide_nodes.mark(tlas_base_.wide_node,
                          tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
-  up.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
-                                tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
+  if (prims_changed) {
+    up.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
+    up.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
+                                  tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
+  }
   const uint32_t root = tlas_.empty() ? kInvalidIndex : tlas_base_.node;
   const uint32_t wide_root = tlas_.empty() ? kInvalidIndex : tlas_base_.wide_node;
   if (ks.constants.tlas_root != root || ks.constants.tlas_wide_root != wide_root) {
@@ -253,7 +307,6 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
     ks.constants.tlas_wide_root = wide_root;
     up.constants = true;
   }
-  up.tlas_rebuilt = true;
 }
 
 AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
@@ -305,7 +358,11 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   }
 
   t0 = Clock::now();
-  if (relayout || delta.instances_changed || !refit.empty()) rebuild_tlas(ks, up);
+  // Moved instances (and refit BLAS, whose bounds changed) only need the
+  // TLAS refit, as long as its quality holds; anything else rebuilds it.
+  if (relayout || delta.instances_changed || !refit.empty()) {
+    if (relayout || !refit_tlas(ks, up)) rebuild_tlas(ks, up);
+  }
   up.tlas_seconds = seconds_since(t0);
 
   if (ks.constants.bvh_layout != uint32_t(settings_.layout)) {

@@ -43,6 +43,9 @@ struct AccelUpdate {
   bool constants = false;  // tlas_root / tlas_wide_root / bvh_layout changed
   uint32_t blas_built = 0, blas_loaded = 0, blas_refit = 0;
   bool tlas_rebuilt = false;
+  // Instances only moved: the TLAS kept its topology and had its boxes refit
+  // (far cheaper than a rebuild), until its quality drops too far.
+  bool tlas_refit = false;
   double blas_seconds = 0.0, refit_seconds = 0.0, tlas_seconds = 0.0;
 
   // Merges the changes into a SceneDelta for the backends' sync().
@@ -79,6 +82,11 @@ class AccelStructure {
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
+  // Refits the TLAS to moved instances; false (nothing done) when the set of
+  // instances in it changed or the refit tree got much worse than a rebuild.
+  bool refit_tlas(KernelScene& ks, AccelUpdate& up);
+  void compute_tlas_boxes(const KernelScene& ks);
+  void emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_changed);
 
   AccelSettings settings_;
   std::unique_ptr<BvhCache> cache_;
@@ -88,7 +96,9 @@ class AccelStructure {
   LayoutBases tlas_base_;
   uint32_t tlas_capacity_instances_ = 0;
   bool laid_out_ = false;
-  std::vector<Aabb> tlas_boxes_;  // reused every frame
+  std::vector<Aabb> tlas_boxes_;       // reused every frame
+  std::vector<uint8_t> tlas_members_;  // per instance: in the TLAS (valid box) at its last build
+  double tlas_built_quality_ = 0.0;    // tlas_quality() right after the last rebuild
 };
 
 // The boxes a mesh's BLAS is built from: one per triangle, invalid (and so

@@ -29,6 +29,9 @@ constexpr uint32_t kParallelNodeThreshold = 1u << 15;
 constexpr uint32_t kParallelGrain = 1u << 13;
 // Subtrees with at least this many primitives are built as separate tasks.
 constexpr uint32_t kTaskThreshold = 512;
+// Nodes with at most this many primitives are split by an exact sweep
+// instead of bins (see small_split).
+constexpr uint32_t kSmallNode = 16;
 
 // A primitive as the builder moves it around: its box with the primitive id
 // in the fourth lane of lo. Partitioning moves these 32-byte records, not
@@ -425,13 +428,68 @@ class Builder {
     return mid;
   }
 
+  // Exact SAH for a handful of primitives: sort them along the widest
+  // centroid axis and try every split. Binning costs a fixed amount per node
+  // (resetting and sweeping bins on three axes), which dominates the bottom
+  // levels of a tree with small leaves, such as a TLAS with one instance per
+  // leaf. Returns the split's cost, with left/right filled in.
+  double small_split(const Range& r, Range* left, Range* right) {
+    const Vec3 e = r.cbox2().extent();
+    const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+    PrimRef* p = refs_.data() + r.begin;
+    const uint32_t n = r.size();
+    for (uint32_t i = 1; i < n; ++i) {  // insertion sort, ties by id: deterministic
+      const PrimRef x = p[i];
+      uint32_t j = i;
+      for (; j > 0; --j) {
+        const float a = p[j - 1].centroid2(axis), b = x.centroid2(axis);
+        if (a < b || (a == b && p[j - 1].id() < x.id())) break;
+        p[j] = p[j - 1];
+      }
+      p[j] = x;
+    }
+    Bounds suffix[kSmallNode + 1];
+    for (uint32_t i = n; i-- > 0;) {
+      suffix[i] = suffix[i + 1];
+      suffix[i].add(p[i]);
+    }
+    const double ct = s_.traversal_cost, ci = s_.intersection_cost;
+    const double parent = r.box().half_area();
+    Bounds prefix;
+    double best = 0.0;
+    uint32_t best_i = 0;
+    for (uint32_t i = 1; i < n; ++i) {
+      prefix.add(p[i - 1]);
+      const double cost =
+          ct * parent + ci * (double(half_area(prefix.lo, prefix.hi)) * i +
+                              double(half_area(suffix[i].lo, suffix[i].hi)) * (n - i));
+      // Ties (coincident primitives) go to the most balanced split, which
+      // keeps such subtrees shallow.
+      const auto imbalance = [n](uint32_t k) { return k > n - k ? 2 * k - n : n - 2 * k; };
+      if (best_i == 0 || cost < best || (cost == best && imbalance(i) < imbalance(best_i))) {
+        best = cost;
+        best_i = i;
+      }
+    }
+    *left = Range{r.begin, r.begin + best_i, {}};
+    *right = Range{r.begin + best_i, r.end, suffix[best_i]};
+    for (uint32_t i = 0; i < best_i; ++i)
+      left->b.add(p[i]);
+    return best;
+  }
+
   void build(uint32_t node, Range r, uint32_t depth) {
     const uint32_t n = r.size();
     if (n == 1) return make_leaf(node, r, depth);
     const bool use_sah = s_.method == SplitMethod::kBinnedSah && depth < kSahMaxDepth;
     Range left{r.begin, r.begin, {}}, right{r.begin, r.end, {}};
     bool have_bounds = false;
-    if (use_sah) {
+    if (use_sah && n <= kSmallNode) {
+      const double split_cost = small_split(r, &left, &right);
+      const double leaf_cost = double(s_.intersection_cost) * n * r.box().half_area();
+      if (n <= s_.max_leaf_size && leaf_cost <= split_cost) return make_leaf(node, r, depth);
+      have_bounds = true;
+    } else if (use_sah) {
       const Split split = find_sah_split(r);
       const double leaf_cost = double(s_.intersection_cost) * n * r.box().half_area();
       if (n <= s_.max_leaf_size && (split.axis < 0 || leaf_cost <= split.cost)) {
