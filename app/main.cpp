@@ -20,7 +20,9 @@ void print_usage() {
       "  compare A B    check that two linear renders agree up to Monte Carlo noise\n"
       "  bench [SCENE]  measure throughput against a plain Embree loop in the same run\n\n"
       "Run 'tandem <command> --help' for the options of a command.\n"
-      "Built-in scenes: builtin:cornell, builtin:furnace, builtin:sky-plane, builtin:procedural\n");
+      "Built-in scenes: builtin:cornell, builtin:cornell-spheres, builtin:furnace, "
+      "builtin:sky-plane,\n"
+      "builtin:arena, builtin:procedural\n");
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "scenes/builtin_scenes.h"
 
 #include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/util/errors.h"
 #include "scenes/arena_scene.h"
@@ -75,7 +76,10 @@ Material lambert(const std::string& name, glm::vec3 albedo) {
 
 }  // namespace
 
-Scene make_cornell_box() {
+namespace {
+
+// The box itself, with or without its two blocks.
+Scene cornell_box(bool blocks) {
   Scene scene;
   scene.source = "builtin:cornell";
   // RGB reflectances commonly derived from the box's measured spectra.
@@ -124,8 +128,10 @@ Scene make_cornell_box() {
       append_quad(box, a, b, b + h, a + h, white, mid - center);
     }
   };
-  add_block(sb, 165.0f);
-  add_block(tb, 330.0f);
+  if (blocks) {
+    add_block(sb, 165.0f);
+    add_block(tb, 330.0f);
+  }
 
   const uint32_t mesh = scene.add_mesh(std::move(box));
   scene.add_instance({"cornell_box", mesh, glm::mat4(1.0f)});
@@ -138,6 +144,43 @@ Scene make_cornell_box() {
   cam.focus_distance = 0.8f + 0.2796f;
   cam.aspect_ratio = 1.0f;
   scene.set_camera(cam);
+  return scene;
+}
+
+}  // namespace
+
+Scene make_cornell_box() {
+  return cornell_box(true);
+}
+
+Scene make_cornell_spheres() {
+  Scene scene = cornell_box(false);
+  scene.source = "builtin:cornell-spheres";
+  Material mirror;
+  mirror.name = "mirror";
+  mirror.metallic = 1.0f;
+  mirror.roughness = 0.0f;
+  Material glass;
+  glass.name = "glass";
+  glass.metallic = 0.0f;
+  glass.roughness = 0.0f;
+  glass.transmission = 1.0f;
+  glass.ior = 1.5f;
+  const uint32_t mirror_mat = scene.add_material(mirror);
+  const uint32_t glass_mat = scene.add_material(glass);
+  // Flat-shaded UV spheres (radius 100 mm): tools/compare/cycles_cornell.py
+  // builds the very same triangles, so both renderers see one geometry.
+  auto add_sphere = [&](const char* name, uint32_t material, glm::vec3 center_mm) {
+    Mesh sphere =
+        make_uv_sphere(0.1f, kCornellSphereRings, 2 * kCornellSphereRings, material, false);
+    sphere.name = name;
+    sphere.normals.clear();
+    const uint32_t mesh = scene.add_mesh(std::move(sphere));
+    scene.add_instance({name, mesh, glm::translate(glm::mat4(1.0f), center_mm * 0.001f)});
+  };
+  add_sphere("mirror_sphere", mirror_mat, {185.0f, 100.0f, 351.0f});
+  add_sphere("glass_sphere", glass_mat, {370.0f, 100.0f, 169.0f});
+  scene.source = "builtin:cornell-spheres";
   return scene;
 }
 
@@ -188,11 +231,12 @@ Scene make_sky_plane_scene(float albedo, float sky) {
 }
 
 std::vector<std::string> builtin_scene_names() {
-  return {"cornell", "furnace", "sky-plane", "procedural", "arena"};
+  return {"cornell", "cornell-spheres", "furnace", "sky-plane", "procedural", "arena"};
 }
 
 Scene make_builtin_scene(const std::string& name) {
   if (name == "cornell") return make_cornell_box();
+  if (name == "cornell-spheres") return make_cornell_spheres();
   if (name == "furnace") return make_furnace_scene(0.8f, 0.5f);
   if (name == "sky-plane") return make_sky_plane_scene(0.5f, 1.0f);
   if (name == "procedural") return make_procedural_scene(1000000, 1);

@@ -19,6 +19,11 @@ Scene make_builtin_scene(const std::string& name);
 // camera as measured (position (278, 273, -800) mm, 35 mm lens on a 25 mm
 // film: 39.3077 degree field of view).
 Scene make_cornell_box();
+// The box without its blocks, with a mirror and a glass sphere on the floor
+// (flat-shaded, kCornellSphereRings rings): the Cycles comparison's second
+// scene, for specular reflection, refraction and caustics.
+constexpr uint32_t kCornellSphereRings = 24;
+Scene make_cornell_spheres();
 
 // Camera inside a closed sphere whose inner surface is Lambertian with
 // albedo `albedo` and emits `emission` on both sides: every pixel sees

@@ -92,7 +92,7 @@ INSTANTIATE_TEST_SUITE_P(SharedModels, GltfVsEmbree, ::testing::ValuesIn(gltf_fi
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(GltfVsEmbree);
 
 TEST(BuiltinVsEmbree, SameHitsAsEmbree) {
-  for (const char* name : {"cornell", "furnace", "sky-plane"}) {
+  for (const char* name : {"cornell", "cornell-spheres", "furnace", "sky-plane"}) {
     TracedScene s(make_builtin_scene(name));
     compare_scene(s, std::string("builtin:") + name);
   }

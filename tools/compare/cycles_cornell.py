@@ -19,6 +19,7 @@
 # Prints `CYCLES_RENDER_SECONDS <s>`: wall time of bpy.ops.render.render only
 # (scene sync + BVH build + sampling), not Blender start-up or the EXR write.
 import argparse
+import math
 import os
 import struct
 import sys
@@ -122,6 +123,70 @@ def add_mesh(name, triangles, material, facing=None):
     return obj
 
 
+# --- The "spheres" variant: Tandem's builtin:cornell-spheres. The spheres ---
+# --- are tessellated exactly as Tandem's make_uv_sphere (flat shaded), so ---
+# --- both renderers see the same triangles.                              ---
+SPHERE_RINGS = 24
+SPHERE_RADIUS = 100.0
+MIRROR_CENTER = (185.0, 100.0, 351.0)
+GLASS_CENTER = (370.0, 100.0, 169.0)
+
+
+def uv_sphere_triangles(center, radius, rings=SPHERE_RINGS):
+    segments = 2 * rings
+    verts = []
+    for r in range(rings + 1):
+        theta = math.pi * r / rings
+        for s in range(segments + 1):
+            phi = 2.0 * math.pi * s / segments
+            verts.append((center[0] + radius * math.sin(theta) * math.cos(phi),
+                          center[1] + radius * math.cos(theta),
+                          center[2] + radius * math.sin(theta) * math.sin(phi)))
+    stride = segments + 1
+    tris = []
+    for r in range(rings):
+        for s in range(segments):
+            i0 = r * stride + s
+            i1, i2 = i0 + 1, i0 + stride
+            i3 = i2 + 1
+            if r != 0:
+                tris.append((verts[i0], verts[i1], verts[i2]))
+            if r != rings - 1:
+                tris.append((verts[i1], verts[i3], verts[i2]))
+    return tris
+
+
+def mirror_material():
+    # Tandem: metallic 1, roughness 0, base colour white -> Schlick F = 1: a
+    # perfect mirror, which is Cycles' sharp white Glossy BSDF.
+    mat = bpy.data.materials.new("mirror")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.clear()
+    bsdf = nodes.new("ShaderNodeBsdfGlossy")
+    bsdf.distribution = "SHARP"
+    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def glass_material():
+    # Tandem: transmission 1, roughness 0, IOR 1.5: smooth dielectric with the
+    # exact Fresnel equations, which is Cycles' sharp white Glass BSDF.
+    mat = bpy.data.materials.new("glass")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.clear()
+    bsdf = nodes.new("ShaderNodeBsdfGlass")
+    bsdf.distribution = "SHARP"
+    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["IOR"].default_value = 1.5
+    out = nodes.new("ShaderNodeOutputMaterial")
+    links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
 def diffuse_material(name, rgb):
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
@@ -164,8 +229,12 @@ def build_scene(args):
     add_mesh("red_wall", quad_triangles(LEFT_WALL), red)
     add_mesh("green_wall", quad_triangles(RIGHT_WALL), green)
     add_mesh("ceiling", [t for q in ceiling_with_hole() for t in quad_triangles(q)], white)
-    add_mesh("short_block", [t for q in SHORT_BLOCK for t in quad_triangles(q)], white)
-    add_mesh("tall_block", [t for q in TALL_BLOCK for t in quad_triangles(q)], white)
+    if args.variant == "cornell":
+        add_mesh("short_block", [t for q in SHORT_BLOCK for t in quad_triangles(q)], white)
+        add_mesh("tall_block", [t for q in TALL_BLOCK for t in quad_triangles(q)], white)
+    else:
+        add_mesh("mirror_sphere", uv_sphere_triangles(MIRROR_CENTER, SPHERE_RADIUS), mirror_material())
+        add_mesh("glass_sphere", uv_sphere_triangles(GLASS_CENTER, SPHERE_RADIUS), glass_material())
     # Cycles mesh lights emit from both faces; Tandem's light only from its
     # front (downward) face. The back face looks up into empty space: every
     # surface of the scene lies at or below the ceiling plane and the camera
@@ -322,6 +391,9 @@ def parse_args():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--output", required=True, help="output .exr path")
+    p.add_argument("--variant", choices=["cornell", "spheres"], default="cornell",
+                   help="cornell: the classic box; spheres: no blocks, a mirror and a glass sphere "
+                        "(Tandem's builtin:cornell-spheres)")
     args = p.parse_args(argv)
     if args.max_depth < 1:
         p.error("--max-depth must be >= 1 (Cycles cannot render emission-only paths)")

@@ -12,6 +12,8 @@
 #                 `tandem compare --reference-noise` (a control test; 0 = skip)
 #   OUT_DIR=DIR   where the EXRs go (default: a new temporary directory)
 #   BLENDER=blender
+#   VARIANT=cornell | spheres (no blocks; a mirror and a glass sphere:
+#                 Tandem's builtin:cornell-spheres)
 # MAX_DEPTH uses Tandem's convention (1 = direct light only); the Cycles
 # script maps it to max_bounces = MAX_DEPTH - 1.
 set -euo pipefail
@@ -27,12 +29,18 @@ depth=${MAX_DEPTH:-8}
 threads=${THREADS:-2}
 block=${BLOCK:-16}
 control=${CONTROL:-1}
+variant=${VARIANT:-cornell}
+case "$variant" in
+  cornell) scene=builtin:cornell ;;
+  spheres) scene=builtin:cornell-spheres ;;
+  *) echo "error: VARIANT must be cornell or spheres" >&2; exit 2 ;;
+esac
 out=${OUT_DIR:-$(mktemp -d "${TMPDIR:-/tmp}/tandem-cornell.XXXXXX")}
 
 [[ -x "$tandem" ]] || { echo "error: tandem binary '$tandem' not found (build it or pass its path)" >&2; exit 1; }
 command -v "$blender" >/dev/null || { echo "error: blender ('$blender') not found" >&2; exit 1; }
 mkdir -p "$out"
-tag="${width}x${height}_${spp}spp_d${depth}"
+tag="${variant}_${width}x${height}_${spp}spp_d${depth}"
 echo "settings: ${width}x${height}, $spp spp, max depth $depth (Cycles max_bounces $((depth - 1))), $threads threads"
 echo "output:   $out"
 load_before=$(cut -d' ' -f1-3 /proc/loadavg)
@@ -50,7 +58,7 @@ cpu_seconds() {  # file written by /usr/bin/time
 render_tandem() {  # seed output log
   local t0 t1
   t0=$(now)
-  ${cpu_timer[@]:+"${cpu_timer[@]}" "$3.cpu"} "$tandem" render builtin:cornell --backend cpu --width "$width" --height "$height" --spp "$spp" \
+  ${cpu_timer[@]:+"${cpu_timer[@]}" "$3.cpu"} "$tandem" render "$scene" --backend cpu --width "$width" --height "$height" --spp "$spp" \
     --max-depth "$depth" --threads "$threads" --seed "$1" --output "$2" 2>"$3"
   t1=$(now)
   # "tandem: 256x256, 1024 spp, max depth 8 on cpu (2 threads): 81.23 s, ..."
@@ -70,7 +78,7 @@ read -r tandem_s tandem_wall tandem_cpu < <(render_tandem 0 "$tandem_exr" "$out/
 echo "rendering with Cycles ..."
 t0=$(now)
 ${cpu_timer[@]:+"${cpu_timer[@]}" "$out/cycles.log.cpu"} "$blender" -b --factory-startup --python "$here/cycles_cornell.py" -- --spp "$spp" --max-depth "$depth" \
-  --width "$width" --height "$height" --threads "$threads" --seed 0 --output "$cycles_exr" \
+  --width "$width" --height "$height" --threads "$threads" --seed 0 --variant "$variant" --output "$cycles_exr" \
   >"$out/cycles.log" 2>&1 || { tail -n 30 "$out/cycles.log" >&2; echo "error: blender failed" >&2; exit 1; }
 t1=$(now)
 cycles_wall=$(echo "$t1 - $t0" | bc -l)
