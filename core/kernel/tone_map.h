@@ -1,8 +1,7 @@
-// Tone mapping to 8-bit sRGB as host/device code, so the CUDA backend can
-// produce display images without copying radiance back to the host. The
-// operations and their order mirror tone_map_to_srgb8 in core/image/image.cpp
-// exactly (that test lives in tests/cuda_backend_test.cpp), including how NaN
-// and infinity are clamped.
+// Tone mapping to 8-bit sRGB as host/device code: the CUDA backend produces
+// display images on the device, and the host's tone_map_to_srgb8
+// (core/image/image.cpp) runs the same functions, so both give the same
+// bytes, including for NaN and infinity.
 #pragma once
 
 #include "core/kernel/texture.h"
