@@ -156,48 +156,38 @@ def uv_sphere_triangles(center, radius, rings=SPHERE_RINGS):
     return tris
 
 
-def mirror_material():
-    # Tandem: metallic 1, roughness 0, base colour white -> Schlick F = 1: a
-    # perfect mirror, which is Cycles' sharp white Glossy BSDF.
-    mat = bpy.data.materials.new("mirror")
+def bsdf_material(name, node_type, inputs, distribution=None):
+    """A material that is one BSDF node with the given input values."""
+    mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
-    bsdf = nodes.new("ShaderNodeBsdfGlossy")
-    bsdf.distribution = "SHARP"
-    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf = nodes.new(node_type)
+    if distribution is not None:
+        bsdf.distribution = distribution
+    for socket, value in inputs.items():
+        bsdf.inputs[socket].default_value = value
     out = nodes.new("ShaderNodeOutputMaterial")
     links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     return mat
+
+
+def mirror_material():
+    # Tandem: metallic 1, roughness 0, base colour white -> Schlick F = 1: a
+    # perfect mirror, which is Cycles' sharp white Glossy BSDF.
+    return bsdf_material("mirror", "ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0, 1.0)}, "SHARP")
 
 
 def glass_material():
     # Tandem: transmission 1, roughness 0, IOR 1.5: smooth dielectric with the
     # exact Fresnel equations, which is Cycles' sharp white Glass BSDF.
-    mat = bpy.data.materials.new("glass")
-    mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    nodes.clear()
-    bsdf = nodes.new("ShaderNodeBsdfGlass")
-    bsdf.distribution = "SHARP"
-    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bsdf.inputs["IOR"].default_value = 1.5
-    out = nodes.new("ShaderNodeOutputMaterial")
-    links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return mat
+    return bsdf_material("glass", "ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0, 1.0), "IOR": 1.5},
+                         "SHARP")
 
 
 def diffuse_material(name, rgb):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    nodes.clear()
-    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (*rgb, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.0  # 0 = Lambert (no Oren-Nayar)
-    out = nodes.new("ShaderNodeOutputMaterial")
-    links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return mat
+    # Roughness 0 = Lambert (no Oren-Nayar).
+    return bsdf_material(name, "ShaderNodeBsdfDiffuse", {"Color": (*rgb, 1.0), "Roughness": 0.0})
 
 
 def emission_material(name, radiance):
