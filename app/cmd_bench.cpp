@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 
+#include "app/backend_list.h"
 #include "app/bench_accstruc.h"
 #include "app/bench_hetero.h"
 #include "app/cli_args.h"
@@ -91,6 +92,7 @@ int run_bench(const std::vector<std::string>& argv) {
   }
   if (args.positionals().size() > 1) throw UsageError("bench: expected at most one SCENE argument");
   const std::string spec = args.positionals().empty() ? "builtin:cornell" : args.positionals()[0];
+  if (auto list = args.value("hetero")) make_backend_list(*list, /*validate_only=*/true);
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
   std::optional<tbb::global_control> limit;
   if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
