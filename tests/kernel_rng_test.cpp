@@ -114,6 +114,21 @@ TEST(KernelRng, SobolSecondDimensionMatchesItsDirectionNumbers) {
   }
 }
 
+TEST(KernelRng, TwoDimensionalDrawsEqualTheirOneDimensionalParts) {
+  for (uint32_t p = 0; p < 50; ++p) {
+    for (uint32_t s = 0; s < 40; ++s) {
+      const PathRng r = make_path_rng(p * 7919u, s * 13u, 4);
+      for (uint32_t first :
+           {uint32_t(kDimPixelJitter), uint32_t(kDimLens), bounce_dimension(0, kBounceLightU),
+            bounce_dimension(5, kBounceBsdfU)}) {
+        const Vec2 v = rng_2d(r, first);
+        ASSERT_EQ(v.x, rng_1d(r, first));
+        ASSERT_EQ(v.y, rng_1d(r, first + 1));
+      }
+    }
+  }
+}
+
 TEST(KernelRng, ValuesAreAPureFunctionOfTheirKey) {
   const PathRng a = make_path_rng(42, 1000, 9), b = make_path_rng(42, 1000, 9);
   for (uint32_t d = 0; d < 64; ++d)

@@ -41,9 +41,9 @@ __global__ void __launch_bounds__(kWaveThreads)
   // notices the different ray and traces it itself (slower, still right).
   const KCamera& cam = kd.constants.camera;
   const PathRng rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
-  const float jx = rng_1d(rng, kDimPixelJitter), jy = rng_1d(rng, kDimPixelJitter + 1);
-  const float lu = rng_1d(rng, kDimLens), lv = rng_1d(rng, kDimLens + 1);
-  rays[item] = generate_camera_ray(cam, float(x) + jx, float(y) + jy, lu, lv);
+  // Must match render_pixel_sample (integrator.h) draw for draw.
+  const Vec2 jitter = rng_2d(rng, kDimPixelJitter), lens = rng_2d(rng, kDimLens);
+  rays[item] = generate_camera_ray(cam, float(x) + jitter.x, float(y) + jitter.y, lens.x, lens.y);
   alpha_keys[item] = rng_bits(rng, bounce_dimension(0, kBounceAlpha));
 }
 

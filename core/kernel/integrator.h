@@ -118,9 +118,9 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 
     // Next-event estimation.
     LightSample ls;
+    const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
     if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
-                     rng_1d(rng, bounce_dimension(bounce, kBounceLightU)),
-                     rng_1d(rng, bounce_dimension(bounce, kBounceLightV)), &ls)) {
+                     light_uv.x, light_uv.y, &ls)) {
       const Vec3 wi_local = to_local(sh.frame, ls.wi);
       if (consistent_side(ls.wi, wi_local, sh.ng)) {
         const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -137,10 +137,10 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
 
     // Continue the path by sampling the BSDF.
     BsdfSample bs;
+    const Vec2 bsdf_uv = rng_2d(rng, bounce_dimension(bounce, kBounceBsdfU));
     if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local,
-                           rng_1d(rng, bounce_dimension(bounce, kBounceLobe)),
-                           rng_1d(rng, bounce_dimension(bounce, kBounceBsdfU)),
-                           rng_1d(rng, bounce_dimension(bounce, kBounceBsdfV)), &bs)) {
+                           rng_1d(rng, bounce_dimension(bounce, kBounceLobe)), bsdf_uv.x, bsdf_uv.y,
+                           &bs)) {
       break;
     }
     const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
@@ -172,9 +172,9 @@ TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, u
                                    uint32_t y, uint32_t sample, uint32_t* ray_count) {
   const KCamera& cam = kd.constants.camera;
   const PathRng rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
-  const float jx = rng_1d(rng, kDimPixelJitter), jy = rng_1d(rng, kDimPixelJitter + 1);
-  const float lu = rng_1d(rng, kDimLens), lv = rng_1d(rng, kDimLens + 1);
-  const Ray ray = generate_camera_ray(cam, float(x) + jx, float(y) + jy, lu, lv);
+  const Vec2 jitter = rng_2d(rng, kDimPixelJitter), lens = rng_2d(rng, kDimLens);
+  const Ray ray =
+      generate_camera_ray(cam, float(x) + jitter.x, float(y) + jitter.y, lens.x, lens.y);
   return trace_path(kd, tracer, ray, rng, ray_count);
 }
 

@@ -7,6 +7,7 @@
 #pragma once
 
 #include "core/kernel/defines.h"
+#include "core/kernel/math.h"
 
 namespace tandem {
 
@@ -52,12 +53,16 @@ enum BounceDimension : uint32_t {
 };
 
 struct PathRng {
-  uint32_t key;     // hash of (pixel, frame seed)
-  uint32_t sample;  // sample index within the pixel
+  uint32_t key;              // hash of (pixel, frame seed)
+  uint32_t sample;           // sample index within the pixel
+  uint32_t sample_reversed;  // its bit reversal, which every draw starts from
 };
 
+TANDEM_HD uint32_t reverse_bits_u32(uint32_t x);
+
 TANDEM_HD PathRng make_path_rng(uint32_t pixel_index, uint32_t sample_index, uint32_t seed) {
-  return {hash_combine(hash_u32(seed ^ 0x9e3779b9u), pixel_index), sample_index};
+  return {hash_combine(hash_u32(seed ^ 0x9e3779b9u), pixel_index), sample_index,
+          reverse_bits_u32(sample_index)};
 }
 
 // Uniform random bits with no stratification (keys for stochastic alpha).
@@ -137,18 +142,39 @@ TANDEM_HD void rng_pair_of(uint32_t dimension, uint32_t* pair, uint32_t* compone
   *component = dimension - first;
 }
 
-TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
-  uint32_t pair, component;
-  rng_pair_of(dimension, &pair, &component);
+// A pair's own seed and its shuffle of the sample index:
+// index = owen(sample) = reverse(lk_permute(reverse(sample))).
+TANDEM_HD uint32_t rng_pair_seed(const PathRng& r, uint32_t pair) {
   // r.key is already a hash of (pixel, seed): one more round per pair suffices.
-  const uint32_t pair_seed = hash_u32(r.key ^ (pair * 0x9e3779b9u + 0x632be5abu));
-  // index = owen(sample); point = sobol_c(index); value = owen(point), with
-  // the reversals that cancel left out: reverse(sobol_0(i)) = i and
-  // reverse(sobol_1(i)) = pascal_mod2(i).
-  const uint32_t index = owen_scramble_u32(r.sample, pair_seed);
+  return hash_u32(r.key ^ (pair * 0x9e3779b9u + 0x632be5abu));
+}
+TANDEM_HD uint32_t rng_pair_index(const PathRng& r, uint32_t pair_seed) {
+  return reverse_bits_u32(lk_permute(r.sample_reversed, pair_seed));
+}
+
+// Component c of the pair: point = sobol_c(index), value = owen(point), with
+// the reversals that cancel left out: reverse(sobol_0(i)) = i and
+// reverse(sobol_1(i)) = pascal_mod2(i).
+TANDEM_HD float rng_pair_component(uint32_t index, uint32_t pair_seed, uint32_t component) {
   const uint32_t reversed_point = component == 0 ? index : pascal_mod2(index);
   return u32_to_unit_float(
       reverse_bits_u32(lk_permute(reversed_point, hash_u32(pair_seed + component + 1u))));
+}
+
+TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
+  uint32_t pair, component;
+  rng_pair_of(dimension, &pair, &component);
+  const uint32_t seed = rng_pair_seed(r, pair);
+  return rng_pair_component(rng_pair_index(r, seed), seed, component);
+}
+
+// Both dimensions of the pair starting at `first` (pixel jitter, lens, light
+// or BSDF uv) at the cost of little more than one: exactly
+// {rng_1d(r, first), rng_1d(r, first + 1)}.
+TANDEM_HD Vec2 rng_2d(const PathRng& r, uint32_t first) {
+  const uint32_t seed = rng_pair_seed(r, first);
+  const uint32_t index = rng_pair_index(r, seed);
+  return {rng_pair_component(index, seed, 0), rng_pair_component(index, seed, 1)};
 }
 
 TANDEM_HD uint32_t bounce_dimension(uint32_t bounce, uint32_t which) {
