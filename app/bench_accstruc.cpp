@@ -75,14 +75,7 @@ double embree_blas_seconds(const KernelScene& ks, RTCBuildQuality quality) {
       RTCScene scene = rtcNewScene(device);
       rtcSetSceneBuildQuality(scene, quality);
       if (km.triangle_count > 0) {
-        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                   ks.positions.data(), size_t(km.vertex_offset) * sizeof(Vec3),
-                                   sizeof(Vec3), km.vertex_count);
-        rtcSetSharedGeometryBuffer(
-            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
-            size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle), km.triangle_count);
-        rtcSetGeometryBuildQuality(g, quality);
+        RTCGeometry g = new_mesh_geometry(device, ks, uint32_t(m), quality);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene, g, 0);
         rtcReleaseGeometry(g);

@@ -32,7 +32,8 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
 }
 
 void embree_error(void*, RTCError code, const char* message) {
-  log_warning(std::string("Embree error ") + std::to_string(int(code)) + ": " + (message ? message : ""));
+  log_warning(std::string("Embree error ") + std::to_string(int(code)) + ": " +
+              (message ? message : ""));
 }
 
 RTCRay make_rtc_ray(const Ray& r) {
@@ -92,10 +93,25 @@ EmbreeBackend::~EmbreeBackend() {
   if (device_) rtcReleaseDevice(device_);
 }
 
+RTCGeometry new_mesh_geometry(RTCDevice device, const KernelScene& ks, uint32_t mesh,
+                              RTCBuildQuality quality) {
+  const KMesh& km = ks.meshes[mesh];
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, ks.positions.data(),
+                             size_t(km.vertex_offset) * sizeof(Vec3), sizeof(Vec3),
+                             km.vertex_count);
+  rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
+                             size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle),
+                             km.triangle_count);
+  rtcSetGeometryBuildQuality(g, quality);
+  return g;
+}
+
 void EmbreeBackend::release_scenes() {
   if (top_) rtcReleaseScene(top_);
   top_ = nullptr;
-  for (RTCScene s : blas_) rtcReleaseScene(s);
+  for (RTCScene s : blas_)
+    rtcReleaseScene(s);
   blas_.clear();
 }
 
@@ -109,17 +125,11 @@ void EmbreeBackend::build_all(const KernelScene& ks) {
     rtcSetSceneFlags(blas, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(blas, RTC_BUILD_QUALITY_HIGH);
     if (km.triangle_count > 0) {
-      RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, ks.positions.data(),
-                                 size_t(km.vertex_offset) * sizeof(Vec3), sizeof(Vec3), km.vertex_count);
-      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
-                                 size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle),
-                                 km.triangle_count);
+      RTCGeometry g = new_mesh_geometry(device_, ks, uint32_t(m), RTC_BUILD_QUALITY_HIGH);
       if (km.flags & kMeshHasAlphaTest) {
         rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
         rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
       }
-      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
       rtcCommitGeometry(g);
       rtcAttachGeometryByID(blas, g, 0);
       rtcReleaseGeometry(g);
@@ -157,13 +167,15 @@ void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
     if (delta.instances_changed) {
       for (uint32_t i = delta.instances.begin; i < delta.instances.end; ++i) {
         RTCGeometry g = rtcGetGeometry(top_, i);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &ks.instances[i].object_to_world);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                                &ks.instances[i].object_to_world);
         rtcCommitGeometry(g);
       }
       // Refit BLAS changed their bounds, so the instances referencing them
       // must be re-committed as well.
       if (!delta.meshes_refit.empty()) {
-        for (size_t i = 0; i < ks.instances.size(); ++i) rtcCommitGeometry(rtcGetGeometry(top_, unsigned(i)));
+        for (size_t i = 0; i < ks.instances.size(); ++i)
+          rtcCommitGeometry(rtcGetGeometry(top_, unsigned(i)));
       }
       rtcCommitScene(top_);
     }

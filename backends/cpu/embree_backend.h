@@ -44,6 +44,13 @@ class EmbreeBackend final : public Backend {
   KernelData kd_{};
 };
 
+// A triangle geometry over mesh `mesh` of `ks`, sharing its vertex and index
+// arrays (no copies), with the given build quality; not yet committed, so
+// callers can add filters first. Used by the backend and by the builder
+// benchmark, which must build exactly the same geometry.
+RTCGeometry new_mesh_geometry(RTCDevice device, const KernelScene& ks, uint32_t mesh,
+                              RTCBuildQuality quality);
+
 // The kernel Tracer for Embree, usable from any thread.
 struct EmbreeTracer {
   RTCScene scene;
