@@ -7,13 +7,20 @@
 
 namespace tandem {
 
-std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
-                                                        bool validate_only) {
-  std::vector<BackendKind> kinds;
+std::vector<std::string> split_backend_list(const std::string& spec) {
+  std::vector<std::string> names;
   std::stringstream parts(spec);
   std::string part;
   while (std::getline(parts, part, '+'))
-    kinds.push_back(parse_backend_kind(part));
+    names.push_back(part);
+  return names;
+}
+
+std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
+                                                        bool validate_only) {
+  std::vector<BackendKind> kinds;
+  for (const std::string& name : split_backend_list(spec))
+    kinds.push_back(parse_backend_kind(name));
   if (kinds.empty()) throw UsageError("--backend: empty backend list");
   if (kinds.size() > 1) {
     for (BackendKind k : kinds) {

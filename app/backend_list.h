@@ -10,6 +10,9 @@
 
 namespace tandem {
 
+// The names of a '+'-separated list, in order ("cpu+host" -> cpu, host).
+std::vector<std::string> split_backend_list(const std::string& spec);
+
 // Throws UsageError for unknown names or auto/hetero inside a list. With
 // validate_only, checks the spelling and returns nothing (so usage errors
 // come before a scene is loaded).

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <sstream>
 
 #include "app/backend_list.h"
 #include "core/tracer/core_tracer.h"
@@ -48,12 +47,8 @@ HeteroRun run_frames(Scene& scene, const RenderSettings& settings, uint32_t fram
 
 void run_hetero_bench(Scene& scene, const RenderSettings& settings, uint32_t frames,
                       const std::string& list) {
-  std::vector<std::string> names;
-  std::stringstream parts(list);
-  std::string part;
-  while (std::getline(parts, part, '+'))
-    names.push_back(part);
   make_backend_list(list, /*validate_only=*/true);
+  const std::vector<std::string> names = split_backend_list(list);
 
   std::printf("\nhetero (issue 5): %u frames of 1 spp at %ux%u through the core tracer\n", frames,
               settings.width, settings.height);
