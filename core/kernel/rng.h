@@ -106,10 +106,6 @@ TANDEM_HD uint32_t lk_permute(uint32_t x, uint32_t seed) {
   return x;
 }
 
-TANDEM_HD uint32_t owen_scramble_u32(uint32_t x, uint32_t seed) {
-  return reverse_bits_u32(lk_permute(reverse_bits_u32(x), seed));
-}
-
 // Pascal's triangle mod 2 applied to x's bits: bit i of the result is the
 // parity of the bits j of x whose positions contain i's (Lucas' theorem).
 TANDEM_HD uint32_t pascal_mod2(uint32_t x) {

@@ -99,7 +99,6 @@ class CoreTracer {
   // (and does nothing) otherwise; the next begin_frame() then does it. Scene
   // edits made after this call still reach the next frame.
   bool prepare_next_frame(Scene& scene);
-  bool frame_in_flight() const { return in_flight_; }
 
   // Changing anything that alters the image restarts accumulation; a new
   // resolution or tile size also restarts the scheduler's estimates. While a
@@ -113,16 +112,12 @@ class CoreTracer {
   uint32_t accumulated_spp() const { return accumulated_spp_; }
   const Film& film() const { return film_; }
   ImageRGB image() const { return film_.resolve(); }
-  const FrameMetrics& last_frame() const { return metrics_; }
 
   size_t backend_count() const { return backends_.size(); }
-  const Backend& backend(size_t i) const { return *backends_[i]; }
   // Which backend rendered each tile of the last frame (index into
   // backends; -1: none), for the split overlay.
   const std::vector<Tile>& tiles() const { return scheduler_.tiles(); }
   const std::vector<int32_t>& tile_owners() const { return scheduler_.owners(); }
-  const TileScheduler& scheduler() const { return scheduler_; }
-  const KernelScene& kernel_scene() const { return kernel_scene_; }
 
  private:
   void apply_settings(const TracerSettings& settings);
