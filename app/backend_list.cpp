@@ -31,8 +31,12 @@ std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
   }
   std::vector<std::unique_ptr<Backend>> out;
   if (validate_only) return out;
+  BackendOptions options;
+  // A GPU named beside other backends falls back to the CPU when it fails,
+  // as under auto: the run goes on with the others.
+  options.cuda_falls_back = kinds.size() > 1;
   for (BackendKind k : kinds) {
-    for (auto& b : create_backends(k))
+    for (auto& b : create_backends(k, options))
       out.push_back(std::move(b));
   }
   return out;

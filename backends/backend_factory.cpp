@@ -1,73 +1,140 @@
 #include "backends/backend_factory.h"
 
+#include <atomic>
+#include <mutex>
+
 #include "backends/cpu/embree_backend.h"
+#include "backends/cuda/cuda_backend.h"
 #include "backends/host/host_backend.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
 
-#if TANDEM_HAVE_CUDA
-#include "backends/cuda/cuda_backend.h"
-#include "backends/cuda/cuda_check.h"
-#endif
-
 namespace tandem {
 
-#if TANDEM_HAVE_CUDA
 namespace {
 
-// `--backend auto` promises an image whatever the GPU does: a CUDA failure
-// while uploading the scene (out of device memory, a driver fault) logs a
-// warning and hands the scene to the CPU backend, which has not seen any of
-// it, so it gets a delta that says "everything".
-class CudaOrCpuBackend final : public Backend {
+// `--backend auto` (and `cuda` in a list) promises an image whatever the
+// GPU does: a device failure in sync() or render() (out of memory, a launch
+// failure, an illegal address, a lost device) logs one warning and hands the
+// scene to the CPU backend, which has not seen any of it, so it gets a full
+// sync. A render that failed part-way is completed on the CPU: the film
+// holds only batches the device finished, and the CPU renders the tiles the
+// device took but did not finish, then the rest of the frame.
+//
+// Two threads may be inside: the core tracer syncs the next frame while
+// this one renders (the device backend allows it). The wrapped backend is
+// therefore only replaced while no render() runs on it, and the CPU never
+// reads the host scene during a render the tracer overlaps with compiling
+// (pass.host_scene_may_change): then the tracer completes the frame.
+class CpuFallbackBackend final : public Backend {
  public:
-  explicit CudaOrCpuBackend(std::unique_ptr<Backend> cuda) : active_(std::move(cuda)) {}
-  std::string name() const override { return active_->name(); }
-  bool needs_bvh() const override { return active_->needs_bvh(); }
-  void sync(const KernelScene& scene, const SceneDelta& delta) override {
-    if (!fell_back_) {
-      try {
-        active_->sync(scene, delta);
-        return;
-      } catch (const CudaError& e) {
-        log_warning(std::string("the CUDA backend failed (") + e.what() +
-                    "); rendering on the CPU");
-        fell_back_ = true;
-        active_.reset();
-        active_ = std::make_unique<EmbreeBackend>();
-      }
-      SceneDelta everything = delta;
-      everything.full = everything.constants = everything.instances_changed = true;
-#define TANDEM_MARK_REALLOCATED(T, name) everything.name.reallocated = true;
-      TANDEM_KERNEL_ARRAYS(TANDEM_MARK_REALLOCATED)
-#undef TANDEM_MARK_REALLOCATED
-      active_->sync(scene, everything);
-      return;
-    }
-    active_->sync(scene, delta);
+  explicit CpuFallbackBackend(std::unique_ptr<Backend> device) : active_(std::move(device)) {}
+  std::string name() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return active_->name();
   }
+  BackendTraits traits() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return active_->traits();
+  }
+
+  void sync(const KernelScene& scene, const SceneDelta& delta) override {
+    Backend* backend;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      scene_ = &scene;
+      if (!deferred_failure_.empty() && !rendering_) {
+        // A sync that failed while the previous frame rendered.
+        fall_back_locked(deferred_failure_);
+        active_->sync(scene, SceneDelta::everything());
+        return;
+      }
+      backend = active_.get();
+    }
+    try {
+      backend->sync(scene, delta);
+    } catch (const DeviceError& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (rendering_) {
+        deferred_failure_ = e.what();  // the render in flight still uses the device backend
+        return;
+      }
+      fall_back_locked(e.what());
+      active_->sync(scene, SceneDelta::everything());
+    }
+  }
+
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
-    return active_->render(pass, tiles, film);
+    Backend* backend;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      rendering_ = true;
+      backend = active_.get();
+    }
+    struct Done {
+      CpuFallbackBackend* self;
+      ~Done() {
+        std::lock_guard<std::mutex> lock(self->mutex_);
+        self->rendering_ = false;
+      }
+    } done{this};
+    if (fell_back_) return backend->render(pass, tiles, film);
+    std::vector<Tile> unfinished;
+    BackendStats finished;
+    std::string failure;
+    try {
+      return backend->render(pass, tiles, film);
+    } catch (const DeviceRenderError& e) {
+      unfinished = e.unfinished();
+      finished = e.finished();
+      failure = e.what();
+    } catch (const DeviceError& e) {
+      failure = e.what();
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      fall_back_locked(failure);
+      if (pass.host_scene_may_change) {
+        throw RenderIncomplete("the GPU failed while rendering: " + failure,
+                               std::move(unfinished), finished);
+      }
+      active_->sync(*scene_, SceneDelta::everything());
+      backend = active_.get();
+    }
+    ResumedTiles resumed(std::move(unfinished), tiles);
+    BackendStats stats = backend->render(pass, resumed, film);
+    stats += finished;
+    return stats;
   }
 
  private:
+  // Replaces the device backend by a CPU backend that has seen nothing yet.
+  void fall_back_locked(const std::string& failure) {
+    log_warning("the GPU failed (" + failure + "); rendering on the CPU from now on");
+    deferred_failure_.clear();
+    fell_back_ = true;
+    active_ = std::make_unique<EmbreeBackend>();
+  }
+
+  mutable std::mutex mutex_;
   std::unique_ptr<Backend> active_;
-  bool fell_back_ = false;
+  const KernelScene* scene_ = nullptr;
+  std::atomic<bool> fell_back_{false};
+  bool rendering_ = false;
+  std::string deferred_failure_;
 };
 
 // The CUDA backend for auto/hetero, or null (with a warning) when it cannot
 // be created.
-std::unique_ptr<Backend> try_create_cuda(bool wrap_for_fallback) {
+std::unique_ptr<Backend> try_create_cuda(const BackendOptions& options) {
   std::string reason;
-  if (!cuda_query_device(&reason)) {
+  if (!cuda_device_available(&reason)) {
     log_warning("no usable GPU (" + reason + "); rendering on the CPU");
     return nullptr;
   }
   try {
-    std::unique_ptr<Backend> cuda = std::make_unique<CudaBackend>();
-    if (wrap_for_fallback) cuda = std::make_unique<CudaOrCpuBackend>(std::move(cuda));
-    return cuda;
-  } catch (const std::exception& e) {
+    return make_cpu_fallback(std::make_unique<CudaBackend>(options.kernel));
+  } catch (const DeviceError& e) {
     log_warning(std::string("the CUDA backend failed to start (") + e.what() +
                 "); rendering on the CPU");
     return nullptr;
@@ -75,7 +142,10 @@ std::unique_ptr<Backend> try_create_cuda(bool wrap_for_fallback) {
 }
 
 }  // namespace
-#endif
+
+std::unique_ptr<Backend> make_cpu_fallback(std::unique_ptr<Backend> device_backend) {
+  return std::make_unique<CpuFallbackBackend>(std::move(device_backend));
+}
 
 BackendKind parse_backend_kind(const std::string& name) {
   if (name == "auto") return BackendKind::kAuto;
@@ -87,49 +157,36 @@ BackendKind parse_backend_kind(const std::string& name) {
 }
 
 bool cuda_device_available(std::string* reason) {
-#if TANDEM_HAVE_CUDA
-  return cuda_query_device(reason);
-#else
-  if (reason)
-    *reason =
-        "this build of tandem has no CUDA backend (nvcc was not found when it was configured)";
-  return false;
-#endif
+  return cuda_backend_device_available(reason);
 }
 
-std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind) {
+std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
+                                                      const BackendOptions& options) {
   std::vector<std::unique_ptr<Backend>> out;
   std::string reason;
   switch (kind) {
-    case BackendKind::kCuda:
+    case BackendKind::kCuda: {
       if (!cuda_device_available(&reason)) throw InputError("--backend cuda: " + reason);
-#if TANDEM_HAVE_CUDA
-      // Asked for by name: failures reach the user instead of a fallback.
-      out.push_back(std::make_unique<CudaBackend>());
+      // Asked for by name: failures reach the user instead of a fallback,
+      // unless the user listed other backends beside it.
+      std::unique_ptr<Backend> cuda = std::make_unique<CudaBackend>(options.kernel);
+      if (options.cuda_falls_back) cuda = make_cpu_fallback(std::move(cuda));
+      out.push_back(std::move(cuda));
       return out;
-#else
-      break;  // unreachable: cuda_device_available() is false without CUDA
-#endif
+    }
     case BackendKind::kHost:
       // Our BVH and the shared kernels on the CPU: what the CUDA backend runs.
       out.push_back(std::make_unique<HostBackend>());
       return out;
     case BackendKind::kAuto:
     case BackendKind::kHetero: {
-#if TANDEM_HAVE_CUDA
-      // auto: the GPU alone (falling back to the CPU if it fails while
-      // syncing); hetero: the GPU first, then the CPU backend beside it
-      // (the heterogeneous tracer decides the split).
-      std::unique_ptr<Backend> cuda = try_create_cuda(kind == BackendKind::kAuto);
+      // auto: the GPU alone; hetero: the GPU first, then the CPU backend
+      // beside it (the core tracer decides the split).
+      std::unique_ptr<Backend> cuda = try_create_cuda(options);
       if (cuda) {
         out.push_back(std::move(cuda));
         if (kind == BackendKind::kAuto) return out;
       }
-#else
-      if (!cuda_device_available(&reason)) {
-        log_warning("no usable GPU (" + reason + "); rendering on the CPU");
-      }
-#endif
       break;
     }
     case BackendKind::kCpu:

@@ -210,8 +210,8 @@ TEST(HostBackendTest, SyncWithoutBvhIsAClearError) {
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
   HostBackend host;
-  EXPECT_TRUE(host.needs_bvh());
-  EXPECT_FALSE(EmbreeBackend().needs_bvh());
+  EXPECT_TRUE(host.traits().needs_bvh);
+  EXPECT_FALSE(EmbreeBackend().traits().needs_bvh);
   try {
     host.sync(ks, delta);
     FAIL() << "sync without a BVH must throw";

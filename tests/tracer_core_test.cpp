@@ -23,8 +23,9 @@ namespace {
 class SnapshotBackend final : public Backend {
  public:
   std::string name() const override { return "snapshot"; }
-  bool needs_bvh() const override { return true; }
-  bool reads_host_scene_while_rendering() const override { return false; }
+  BackendTraits traits() const override {
+    return {.needs_bvh = true, .reads_host_scene_while_rendering = false};
+  }
   // Applies exactly the delta, as a device upload would: a change the
   // tracer forgets to report leaves the copy stale.
   void sync(const KernelScene& scene, const SceneDelta& delta) override {

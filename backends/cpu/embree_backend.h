@@ -24,7 +24,7 @@ class EmbreeBackend final : public Backend {
   EmbreeBackend& operator=(const EmbreeBackend&) = delete;
 
   std::string name() const override { return "cpu"; }
-  bool uses_host_cores() const override { return true; }
+  BackendTraits traits() const override { return {.uses_host_cores = true}; }
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
 

@@ -38,18 +38,20 @@ void DoubleBufferedCommits::add_delta(SetState& s, const SceneDelta& delta) {
   s.constants_pending = s.constants_pending || delta.constants || delta.full;
 }
 
-CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& delta) {
+void DoubleBufferedCommits::add(const SceneDelta& delta) {
   for (SetState& s : sets_)
     add_delta(s, delta);
-  const uint32_t target = (current_ + 1) % kSets;
-  SetState& s = sets_[target];
+}
+
+CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, uint32_t target) const {
+  const SetState& s = sets_[target];
   CommitPlan plan;
   plan.set = target;
   plan.view_changed = s.constants_pending || !s.view_uploaded;
   for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
     const size_t host_count = kernel_array_host_count(ks, a);
     const uint32_t n = uint32_t(host_count);
-    ArrayChange& p = s.pending[a];
+    const ArrayChange& p = s.pending[a];
     // A size change the delta did not flag still needs the whole array:
     // never trust a range against a buffer of a different length.
     const bool whole = p.reallocated || n != s.count[a];
@@ -60,15 +62,11 @@ CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& 
       c.end = n;
       c.resize = true;
       c.count = n;
-      if (host_count > s.capacity[a]) {
-        // 25% headroom: scenes that grow a little every frame (spawned
-        // instances) do not reallocate every frame.
-        c.new_capacity = host_count + host_count / 4;
-        s.capacity[a] = c.new_capacity;
-      }
+      // 25% headroom: scenes that grow a little every frame (spawned
+      // instances) do not reallocate every frame.
+      if (host_count > s.capacity[a]) c.new_capacity = host_count + host_count / 4;
       // A resize changes KernelData's count (and maybe its pointer).
       if (n != s.count[a] || c.new_capacity != 0) plan.view_changed = true;
-      s.count[a] = n;
       // Pushed even when empty: the copy also carries the new count.
       plan.copies.push_back(c);
     } else if (p.end > p.begin) {
@@ -82,13 +80,41 @@ CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& 
         plan.copies.push_back(c);
       }
     }
-    p = ArrayChange{};
   }
+  return plan;
+}
+
+void DoubleBufferedCommits::complete(const CommitPlan& plan) {
+  SetState& s = sets_[plan.set];
+  for (const ArrayCopy& c : plan.copies) {
+    if (c.new_capacity) s.capacity[c.array] = c.new_capacity;
+    if (c.resize) s.count[c.array] = c.count;
+  }
+  s.pending.fill(ArrayChange{});
   s.constants_pending = false;
   s.view_uploaded = true;
-  current_ = target;
+  current_ = plan.set;
   committed_ = true;
-  return plan;
+}
+
+void DoubleBufferedCommits::invalidate(uint32_t set) {
+  SetState& s = sets_[set];
+  for (ArrayChange& p : s.pending)
+    p.reallocated = true;
+  s.count.fill(0);
+  s.capacity.fill(0);
+  s.constants_pending = true;
+  s.view_uploaded = false;
+  // A set that cannot be rendered from is not the current one any more; if
+  // it was, nothing is ready until the next commit completes.
+  if (current_ == set) committed_ = false;
+}
+
+CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& delta) {
+  add(delta);
+  const CommitPlan p = plan(ks, (current_ + 1) % kSets);
+  complete(p);
+  return p;
 }
 
 }  // namespace tandem

@@ -50,14 +50,25 @@ class DoubleBufferedCommits {
  public:
   static constexpr uint32_t kSets = 2;
 
-  // Adds `delta` to both sets' pending lists and plans the upload of the
-  // target set's whole pending list from the current contents of `ks`. The
-  // target is the set the previous commit did not use; after plan() it is
-  // the set render() should read. Capacities recorded for the set assume the
-  // caller performs every copy of the plan.
+  // Adds `delta` to both sets' pending lists.
+  void add(const SceneDelta& delta);
+  // Plans the upload of `target`'s whole pending list from the current
+  // contents of `ks`, changing nothing: the caller performs the plan and
+  // then reports complete() (every copy was enqueued) or invalidate() (a
+  // device call failed part-way), so the bookkeeping never describes
+  // buffers that a failed commit left behind.
+  CommitPlan plan(const KernelScene& ks, uint32_t target) const;
+  void complete(const CommitPlan& plan);
+  // The set's device buffers are gone (freed after a failed commit, or
+  // never made): its next commit re-sends everything.
+  void invalidate(uint32_t set);
+
+  // add(), plan() into the set the previous commit did not use, complete():
+  // the whole bookkeeping of one alternating commit, for callers that need
+  // no recovery (tests of the planner).
   CommitPlan plan(const KernelScene& ks, const SceneDelta& delta);
 
-  // The set the most recent plan() targeted (the one to render from).
+  // The set the most recent completed plan targeted (the one to render from).
   uint32_t current_set() const { return current_; }
   bool has_committed() const { return committed_; }
   // Element count and capacity of an array in a set, as the plans left them.
@@ -77,7 +88,7 @@ class DoubleBufferedCommits {
   static void add_delta(SetState& s, const SceneDelta& delta);
 
   std::array<SetState, kSets> sets_{};
-  uint32_t current_ = kSets - 1;  // so the first commit goes to set 0
+  uint32_t current_ = kSets - 1;  // so the first alternating commit goes to set 0
   bool committed_ = false;
 };
 

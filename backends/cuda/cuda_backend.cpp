@@ -1,166 +1,152 @@
 #include "backends/cuda/cuda_backend.h"
 
-#include <cuda_runtime_api.h>
-
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 
-#include "backends/cuda/cuda_check.h"
-#include "backends/cuda/cuda_kernels.h"
 #include "backends/cuda/device_scene.h"
 #include "core/kernel/tone_map.h"
 #include "core/util/errors.h"
 
 namespace tandem {
 
-static_assert(uint32_t(ToneMap::kStandard) == kToneMapStandard &&
-                  uint32_t(ToneMap::kAces) == kToneMapAces &&
-                  uint32_t(ToneMap::kReinhard) == kToneMapReinhard,
-              "core/kernel/tone_map.h mirrors ToneMap");
-
-CudaKernelVariant parse_cuda_kernel_variant(const std::string& name) {
-  if (name == "mega" || name == "megakernel") return CudaKernelVariant::kMegakernel;
-  if (name == "wave" || name == "wavefront") return CudaKernelVariant::kWavefront;
-  throw UsageError("unknown CUDA kernel variant '" + name + "' (expected mega or wave)");
+bool cuda_backend_device_available(std::string* reason) {
+  return device_available(reason);
 }
-
-namespace {
-
-// A batch holds at most this many pixels (a 512x512 frame) and one kernel
-// launch at most kMaxItems pixel samples (48 MiB of radiance); larger
-// sample counts run as several chunks summed in order.
-constexpr uint32_t kMaxBatchPixels = 1u << 18;
-constexpr uint64_t kMaxItems = 1u << 22;
-
-// The kernels treat a missing BVH as an empty scene, so a caller that forgot
-// AccelStructure would get a silently black image.
-void check_bvh_present(const KernelScene& ks) {
-  const bool wide = ks.constants.bvh_layout == kBvhLayoutWide;
-  const size_t nodes = wide ? ks.bvh_wide_nodes.size() : ks.bvh_nodes.size();
-  bool any_triangles = false;
-  for (const KInstance& inst : ks.instances)
-    any_triangles =
-        any_triangles || (inst.mesh < ks.meshes.size() && ks.meshes[inst.mesh].triangle_count > 0);
-  const uint32_t tlas = wide ? ks.constants.tlas_wide_root : ks.constants.tlas_root;
-  if (any_triangles && (nodes == 0 || tlas >= nodes)) {
-    throw std::logic_error(
-        "cuda backend: the scene has no BVH; run AccelStructure::update_and_mark() before sync()");
-  }
-}
-
-template <class T>
-void device_alloc(T** p, size_t count) {
-  TANDEM_CUDA_CHECK(
-      cudaMalloc(reinterpret_cast<void**>(p), std::max<size_t>(count, 1) * sizeof(T)));
-}
-template <class T>
-void host_alloc(T** p, size_t count) {
-  TANDEM_CUDA_CHECK(
-      cudaMallocHost(reinterpret_cast<void**>(p), std::max<size_t>(count, 1) * sizeof(T)));
-}
-
-}  // namespace
 
 struct CudaBackend::Impl {
   // One batch in flight: the host keeps its tiles and a pinned landing area
-  // for its pixel sums until the event says they arrived.
+  // for its pixel sums until the event says they arrived. `holds_tiles`:
+  // tiles were taken from the source whose sums are not in the film yet.
   struct Slot {
     std::vector<Tile> tiles;
-    DeviceTile* host_tiles = nullptr;  // pinned
-    double* host_sums = nullptr;       // pinned, 3 per pixel
+    DeviceBuffer host_tiles, host_sums;  // pinned: DeviceTile[], 3 doubles per pixel
+    DeviceEventOwner done;
     uint32_t pixel_count = 0;
-    cudaEvent_t done = nullptr;
-    bool busy = false;
+    bool busy = false;  // enqueued, done not yet waited for
+    bool holds_tiles = false;
   };
 
+  std::shared_ptr<DeviceOps> dev;
   CudaKernelVariant variant;
-  cudaDeviceProp props{};
-  cudaStream_t stream = nullptr;
+  LaunchLimits limits;
+  DeviceStreamOwner stream;
   DeviceScene scene;
-  uint64_t commit_bytes_since_render = 0;
   std::array<Slot, 2> slots;
-  DeviceTile* tiles = nullptr;   // device, one batch
-  double* pixel_sums = nullptr;  // device, 3 per batch pixel
-  Vec3* radiance = nullptr;      // device, radiance_capacity samples
-  uint64_t radiance_capacity = 0;
-  unsigned long long* ray_count = nullptr;
-  unsigned long long* host_ray_count = nullptr;
-  uint32_t tile_capacity = 0, pixel_capacity = 0;
-  WavefrontScratch wave;
+  DeviceBuffer tiles, pixel_sums, radiance, ray_count, host_ray_count;
+  DeviceBuffer wave_rays, wave_keys, wave_hits, wave_queues, wave_counters;
+  uint64_t wave_capacity = 0;
+  DeviceBuffer film_sums, film_samples;
   DeviceFilmView film;
+  uint64_t commit_bytes_since_render = 0;
 
-  explicit Impl(CudaKernelVariant v) : variant(v) {
-    TANDEM_CUDA_CHECK(cudaGetDeviceProperties(&props, 0));
-    TANDEM_CUDA_CHECK(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));
-    for (Slot& s : slots)
-      TANDEM_CUDA_CHECK(cudaEventCreateWithFlags(&s.done, cudaEventDisableTiming));
-    device_alloc(&radiance, kMaxItems);
-    radiance_capacity = kMaxItems;
-    device_alloc(&ray_count, 1);
-    host_alloc(&host_ray_count, 1);
-  }
-  ~Impl() {
-    cudaStreamSynchronize(stream);  // errors ignored: nothing to recover in a destructor
+  Impl(std::shared_ptr<DeviceOps> device, CudaKernelVariant v, LaunchLimits l)
+      : dev(std::move(device)),
+        variant(v),
+        limits(l),
+        stream(*dev),
+        scene(*dev),
+        tiles(*dev, DeviceBuffer::kDevice),
+        pixel_sums(*dev, DeviceBuffer::kDevice),
+        radiance(*dev, DeviceBuffer::kDevice),
+        ray_count(*dev, DeviceBuffer::kDevice),
+        host_ray_count(*dev, DeviceBuffer::kPinned),
+        wave_rays(*dev, DeviceBuffer::kDevice),
+        wave_keys(*dev, DeviceBuffer::kDevice),
+        wave_hits(*dev, DeviceBuffer::kDevice),
+        wave_queues(*dev, DeviceBuffer::kDevice),
+        wave_counters(*dev, DeviceBuffer::kDevice),
+        film_sums(*dev, DeviceBuffer::kDevice),
+        film_samples(*dev, DeviceBuffer::kDevice) {
+    if (limits.max_batch_pixels == 0 || limits.max_items == 0)
+      throw std::invalid_argument("cuda backend: launch limits must be positive");
     for (Slot& s : slots) {
-      cudaFreeHost(s.host_tiles);
-      cudaFreeHost(s.host_sums);
-      cudaEventDestroy(s.done);
+      s.host_tiles = DeviceBuffer(*dev, DeviceBuffer::kPinned);
+      s.host_sums = DeviceBuffer(*dev, DeviceBuffer::kPinned);
+      s.done = DeviceEventOwner(*dev, false);
     }
-    cudaFree(tiles);
-    cudaFree(pixel_sums);
-    cudaFree(radiance);
-    cudaFree(ray_count);
-    cudaFreeHost(host_ray_count);
-    cudaFree(film.sums);
-    cudaFree(film.samples);
-    wave.release();
-    cudaStreamDestroy(stream);
+    radiance.allocate(limits.max_items * sizeof(Vec3));
+    ray_count.allocate(sizeof(unsigned long long));
+    host_ray_count.allocate(sizeof(unsigned long long));
   }
+
+  ~Impl() {
+    try {
+      dev->synchronize(stream.get());
+    } catch (...) {  // nothing to recover in a destructor
+    }
+  }
+
+  uint64_t radiance_items() const { return radiance.bytes() / sizeof(Vec3); }
 
   // Grows the per-batch buffers; only called with no batch in flight.
   void reserve(uint32_t tile_count, uint32_t pixel_count) {
-    if (tile_count > tile_capacity) {
-      TANDEM_CUDA_CHECK(cudaFree(tiles));
-      tiles = nullptr;
-      device_alloc(&tiles, tile_count);
-      for (Slot& s : slots) {
-        TANDEM_CUDA_CHECK(cudaFreeHost(s.host_tiles));
-        s.host_tiles = nullptr;
-        host_alloc(&s.host_tiles, tile_count);
-      }
-      tile_capacity = tile_count;
+    const size_t tile_bytes = size_t(tile_count) * sizeof(DeviceTile);
+    if (tile_bytes > tiles.bytes()) {
+      tiles.allocate(tile_bytes);
+      for (Slot& s : slots)
+        s.host_tiles.allocate(tile_bytes);
     }
-    if (pixel_count > pixel_capacity) {
-      TANDEM_CUDA_CHECK(cudaFree(pixel_sums));
-      pixel_sums = nullptr;
-      device_alloc(&pixel_sums, 3 * size_t(pixel_count));
-      for (Slot& s : slots) {
-        TANDEM_CUDA_CHECK(cudaFreeHost(s.host_sums));
-        s.host_sums = nullptr;
-        host_alloc(&s.host_sums, 3 * size_t(pixel_count));
-      }
-      pixel_capacity = pixel_count;
+    const size_t sum_bytes = 3 * sizeof(double) * size_t(pixel_count);
+    if (sum_bytes > pixel_sums.bytes()) {
+      pixel_sums.allocate(sum_bytes);
+      for (Slot& s : slots)
+        s.host_sums.allocate(sum_bytes);
     }
-    // A single tile larger than kMaxItems pixels still needs one sample of
+    // A single tile larger than max_items pixels still needs one sample of
     // each of its pixels per chunk.
-    if (pixel_count > radiance_capacity) {
-      TANDEM_CUDA_CHECK(cudaFree(radiance));
-      radiance = nullptr;
-      device_alloc(&radiance, pixel_count);
-      radiance_capacity = pixel_count;
-    }
+    if (pixel_count > radiance_items()) radiance.allocate(size_t(pixel_count) * sizeof(Vec3));
   }
 
-  // Pulls the next batch of tiles into `slot`; false when the source is dry.
-  bool pull_batch(TileSource& source, Slot& slot) {
+  bool buffers_fit(const Slot& slot) const {
+    return slot.tiles.size() * sizeof(DeviceTile) <= tiles.bytes() &&
+           slot.host_tiles.bytes() >= slot.tiles.size() * sizeof(DeviceTile) &&
+           3 * sizeof(double) * size_t(slot.pixel_count) <= pixel_sums.bytes() &&
+           slot.host_sums.bytes() >= 3 * sizeof(double) * size_t(slot.pixel_count) &&
+           slot.pixel_count <= radiance_items();
+  }
+
+  void ensure_wavefront_scratch(uint64_t items) {
+    if (items <= wave_capacity) return;
+    wave_capacity = 0;  // until every buffer below exists
+    wave_rays.allocate(items * sizeof(Ray));
+    wave_keys.allocate(items * sizeof(uint32_t));
+    wave_hits.allocate(items * sizeof(Hit));
+    wave_queues.allocate(2 * items * sizeof(uint32_t));
+    wave_counters.allocate(4 * sizeof(uint32_t));
+    wave_capacity = items;
+  }
+
+  WavefrontScratch wavefront_scratch() const {
+    WavefrontScratch w;
+    w.rays = wave_rays.as<Ray>();
+    w.alpha_keys = wave_keys.as<uint32_t>();
+    w.hits = wave_hits.as<Hit>();
+    w.queues = wave_queues.as<uint32_t>();
+    w.counters = wave_counters.as<uint32_t>();
+    w.capacity = wave_capacity;
+    return w;
+  }
+
+  // Pulls the next batch of tiles into `slot`; false when the source is
+  // dry. Every tile must lie inside the film it will be added to.
+  bool pull_batch(TileSource& source, Slot& slot, uint32_t film_width, uint32_t film_height) {
     slot.tiles.clear();
     slot.pixel_count = 0;
     Tile t;
-    while (slot.pixel_count < kMaxBatchPixels && source.next(&t)) {
+    while (slot.pixel_count < limits.max_batch_pixels && source.next(&t)) {
       slot.tiles.push_back(t);
+      slot.holds_tiles = true;
+      if (t.x1 <= t.x0 || t.y1 <= t.y0 || t.x1 > film_width || t.y1 > film_height) {
+        throw std::logic_error("cuda backend: tile [" + std::to_string(t.x0) + ", " +
+                               std::to_string(t.x1) + ") x [" + std::to_string(t.y0) + ", " +
+                               std::to_string(t.y1) + ") is empty or outside the " +
+                               std::to_string(film_width) + "x" + std::to_string(film_height) +
+                               " film");
+      }
       slot.pixel_count += t.pixel_count();
     }
     return !slot.tiles.empty();
@@ -170,75 +156,70 @@ struct CudaBackend::Impl {
   // pixel, then (to_host) the sums copied back or (else) added to the
   // device film. Records slot.done.
   void enqueue_batch(const KernelData* kd, const RenderPass& pass, Slot& slot, bool to_host) {
+    const DeviceStream s = stream.get();
+    auto* host_tiles = slot.host_tiles.as<DeviceTile>();
     uint32_t offset = 0;
     for (size_t i = 0; i < slot.tiles.size(); ++i) {
       const Tile& t = slot.tiles[i];
-      slot.host_tiles[i] = DeviceTile{t.x0, t.y0, t.x1, t.y1, offset};
+      host_tiles[i] = DeviceTile{t.x0, t.y0, t.x1, t.y1, offset};
       offset += t.pixel_count();
     }
-    TANDEM_CUDA_CHECK(cudaMemcpyAsync(tiles, slot.host_tiles,
-                                      slot.tiles.size() * sizeof(DeviceTile),
-                                      cudaMemcpyHostToDevice, stream));
-    TANDEM_CUDA_CHECK(
-        cudaMemsetAsync(pixel_sums, 0, 3 * sizeof(double) * slot.pixel_count, stream));
+    dev->copy_to_device(tiles.get(), host_tiles, slot.tiles.size() * sizeof(DeviceTile), s);
+    dev->zero(pixel_sums.get(), 3 * sizeof(double) * slot.pixel_count, s);
     TileBatch batch;
-    batch.tiles = tiles;
+    batch.tiles = tiles.as<const DeviceTile>();
     batch.tile_count = uint32_t(slot.tiles.size());
     batch.pixel_count = slot.pixel_count;
-    const uint32_t chunk = uint32_t(std::max<uint64_t>(1, radiance_capacity / slot.pixel_count));
-    for (uint32_t s = 0; s < pass.sample_count; s += chunk) {
-      batch.sample_begin = pass.sample_begin + s;
-      batch.sample_count = std::min(chunk, pass.sample_count - s);
-      if (variant == CudaKernelVariant::kWavefront)
-        launch_wavefront(kd, batch, wave, radiance, ray_count, stream);
-      else
-        launch_megakernel(kd, batch, radiance, ray_count, stream);
-      launch_reduce_samples(batch, radiance, pixel_sums, stream);
+    const uint32_t chunk = uint32_t(std::max<uint64_t>(1, radiance_items() / slot.pixel_count));
+    if (variant == CudaKernelVariant::kWavefront)
+      ensure_wavefront_scratch(uint64_t(chunk) * slot.pixel_count);
+    for (uint32_t done = 0; done < pass.sample_count; done += chunk) {
+      batch.sample_begin = pass.sample_begin + done;
+      batch.sample_count = std::min(chunk, pass.sample_count - done);
+      dev->trace_samples(kd, batch, variant, wavefront_scratch(), radiance.as<Vec3>(),
+                         ray_count.as<unsigned long long>(), s);
+      dev->reduce_samples(batch, radiance.as<const Vec3>(), pixel_sums.as<double>(), s);
     }
     if (to_host) {
-      TANDEM_CUDA_CHECK(cudaMemcpyAsync(slot.host_sums, pixel_sums,
-                                        3 * sizeof(double) * slot.pixel_count,
-                                        cudaMemcpyDeviceToHost, stream));
+      dev->copy_to_host(slot.host_sums.get(), pixel_sums.get(),
+                        3 * sizeof(double) * slot.pixel_count, s);
     } else {
-      launch_accumulate_film(batch, pixel_sums, pass.sample_count, film, stream);
+      dev->accumulate_film(batch, pixel_sums.as<const double>(), pass.sample_count, film, s);
     }
-    TANDEM_CUDA_CHECK(cudaEventRecord(slot.done, stream));
+    dev->record(slot.done.get(), s);
     slot.busy = true;
   }
 
   // Waits for a slot's batch and adds its sums to the host film.
   void finish_batch(Slot& slot, const RenderPass& pass, Film* host_film, BackendStats& stats) {
     if (!slot.busy) return;
-    TANDEM_CUDA_CHECK(cudaEventSynchronize(slot.done));
+    dev->synchronize(slot.done.get());
     slot.busy = false;
+    const double* sums = slot.host_sums.as<const double>();
     size_t p = 0;
     for (const Tile& t : slot.tiles) {
       for (uint32_t y = t.y0; y < t.y1; ++y)
         for (uint32_t x = t.x0; x < t.x1; ++x, ++p)
-          if (host_film) host_film->add(x, y, &slot.host_sums[3 * p], pass.sample_count);
+          if (host_film) host_film->add(x, y, &sums[3 * p], pass.sample_count);
       stats.tiles += 1;
       stats.pixels += t.pixel_count();
       stats.samples += uint64_t(t.pixel_count()) * pass.sample_count;
     }
+    slot.holds_tiles = false;
   }
 
-  BackendStats render(const RenderPass& pass, TileSource& source, Film* host_film) {
-    if (!scene.ready()) throw std::logic_error("cuda backend: render() before sync()");
-    const auto start = std::chrono::steady_clock::now();
-    BackendStats stats;
-    stats.commit_bytes = commit_bytes_since_render;
-    commit_bytes_since_render = 0;
-    if (pass.sample_count == 0) return stats;
-    const KernelData* kd = scene.begin_render(stream);
-    TANDEM_CUDA_CHECK(cudaMemsetAsync(ray_count, 0, sizeof(unsigned long long), stream));
-    // Two slots: while the GPU traces batch k, the host pulls batch k + 1's
-    // tiles and then adds batch k - 1's pixels to the film.
+  void render_batches(const KernelData* kd, const RenderPass& pass, TileSource& source,
+                      Film* host_film, BackendStats& stats) {
+    const uint32_t width = host_film ? host_film->width() : film.width;
+    const uint32_t height = host_film ? host_film->height() : film.height;
+    // Two slots: while the device traces batch k, the host pulls batch
+    // k + 1's tiles and then adds batch k - 1's pixels to the film.
     for (uint32_t k = 0;; ++k) {
       Slot& slot = slots[k % 2];
       Slot& previous = slots[(k + 1) % 2];
       finish_batch(slot, pass, host_film, stats);  // two batches ago: long done
-      if (!pull_batch(source, slot)) break;
-      if (slot.tiles.size() > tile_capacity || slot.pixel_count > pixel_capacity) {
+      if (!pull_batch(source, slot, width, height)) break;
+      if (!buffers_fit(slot)) {
         finish_batch(previous, pass, host_film, stats);  // buffers are about to move
         reserve(uint32_t(slot.tiles.size()), slot.pixel_count);
       }
@@ -247,27 +228,77 @@ struct CudaBackend::Impl {
     }
     for (Slot& s : slots)
       finish_batch(s, pass, host_film, stats);
-    scene.end_render(stream);
-    TANDEM_CUDA_CHECK(cudaMemcpyAsync(host_ray_count, ray_count, sizeof(unsigned long long),
-                                      cudaMemcpyDeviceToHost, stream));
-    TANDEM_CUDA_CHECK(cudaStreamSynchronize(stream));
-    stats.rays = *host_ray_count;
+  }
+
+  BackendStats render(const RenderPass& pass, TileSource& source, Film* host_film) {
+    const auto start = std::chrono::steady_clock::now();
+    BackendStats stats;
+    stats.commit_bytes = commit_bytes_since_render;
+    commit_bytes_since_render = 0;
+    if (pass.sample_count == 0) return stats;
+    const DeviceStream s = stream.get();
+    const DeviceScene::RenderTicket ticket = scene.begin_render(s);
+    bool ended = false;
+    try {
+      dev->zero(ray_count.get(), sizeof(unsigned long long), s);
+      render_batches(ticket.view, pass, source, host_film, stats);
+      scene.end_render(ticket, s);
+      ended = true;
+      dev->copy_to_host(host_ray_count.get(), ray_count.get(), sizeof(unsigned long long), s);
+      dev->synchronize(s);
+      stats.rays = *host_ray_count.as<const unsigned long long>();
+      const DeviceScene::CommitTiming timing = scene.take_timing(ticket);
+      stats.commit_copy_seconds = timing.copy_seconds;
+      stats.commit_hidden_seconds = timing.hidden_seconds;
+    } catch (const DeviceError& e) {
+      throw DeviceRenderError(e, abandon(ticket, ended), stats);
+    } catch (...) {
+      abandon(ticket, ended);
+      throw;
+    }
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats;
+  }
+
+  // After a failure inside render(): releases the scene set, lets nothing
+  // still queued write into buffers the next render reuses, and returns the
+  // tiles whose sums did not reach the film. No slot stays busy.
+  std::vector<Tile> abandon(const DeviceScene::RenderTicket& ticket, bool ended) noexcept {
+    std::vector<Tile> unfinished;
+    for (Slot& slot : slots) {
+      if (slot.holds_tiles) unfinished.insert(unfinished.end(), slot.tiles.begin(), slot.tiles.end());
+      slot.tiles.clear();
+      slot.busy = slot.holds_tiles = false;
+    }
+    try {
+      if (!ended) scene.end_render(ticket, stream.get());
+    } catch (...) {
+    }
+    try {
+      dev->synchronize(stream.get());
+    } catch (...) {
+    }
+    return unfinished;
   }
 };
 
 CudaBackend::CudaBackend(CudaKernelVariant variant) {
   std::string reason;
-  if (!cuda_query_device(&reason)) throw InputError("CUDA backend: " + reason);
-  TANDEM_CUDA_CHECK(cudaSetDevice(0));
-  impl_ = std::make_unique<Impl>(variant);
+  std::shared_ptr<DeviceOps> device = open_device(&reason);
+  if (!device) throw InputError("CUDA backend: " + reason);
+  impl_ = std::make_unique<Impl>(std::move(device), variant, LaunchLimits{});
+}
+
+CudaBackend::CudaBackend(std::shared_ptr<DeviceOps> device, CudaKernelVariant variant,
+                         LaunchLimits limits) {
+  if (!device) throw std::invalid_argument("CudaBackend: no device");
+  impl_ = std::make_unique<Impl>(std::move(device), variant, limits);
 }
 
 CudaBackend::~CudaBackend() = default;
 
 void CudaBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
-  check_bvh_present(scene);
+  check_bvh_present(scene, "cuda backend");
   impl_->commit_bytes_since_render += impl_->scene.commit(scene, delta);
 }
 
@@ -282,7 +313,7 @@ CudaKernelVariant CudaBackend::variant() const {
   return impl_->variant;
 }
 std::string CudaBackend::device_name() const {
-  return impl_->props.name;
+  return impl_->dev->name();
 }
 uint64_t CudaBackend::last_commit_bytes() const {
   return impl_->scene.last_commit_bytes();
@@ -290,22 +321,23 @@ uint64_t CudaBackend::last_commit_bytes() const {
 uint64_t CudaBackend::scene_device_bytes() const {
   return impl_->scene.device_bytes();
 }
+std::vector<std::vector<uint8_t>> CudaBackend::read_back_scene(uint32_t set) {
+  return impl_->scene.read_back(set);
+}
+uint32_t CudaBackend::newest_scene_set() const {
+  return impl_->scene.newest_set();
+}
 
 void CudaBackend::reset_device_film(uint32_t width, uint32_t height) {
-  DeviceFilmView& f = impl_->film;
-  TANDEM_CUDA_CHECK(cudaStreamSynchronize(impl_->stream));
-  if (size_t(width) * height != size_t(f.width) * f.height) {
-    TANDEM_CUDA_CHECK(cudaFree(f.sums));
-    TANDEM_CUDA_CHECK(cudaFree(f.samples));
-    f = DeviceFilmView{};
-    device_alloc(&f.sums, 3 * size_t(width) * height);
-    device_alloc(&f.samples, size_t(width) * height);
-  }
-  f.width = width;
-  f.height = height;
-  TANDEM_CUDA_CHECK(cudaMemsetAsync(f.sums, 0, 3 * sizeof(double) * width * height, impl_->stream));
-  TANDEM_CUDA_CHECK(
-      cudaMemsetAsync(f.samples, 0, sizeof(uint32_t) * width * height, impl_->stream));
+  Impl& m = *impl_;
+  m.dev->synchronize(m.stream.get());
+  const size_t pixels = size_t(width) * height;
+  m.film = DeviceFilmView{};  // until both buffers exist
+  m.film_sums.reserve(3 * sizeof(double) * pixels);
+  m.film_samples.reserve(sizeof(uint32_t) * pixels);
+  m.dev->zero(m.film_sums.get(), 3 * sizeof(double) * pixels, m.stream.get());
+  m.dev->zero(m.film_samples.get(), sizeof(uint32_t) * pixels, m.stream.get());
+  m.film = DeviceFilmView{m.film_sums.as<double>(), m.film_samples.as<uint32_t>(), width, height};
 }
 
 BackendStats CudaBackend::render_to_device_film(const RenderPass& pass, TileSource& tiles) {
@@ -314,80 +346,79 @@ BackendStats CudaBackend::render_to_device_film(const RenderPass& pass, TileSour
 }
 
 ImageRGB CudaBackend::resolve_device_film() {
-  const DeviceFilmView& f = impl_->film;
+  Impl& m = *impl_;
+  const DeviceFilmView& f = m.film;
   ImageRGB image(f.width, f.height);
-  float* rgb = nullptr;
-  device_alloc(&rgb, image.rgb.size());
-  launch_resolve_film(f, rgb, impl_->stream);
-  const cudaError_t copied =
-      cudaMemcpyAsync(image.rgb.data(), rgb, image.rgb.size() * sizeof(float),
-                      cudaMemcpyDeviceToHost, impl_->stream);
-  const cudaError_t synced = cudaStreamSynchronize(impl_->stream);
-  cudaFree(rgb);
-  TANDEM_CUDA_CHECK(copied);
-  TANDEM_CUDA_CHECK(synced);
+  DeviceBuffer rgb(*m.dev, DeviceBuffer::kDevice), landing(*m.dev, DeviceBuffer::kPinned);
+  rgb.allocate(image.rgb.size() * sizeof(float));
+  landing.allocate(image.rgb.size() * sizeof(float));
+  m.dev->resolve_film(f, rgb.as<float>(), m.stream.get());
+  m.dev->copy_to_host(landing.get(), rgb.get(), image.rgb.size() * sizeof(float), m.stream.get());
+  m.dev->synchronize(m.stream.get());
+  if (!image.rgb.empty())
+    std::memcpy(image.rgb.data(), landing.get(), image.rgb.size() * sizeof(float));
   return image;
 }
 
 std::vector<uint8_t> CudaBackend::tone_map_device_film(float exposure_stops, ToneMap curve) {
-  const DeviceFilmView& f = impl_->film;
+  Impl& m = *impl_;
+  const DeviceFilmView& f = m.film;
   std::vector<uint8_t> out(3 * size_t(f.width) * f.height);
-  uint8_t* rgb8 = nullptr;
-  device_alloc(&rgb8, out.size());
-  launch_tone_map_film(f, std::exp2(exposure_stops), uint32_t(curve), rgb8, impl_->stream);
-  const cudaError_t copied =
-      cudaMemcpyAsync(out.data(), rgb8, out.size(), cudaMemcpyDeviceToHost, impl_->stream);
-  const cudaError_t synced = cudaStreamSynchronize(impl_->stream);
-  cudaFree(rgb8);
-  TANDEM_CUDA_CHECK(copied);
-  TANDEM_CUDA_CHECK(synced);
+  DeviceBuffer rgb8(*m.dev, DeviceBuffer::kDevice), landing(*m.dev, DeviceBuffer::kPinned);
+  rgb8.allocate(out.size());
+  landing.allocate(out.size());
+  m.dev->tone_map_film(f, std::exp2(exposure_stops), uint32_t(curve), rgb8.as<uint8_t>(),
+                       m.stream.get());
+  m.dev->copy_to_host(landing.get(), rgb8.get(), out.size(), m.stream.get());
+  m.dev->synchronize(m.stream.get());
+  if (!out.empty()) std::memcpy(out.data(), landing.get(), out.size());
   return out;
 }
 
 std::vector<Hit> CudaBackend::trace_rays(const std::vector<Ray>& rays,
                                          const std::vector<uint32_t>& alpha_keys, bool any_hit) {
-  if (!impl_->scene.ready()) throw std::logic_error("cuda backend: trace_rays() before sync()");
+  Impl& m = *impl_;
+  if (!m.scene.ready()) throw std::logic_error("cuda backend: trace_rays() before sync()");
   if (!alpha_keys.empty() && alpha_keys.size() != rays.size())
     throw std::invalid_argument("cuda backend: one alpha key per ray, or none");
   const size_t n = rays.size();
   std::vector<Hit> hits(n);
   if (n == 0) return hits;
-  Ray* d_rays = nullptr;
-  uint32_t* d_keys = nullptr;
-  Hit* d_hits = nullptr;
-  uint32_t* d_counter = nullptr;
-  cudaStream_t s = impl_->stream;
+  DeviceOps& dev = *m.dev;
+  const DeviceStream s = m.stream.get();
   // Freed whatever happens: a failed test must not leak device memory into
   // the next one.
-  struct Free {
-    void* p[4];
-    ~Free() {
-      for (void* q : p)
-        cudaFree(q);
-    }
-  };
-  device_alloc(&d_rays, n);
-  Free guard{{d_rays, nullptr, nullptr, nullptr}};
-  device_alloc(&d_hits, n);
-  guard.p[1] = d_hits;
-  device_alloc(&d_counter, 1);
-  guard.p[2] = d_counter;
+  DeviceBuffer d_rays(dev, DeviceBuffer::kDevice), d_keys(dev, DeviceBuffer::kDevice),
+      d_hits(dev, DeviceBuffer::kDevice), d_counter(dev, DeviceBuffer::kDevice),
+      staging(dev, DeviceBuffer::kPinned);
+  const size_t ray_bytes = n * sizeof(Ray), key_bytes = alpha_keys.size() * sizeof(uint32_t),
+               hit_bytes = n * sizeof(Hit);
+  d_rays.allocate(ray_bytes);
+  d_hits.allocate(hit_bytes);
+  d_counter.allocate(sizeof(uint32_t));
+  staging.allocate(std::max(ray_bytes + key_bytes, hit_bytes));
+  std::memcpy(staging.get(), rays.data(), ray_bytes);
+  dev.copy_to_device(d_rays.get(), staging.get(), ray_bytes, s);
   if (!alpha_keys.empty()) {
-    device_alloc(&d_keys, n);
-    guard.p[3] = d_keys;
-    TANDEM_CUDA_CHECK(cudaMemcpyAsync(d_keys, alpha_keys.data(), n * sizeof(uint32_t),
-                                      cudaMemcpyHostToDevice, s));
+    d_keys.allocate(key_bytes);
+    std::memcpy(staging.as<uint8_t>() + ray_bytes, alpha_keys.data(), key_bytes);
+    dev.copy_to_device(d_keys.get(), staging.as<uint8_t>() + ray_bytes, key_bytes, s);
   }
-  TANDEM_CUDA_CHECK(
-      cudaMemcpyAsync(d_rays, rays.data(), n * sizeof(Ray), cudaMemcpyHostToDevice, s));
-  TANDEM_CUDA_CHECK(cudaMemsetAsync(d_counter, 0, sizeof(uint32_t), s));
-  const KernelData* kd = impl_->scene.begin_render(s);
-  launch_trace_rays(kd, d_rays, d_keys, uint32_t(n), any_hit, d_hits, d_counter, nullptr, nullptr,
-                    nullptr, s);
-  impl_->scene.end_render(s);
-  TANDEM_CUDA_CHECK(
-      cudaMemcpyAsync(hits.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost, s));
-  TANDEM_CUDA_CHECK(cudaStreamSynchronize(s));
+  dev.zero(d_counter.get(), sizeof(uint32_t), s);
+  const DeviceScene::RenderTicket ticket = m.scene.begin_render(s);
+  try {
+    dev.trace_rays(ticket.view, d_rays.as<const Ray>(), d_keys.as<const uint32_t>(), uint32_t(n),
+                   any_hit, d_hits.as<Hit>(), d_counter.as<uint32_t>(), s);
+  } catch (...) {
+    m.abandon(ticket, false);
+    throw;
+  }
+  m.scene.end_render(ticket, s);
+  // The rays were read before the hits are written back (stream order), so
+  // the staging buffer can take the hits.
+  dev.copy_to_host(staging.get(), d_hits.get(), hit_bytes, s);
+  dev.synchronize(s);
+  std::memcpy(hits.data(), staging.get(), hit_bytes);
   return hits;
 }
 

@@ -1,18 +1,20 @@
 // CUDA backend: the shared kernels (core/kernel/integrator.h over Tandem's
-// own BVH, BvhTracer) on an NVIDIA GPU.
+// own BVH, BvhTracer) on an NVIDIA GPU, through the device operations of
+// device_ops.h, so that the same backend runs in CI on the simulated device.
 //
 // The scene lives on the device double-buffered (device_scene.h): sync()
-// commits only the changed element ranges into the buffer set the previous
-// frame is not using. render() pulls tiles from the TileSource in batches,
-// traces every pixel sample of a batch on the GPU (megakernel or wavefront,
-// CudaKernelVariant), sums each pixel's samples on the device in the same
-// order and precision as the CPU tile loop, and adds the sums to the host
-// Film, overlapping the host side of one batch with the GPU work of the next.
-// For GPU-only output, render_to_device_film() keeps the sums in a device
-// film that is resolved or tone mapped to 8 bits on the GPU.
+// commits only the changed element ranges, into the set no render reads, so
+// the core tracer may call it for frame N+1 while render() of frame N runs
+// (traits().syncs_while_rendering). render() pulls tiles from the TileSource
+// in batches, traces every pixel sample of a batch on the device (megakernel
+// or wavefront, CudaKernelVariant), sums each pixel's samples on the device
+// in the same order and precision as the CPU tile loop, and adds the sums to
+// the host Film, overlapping the host side of one batch with the device work
+// of the next. For GPU-only output, render_to_device_film() keeps the sums in
+// a device film that is resolved or tone mapped to 8 bits on the device.
 //
 // Like the host backend it traces the KernelScene's BVH arrays, which the
-// caller fills with AccelStructure before sync() (needs_bvh()).
+// caller fills with AccelStructure before sync() (traits().needs_bvh).
 //
 // This header includes no CUDA headers, so plain C++ code can use it.
 #pragma once
@@ -21,37 +23,64 @@
 #include <string>
 #include <vector>
 
+#include "backends/cuda/device_ops.h"
+#include "backends/kernel_variant.h"
 #include "core/image/image.h"
 #include "core/render/backend.h"
 
 namespace tandem {
 
-enum class CudaKernelVariant { kMegakernel, kWavefront };
+// Thrown by CudaBackend::render() when a device operation failed part-way.
+// The film then holds exactly the sums of the batches that completed;
+// `unfinished()` lists the tiles taken from the source whose sums never
+// reached it, so a fallback can render just those (and finish the frame with
+// the image a CPU-only run would give).
+class DeviceRenderError : public DeviceError {
+ public:
+  DeviceRenderError(const DeviceError& cause, std::vector<Tile> unfinished, BackendStats finished)
+      : DeviceError(cause), unfinished_(std::move(unfinished)), finished_(finished) {}
+  const std::vector<Tile>& unfinished() const { return unfinished_; }
+  const BackendStats& finished() const { return finished_; }
 
-// Parses "mega" / "megakernel" / "wave" / "wavefront"; throws UsageError.
-CudaKernelVariant parse_cuda_kernel_variant(const std::string& name);
+ private:
+  std::vector<Tile> unfinished_;
+  BackendStats finished_;
+};
 
-// Whether a CUDA device this build can run on exists; otherwise `reason`
-// says why (no driver, driver too old, no device, no kernel image for the
-// device's architecture, ...).
-bool cuda_query_device(std::string* reason);
+// Whether the CUDA backend has a device (a GPU, or the simulated one under
+// TANDEM_DEVICE=sim); otherwise `reason` says why (no driver, driver too
+// old, no device, no kernel image for the device's architecture, ...).
+bool cuda_backend_device_available(std::string* reason);
 
 class CudaBackend final : public Backend {
  public:
-  // Uses device 0. Throws InputError with cuda_query_device's reason when
-  // no usable device exists, CudaError when initialisation fails.
+  // How much work one batch and one kernel launch take: a batch holds at
+  // most max_batch_pixels pixels (a 512x512 frame), a launch at most
+  // max_items pixel samples (48 MiB of radiance); more samples run as
+  // several chunks summed in order. Tests shrink them to cover the paths.
+  struct LaunchLimits {
+    uint32_t max_batch_pixels = 1u << 18;
+    uint64_t max_items = 1u << 22;
+  };
+
+  // On the device open_device() chooses. Throws InputError with the reason
+  // when there is none, DeviceError when it fails to start.
   explicit CudaBackend(CudaKernelVariant variant = CudaKernelVariant::kMegakernel);
+  CudaBackend(std::shared_ptr<DeviceOps> device, CudaKernelVariant variant, LaunchLimits limits);
   ~CudaBackend() override;
   CudaBackend(const CudaBackend&) = delete;
   CudaBackend& operator=(const CudaBackend&) = delete;
 
   std::string name() const override { return "cuda"; }
-  bool needs_bvh() const override { return true; }
-  // sync() stages every changed range into pinned memory before returning,
-  // and render() reads only device buffers.
-  bool reads_host_scene_while_rendering() const override { return false; }
+  BackendTraits traits() const override {
+    return {.needs_bvh = true,
+            .uses_host_cores = false,
+            .reads_host_scene_while_rendering = false,
+            .syncs_while_rendering = true};
+  }
   // Throws std::logic_error when the scene's BVH arrays are missing.
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
+  // Throws DeviceRenderError when the device fails.
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
 
   void set_variant(CudaKernelVariant variant);
@@ -66,13 +95,18 @@ class CudaBackend final : public Backend {
   void reset_device_film(uint32_t width, uint32_t height);
   BackendStats render_to_device_film(const RenderPass& pass, TileSource& tiles);
   ImageRGB resolve_device_film();
-  // Exposure in stops, curve and sRGB as tone_map_to_srgb8, on the GPU.
+  // Exposure in stops, curve and sRGB as tone_map_to_srgb8, on the device.
   std::vector<uint8_t> tone_map_device_film(float exposure_stops, ToneMap curve);
 
   // Closest hits (any_hit = false) or occlusion (a valid hit = occluded) of
   // `rays` against the synced scene, for tests and benchmarks.
   std::vector<Hit> trace_rays(const std::vector<Ray>& rays, const std::vector<uint32_t>& alpha_keys,
                               bool any_hit);
+
+  // Every kernel array of buffer set `set` as it is on the device, and the
+  // set the next render reads (tests).
+  std::vector<std::vector<uint8_t>> read_back_scene(uint32_t set);
+  uint32_t newest_scene_set() const;
 
  private:
   struct Impl;

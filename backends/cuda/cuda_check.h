@@ -1,24 +1,57 @@
-// Error checking for every CUDA runtime call of the CUDA backend.
+// Error checking for every CUDA runtime call of the CUDA device
+// (cuda_device_ops.cpp and the kernel launchers).
 //
-// A CUDA error is not bad user input but a device or driver failure, so it
-// gets its own exception type: the backend factory catches CudaError under
-// `--backend auto` and falls back to the CPU, while `--backend cuda` lets it
-// reach the user with the call, the place and CUDA's own description.
+// A CUDA error is not bad user input but a device or driver failure: it is a
+// DeviceError (device_ops.h) whose fault kind says how to recover, so the
+// backend factory falls back to the CPU under `--backend auto` and in
+// backend lists, while `--backend cuda` lets it reach the user with the
+// call, the place and CUDA's own description.
 #pragma once
 
 #include <cuda_runtime_api.h>
 
-#include <stdexcept>
 #include <string>
+
+#include "backends/cuda/device_ops.h"
 
 namespace tandem {
 
-class CudaError : public std::runtime_error {
+// How a CUDA error code maps onto the backend's recovery.
+inline DeviceFault cuda_fault_kind(cudaError_t code) {
+  switch (code) {
+    case cudaErrorMemoryAllocation:
+      return DeviceFault::kOutOfMemory;
+    case cudaErrorLaunchFailure:
+    case cudaErrorLaunchOutOfResources:
+    case cudaErrorLaunchTimeout:
+    case cudaErrorInvalidConfiguration:
+      return DeviceFault::kLaunchFailure;
+    case cudaErrorIllegalAddress:
+    case cudaErrorMisalignedAddress:
+    case cudaErrorInvalidAddressSpace:
+    case cudaErrorIllegalInstruction:
+    case cudaErrorInvalidPc:
+    case cudaErrorHardwareStackError:
+      return DeviceFault::kIllegalAddress;
+    case cudaErrorNoDevice:
+    case cudaErrorDevicesUnavailable:
+    case cudaErrorECCUncorrectable:
+    case cudaErrorInsufficientDriver:
+    case cudaErrorSystemNotReady:
+    case cudaErrorCudartUnloading:
+      return DeviceFault::kDeviceLost;
+    default:
+      return DeviceFault::kOther;
+  }
+}
+
+class CudaError : public DeviceError {
  public:
   CudaError(cudaError_t code, const char* call, const char* file, int line)
-      : std::runtime_error(std::string("CUDA error in ") + call + " at " + file + ":" +
-                           std::to_string(line) + ": " + cudaGetErrorName(code) + " (" +
-                           cudaGetErrorString(code) + ")"),
+      : DeviceError(cuda_fault_kind(code), std::string("CUDA error in ") + call + " at " + file +
+                                               ":" + std::to_string(line) + ": " +
+                                               cudaGetErrorName(code) + " (" +
+                                               cudaGetErrorString(code) + ")"),
         code_(code) {}
   cudaError_t code() const { return code_; }
 

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "backends/cuda/cuda_backend.h"
+#include "backends/cuda/cuda_device_ops.h"
 #include "backends/cuda/cuda_kernels.h"
 
 namespace tandem {
@@ -37,6 +37,9 @@ bool cuda_query_device(std::string* reason) {
     why = std::string("CUDA is unavailable: ") + cudaGetErrorString(e);
   } else {
     cudaDeviceProp props{};
+    // Before the context exists: waits block the host thread instead of
+    // spinning on a core (the CPU backend renders on those cores).
+    cudaSetDeviceFlags(cudaDeviceScheduleBlockingSync);
     cudaError_t q = cudaGetDeviceProperties(&props, 0);
     if (q == cudaSuccess) q = cudaSetDevice(0);
     if (q == cudaSuccess) q = cuda_probe_kernel_image();

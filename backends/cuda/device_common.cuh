@@ -19,32 +19,6 @@ __device__ __forceinline__ void load_kernel_data(KernelData* dst, const KernelDa
   __syncthreads();
 }
 
-// Pixel (x, y) of batch pixel p: binary search for the tile holding p.
-__device__ __forceinline__ void batch_pixel(const TileBatch& batch, uint32_t p, uint32_t* x,
-                                            uint32_t* y) {
-  uint32_t lo = 0, hi = batch.tile_count - 1;
-  while (lo < hi) {
-    const uint32_t mid = (lo + hi + 1) / 2;
-    if (batch.tiles[mid].pixel_offset <= p)
-      lo = mid;
-    else
-      hi = mid - 1;
-  }
-  const DeviceTile t = batch.tiles[lo];
-  const uint32_t local = p - t.pixel_offset;
-  const uint32_t w = t.x1 - t.x0;
-  *x = t.x0 + local % w;
-  *y = t.y0 + local / w;
-}
-
-// Work item -> (x, y, sample); see TileBatch.
-__device__ __forceinline__ void batch_item(const TileBatch& batch, uint64_t item, uint32_t* x,
-                                           uint32_t* y, uint32_t* sample) {
-  const uint32_t p = uint32_t(item % batch.pixel_count);
-  *sample = batch.sample_begin + uint32_t(item / batch.pixel_count);
-  batch_pixel(batch, p, x, y);
-}
-
 // Adds each thread's ray count to *total with one atomic per warp. Every
 // lane of the warp must call it.
 __device__ __forceinline__ void add_ray_count(uint32_t rays, unsigned long long* total) {

@@ -1,9 +1,8 @@
 #include "backends/cuda/device_scene.h"
 
+#include <algorithm>
 #include <cstring>
-#include <vector>
-
-#include "backends/cuda/cuda_check.h"
+#include <stdexcept>
 
 namespace tandem {
 
@@ -17,59 +16,88 @@ size_t align_up(size_t n) {
 
 }  // namespace
 
-DeviceScene::DeviceScene() {
-  TANDEM_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
+DeviceScene::DeviceScene(DeviceOps& ops) : ops_(ops), copy_stream_(ops) {
   for (BufferSet& set : sets_) {
-    TANDEM_CUDA_CHECK(cudaEventCreateWithFlags(&set.uploaded, cudaEventDisableTiming));
-    TANDEM_CUDA_CHECK(cudaEventCreateWithFlags(&set.rendered, cudaEventDisableTiming));
-    TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&set.d_view), sizeof(KernelData)));
+    set.uploaded = DeviceEventOwner(ops, true);
+    set.rendered = DeviceEventOwner(ops, false);
+    set.copy_begin = DeviceEventOwner(ops, true);
+    set.ready = DeviceEventOwner(ops, true);
+    set.d_view = DeviceBuffer(ops, DeviceBuffer::kDevice);
+    set.d_view.allocate(sizeof(KernelData));
+    set.staging = DeviceBuffer(ops, DeviceBuffer::kPinned);
   }
 }
 
 DeviceScene::~DeviceScene() {
   // Destructors must not throw: errors here (a lost device) are ignored,
-  // the process is releasing the memory anyway.
-  cudaStreamSynchronize(copy_stream_);
-  for (BufferSet& set : sets_) {
-    for (void* b : set.buffers)
-      cudaFree(b);
-    cudaFree(set.d_view);
-    cudaFreeHost(set.staging);
-    cudaEventDestroy(set.uploaded);
-    cudaEventDestroy(set.rendered);
+  // the memory is being abandoned anyway.
+  try {
+    ops_.synchronize(copy_stream_.get());
+  } catch (...) {
   }
-  cudaStreamDestroy(copy_stream_);
+  for (BufferSet& set : sets_)
+    release_buffers(set);
 }
 
-void DeviceScene::reserve_staging(BufferSet& set, size_t bytes) {
-  if (bytes <= set.staging_capacity) return;
-  // The caller has waited for the set's previous upload: no copy reads it.
-  TANDEM_CUDA_CHECK(cudaFreeHost(set.staging));
-  set.staging = nullptr;
-  set.staging_capacity = 0;
-  const size_t capacity = bytes + bytes / 4;
-  TANDEM_CUDA_CHECK(cudaMallocHost(&set.staging, capacity));
-  set.staging_capacity = capacity;
+void DeviceScene::release_buffers(BufferSet& set) noexcept {
+  for (void*& b : set.buffers) {
+    if (!b) continue;
+    try {
+      ops_.free_async(b, copy_stream_.get());
+    } catch (...) {
+    }
+    b = nullptr;
+  }
+  set.view = KernelData{};
 }
 
 size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
-  const CommitPlan plan = commits_.plan(ks, delta);
-  BufferSet& set = sets_[plan.set];
+  std::lock_guard<std::mutex> lock(mutex_);
+  const uint32_t newest = commits_.current_set();
+  const bool amend = commits_.has_committed() && !sets_[newest].claimed;
+  const uint32_t target = amend ? newest : (newest + 1) % DoubleBufferedCommits::kSets;
+  BufferSet& set = sets_[target];
+  if (set.readers > 0) {
+    throw std::logic_error(
+        "DeviceScene::commit: both buffer sets are being rendered from; at most one render may "
+        "be in flight while committing");
+  }
+  commits_.add(delta);
+  const CommitPlan plan = commits_.plan(ks, target);
+  try {
+    upload(set, plan, ks);
+  } catch (...) {
+    // Part of the plan may have reached the device, part not, and buffers
+    // may have been reallocated: start the set over.
+    release_buffers(set);
+    commits_.invalidate(target);
+    set.timing_pending = false;
+    throw;
+  }
+  commits_.complete(plan);
+  last_commit_bytes_ = plan.total_bytes();
+  return last_commit_bytes_;
+}
 
+void DeviceScene::upload(BufferSet& set, const CommitPlan& plan, const KernelScene& ks) {
+  const DeviceStream copy = copy_stream_.get();
   // The host is about to overwrite this set's staging buffer.
-  TANDEM_CUDA_CHECK(cudaEventSynchronize(set.uploaded));
-  // Frames that rendered from this set must finish before we overwrite it.
-  TANDEM_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, set.rendered, 0));
+  ops_.synchronize(set.uploaded.get());
+  // Renders that read this set must finish before we overwrite it.
+  ops_.wait(copy, set.rendered.get());
+  if (!set.timing_pending) {
+    ops_.record(set.copy_begin.get(), copy);
+    set.timing_pending = true;
+  }
 
-  // Reallocations first (stream-ordered, so no device-wide sync as with
-  // cudaFree, and the other set keeps rendering meanwhile).
+  // Reallocations first (stream-ordered, so no device-wide sync as with a
+  // plain free, and the other set keeps rendering meanwhile).
   for (const ArrayCopy& c : plan.copies) {
     if (c.new_capacity == 0) continue;
     void*& buffer = set.buffers[c.array];
-    if (buffer) TANDEM_CUDA_CHECK(cudaFreeAsync(buffer, copy_stream_));
+    if (buffer) ops_.free_async(buffer, copy);
     buffer = nullptr;
-    TANDEM_CUDA_CHECK(cudaMallocAsync(&buffer, c.new_capacity * kernel_array_element_size(c.array),
-                                      copy_stream_));
+    buffer = ops_.alloc_async(c.new_capacity * kernel_array_element_size(c.array), copy);
   }
   for (const ArrayCopy& c : plan.copies) {
     if (c.resize) set_kernel_array_view(set.view, c.array, set.buffers[c.array], c.count);
@@ -80,8 +108,8 @@ size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
   size_t staging_bytes = plan.view_changed ? align_up(sizeof(KernelData)) : 0;
   for (const ArrayCopy& c : plan.copies)
     staging_bytes += align_up(c.bytes());
-  reserve_staging(set, staging_bytes);
-  auto* staging = static_cast<unsigned char*>(set.staging);
+  if (staging_bytes > set.staging.bytes()) set.staging.allocate(staging_bytes + staging_bytes / 4);
+  auto* staging = set.staging.as<unsigned char>();
   size_t offset = 0;
   for (const ArrayCopy& c : plan.copies) {
     const size_t n = c.bytes();
@@ -90,31 +118,68 @@ size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
     const auto* src = static_cast<const unsigned char*>(kernel_array_host_data(ks, c.array));
     std::memcpy(staging + offset, src + size_t(c.begin) * elem, n);
     auto* dst = static_cast<unsigned char*>(set.buffers[c.array]) + size_t(c.begin) * elem;
-    TANDEM_CUDA_CHECK(
-        cudaMemcpyAsync(dst, staging + offset, n, cudaMemcpyHostToDevice, copy_stream_));
+    ops_.copy_to_device(dst, staging + offset, n, copy);
     offset += align_up(n);
   }
   if (plan.view_changed) {
     std::memcpy(staging + offset, &set.view, sizeof(KernelData));
-    TANDEM_CUDA_CHECK(cudaMemcpyAsync(set.d_view, staging + offset, sizeof(KernelData),
-                                      cudaMemcpyHostToDevice, copy_stream_));
+    ops_.copy_to_device(set.d_view.get(), staging + offset, sizeof(KernelData), copy);
   }
-  TANDEM_CUDA_CHECK(cudaEventRecord(set.uploaded, copy_stream_));
-  last_commit_bytes_ = plan.total_bytes();
+  ops_.record(set.uploaded.get(), copy);
+}
+
+size_t DeviceScene::last_commit_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
   return last_commit_bytes_;
 }
 
-const KernelData* DeviceScene::begin_render(cudaStream_t stream) {
-  BufferSet& set = sets_[commits_.current_set()];
-  TANDEM_CUDA_CHECK(cudaStreamWaitEvent(stream, set.uploaded, 0));
-  return set.d_view;
+DeviceScene::RenderTicket DeviceScene::begin_render(DeviceStream stream) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!commits_.has_committed())
+    throw std::logic_error("cuda backend: render before a successful sync()");
+  const uint32_t s = commits_.current_set();
+  BufferSet& set = sets_[s];
+  // When the stream could start on this frame, were the upload not in the
+  // way: what the commit's copy time is measured against (by the first
+  // render after the commit; later ones find the copies long done).
+  if (!set.claimed) ops_.record(set.ready.get(), stream);
+  ops_.wait(stream, set.uploaded.get());
+  set.claimed = true;
+  ++set.readers;
+  return RenderTicket{s, set.d_view.as<const KernelData>()};
 }
 
-void DeviceScene::end_render(cudaStream_t stream) {
-  TANDEM_CUDA_CHECK(cudaEventRecord(sets_[commits_.current_set()].rendered, stream));
+void DeviceScene::end_render(const RenderTicket& ticket, DeviceStream stream) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  BufferSet& set = sets_[ticket.set];
+  if (set.readers > 0) --set.readers;
+  ops_.record(set.rendered.get(), stream);
+}
+
+DeviceScene::CommitTiming DeviceScene::take_timing(const RenderTicket& ticket) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  BufferSet& set = sets_[ticket.set];
+  CommitTiming t;
+  if (!set.timing_pending) return t;
+  set.timing_pending = false;
+  t.copy_seconds = std::max(0.0, ops_.elapsed_seconds(set.copy_begin.get(), set.uploaded.get()));
+  const double before_ready = ops_.elapsed_seconds(set.copy_begin.get(), set.ready.get());
+  t.hidden_seconds = std::clamp(before_ready, 0.0, t.copy_seconds);
+  return t;
+}
+
+bool DeviceScene::ready() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return commits_.has_committed();
+}
+
+uint32_t DeviceScene::newest_set() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return commits_.current_set();
 }
 
 size_t DeviceScene::device_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
   size_t total = 0;
   for (uint32_t s = 0; s < DoubleBufferedCommits::kSets; ++s)
     for (uint32_t a = 0; a < kKernelArrayCount; ++a)
@@ -123,7 +188,29 @@ size_t DeviceScene::device_bytes() const {
 }
 
 void DeviceScene::synchronize() {
-  TANDEM_CUDA_CHECK(cudaStreamSynchronize(copy_stream_));
+  ops_.synchronize(copy_stream_.get());
+}
+
+std::vector<std::vector<uint8_t>> DeviceScene::read_back(uint32_t s) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const DeviceStream copy = copy_stream_.get();
+  const BufferSet& set = sets_[s];
+  std::vector<std::vector<uint8_t>> out(kKernelArrayCount);
+  std::vector<DeviceBuffer> landing;
+  for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
+    const size_t bytes = size_t(commits_.count(s, a)) * kernel_array_element_size(a);
+    landing.emplace_back(ops_, DeviceBuffer::kPinned);
+    if (bytes == 0) continue;
+    landing.back().allocate(bytes);
+    ops_.copy_to_host(landing.back().get(), set.buffers[a], bytes, copy);
+  }
+  ops_.synchronize(copy);
+  for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
+    const size_t bytes = size_t(commits_.count(s, a)) * kernel_array_element_size(a);
+    const auto* p = landing[a].as<const uint8_t>();
+    if (bytes) out[a].assign(p, p + bytes);
+  }
+  return out;
 }
 
 }  // namespace tandem

@@ -13,55 +13,24 @@ constexpr uint32_t kFilmThreads = 256;
 __global__ void reduce_samples_kernel(TileBatch batch, const Vec3* __restrict__ radiance,
                                       double* pixel_sums) {
   const uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
-  if (p >= batch.pixel_count) return;
-  double r = pixel_sums[3 * p], g = pixel_sums[3 * p + 1], b = pixel_sums[3 * p + 2];
-  // Sample order, double precision: what render_tiles_on_cpu does.
-  for (uint32_t s = 0; s < batch.sample_count; ++s) {
-    const Vec3 l = radiance[uint64_t(s) * batch.pixel_count + p];
-    r += double(l.x);
-    g += double(l.y);
-    b += double(l.z);
-  }
-  pixel_sums[3 * p] = r;
-  pixel_sums[3 * p + 1] = g;
-  pixel_sums[3 * p + 2] = b;
+  if (p < batch.pixel_count) reduce_pixel_samples(batch, radiance, p, pixel_sums);
 }
 
 __global__ void accumulate_film_kernel(TileBatch batch, const double* __restrict__ pixel_sums,
                                        uint32_t samples, DeviceFilmView film) {
   const uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
-  if (p >= batch.pixel_count) return;
-  uint32_t x, y;
-  batch_pixel(batch, p, &x, &y);
-  const size_t i = size_t(y) * film.width + x;
-  film.sums[3 * i] += pixel_sums[3 * p];
-  film.sums[3 * i + 1] += pixel_sums[3 * p + 1];
-  film.sums[3 * i + 2] += pixel_sums[3 * p + 2];
-  film.samples[i] += samples;
-}
-
-// Film::resolve's arithmetic exactly: sum * (1 / samples) in double.
-__device__ __forceinline__ void film_mean(const DeviceFilmView& film, size_t i, float out[3]) {
-  const uint32_t n = film.samples[i];
-  const double inv = n ? 1.0 / double(n) : 0.0;
-  for (int c = 0; c < 3; ++c)
-    out[c] = float(film.sums[3 * i + c] * inv);
+  if (p < batch.pixel_count) accumulate_film_pixel(batch, pixel_sums, samples, film, p);
 }
 
 __global__ void resolve_film_kernel(DeviceFilmView film, float* rgb) {
-  const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (i >= size_t(film.width) * film.height) return;
-  film_mean(film, i, &rgb[3 * i]);
+  const uint64_t i = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i < uint64_t(film.width) * film.height) film_pixel_mean(film, i, &rgb[3 * i]);
 }
 
 __global__ void tone_map_film_kernel(DeviceFilmView film, float scale, uint32_t curve,
                                      uint8_t* rgb8) {
-  const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (i >= size_t(film.width) * film.height) return;
-  float mean[3];
-  film_mean(film, i, mean);
-  for (int c = 0; c < 3; ++c)
-    rgb8[3 * i + c] = tone_map_channel_srgb8(mean[c], scale, curve);
+  const uint64_t i = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i < uint64_t(film.width) * film.height) tone_map_film_pixel(film, i, scale, curve, rgb8);
 }
 
 }  // namespace

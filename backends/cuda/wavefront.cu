@@ -12,11 +12,13 @@
 //             over the hit queue. The integrator is handed a tracer that
 //             returns the precomputed bounce-0 hit, so the result is bit for
 //             bit the megakernel's.
-// TODO(issue 4): split shade into shade / connect stages with per-bounce
+// Still to split: shade into shade / connect stages with per-bounce
 // queues (next extend queue, shadow-ray queue traced by launch_trace_rays
 // with any_hit). That needs trace_path in core/kernel/integrator.h factored
 // into per-bounce step functions over an explicit path state; until then the
 // bounces after the first run megakernel-style inside "shade".
+#include <stdexcept>
+
 #include "backends/cuda/cuda_check.h"
 #include "backends/cuda/device_common.cuh"
 #include "core/kernel/bvh_traverse.h"
@@ -99,32 +101,12 @@ __global__ void __launch_bounds__(kWaveThreads)
 
 }  // namespace
 
-void WavefrontScratch::ensure(uint64_t items) {
-  if (items <= capacity) return;
-  release();
-  TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&rays), items * sizeof(Ray)));
-  TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&alpha_keys), items * sizeof(uint32_t)));
-  TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&hits), items * sizeof(Hit)));
-  TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&queues), 2 * items * sizeof(uint32_t)));
-  TANDEM_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&counters), 4 * sizeof(uint32_t)));
-  capacity = items;
-}
-
-void WavefrontScratch::release() {
-  // Called from destructors too: errors are ignored (nothing to recover).
-  cudaFree(rays);
-  cudaFree(alpha_keys);
-  cudaFree(hits);
-  cudaFree(queues);
-  cudaFree(counters);
-  *this = WavefrontScratch{};
-}
-
-void launch_wavefront(const KernelData* kd, const TileBatch& batch, WavefrontScratch& scratch,
+void launch_wavefront(const KernelData* kd, const TileBatch& batch, const WavefrontScratch& scratch,
                       Vec3* radiance, unsigned long long* ray_count, cudaStream_t stream) {
   const uint64_t n = batch.items();
   if (n == 0) return;
-  scratch.ensure(n);
+  if (n > scratch.capacity)
+    throw std::logic_error("launch_wavefront: scratch holds fewer items than the batch");
   const uint32_t blocks = blocks_for(n, kWaveThreads);
   // counters: [0] the extend stage's work counter, [1] hits, [2] misses.
   TANDEM_CUDA_CHECK(cudaMemsetAsync(scratch.counters, 0, 4 * sizeof(uint32_t), stream));

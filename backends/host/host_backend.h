@@ -14,8 +14,7 @@ namespace tandem {
 class HostBackend final : public Backend {
  public:
   std::string name() const override { return "host"; }
-  bool needs_bvh() const override { return true; }
-  bool uses_host_cores() const override { return true; }
+  BackendTraits traits() const override { return {.needs_bvh = true, .uses_host_cores = true}; }
   // Throws std::logic_error (a caller's bug, not bad input) when the scene's BVH arrays are missing
   // or do not cover its instances (AccelStructure has not run on it).
   void sync(const KernelScene& scene, const SceneDelta& delta) override;

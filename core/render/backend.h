@@ -4,7 +4,10 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "core/render/film.h"
 #include "core/render/tiles.h"
@@ -21,7 +24,17 @@ struct RenderPass {
   // took (for one worker), from which the tile scheduler learns which parts
   // of the frame are expensive. Backends that cannot time tiles skip it.
   double* tile_seconds = nullptr;
+  // Set by the core tracer when it may compile the next frame into the host
+  // KernelScene while this render runs (every backend renders from a copy
+  // of its own): a backend must then not start reading the host scene
+  // inside render(), not even to recover from a failure (RenderIncomplete).
+  bool host_scene_may_change = false;
+  // A backend with traits().syncs_while_rendering calls this once it holds
+  // the scene copy the render reads (from then on a sync() for the next
+  // frame cannot change what this render sees). May be empty.
+  std::function<void()> scene_claimed;
 };
+
 
 struct BackendStats {
   double seconds = 0.0;  // wall time inside render()
@@ -30,6 +43,11 @@ struct BackendStats {
   uint32_t tiles = 0;
   uint64_t pixels = 0;
   uint64_t commit_bytes = 0;  // scene data sent to a device since the last render()
+  // Of the commits since the last render(): seconds the device spent copying
+  // them, and how much of that ran while an earlier frame was still rendering
+  // (hidden by the overlap). Zero for backends without a device copy.
+  double commit_copy_seconds = 0.0;
+  double commit_hidden_seconds = 0.0;
 
   BackendStats& operator+=(const BackendStats& o) {
     seconds += o.seconds;
@@ -38,31 +56,61 @@ struct BackendStats {
     tiles += o.tiles;
     pixels += o.pixels;
     commit_bytes += o.commit_bytes;
+    commit_copy_seconds += o.commit_copy_seconds;
+    commit_hidden_seconds += o.commit_hidden_seconds;
     return *this;
   }
+};
+
+// Thrown by render() when a backend stopped part-way and the frame must be
+// completed by the caller: the film holds exactly the sums of the tiles the
+// backend finished (`finished`); `unfinished` lists tiles it took from the
+// source but did not add. The backend has switched to another way of
+// rendering (the CPU after a GPU failure): the caller syncs it with a full
+// delta and renders `unfinished` and the source's remaining tiles on it.
+class RenderIncomplete : public std::runtime_error {
+ public:
+  RenderIncomplete(const std::string& what, std::vector<Tile> unfinished, BackendStats finished)
+      : std::runtime_error(what), unfinished_(std::move(unfinished)), finished_(finished) {}
+  const std::vector<Tile>& unfinished() const { return unfinished_; }
+  const BackendStats& finished() const { return finished_; }
+
+ private:
+  std::vector<Tile> unfinished_;
+  BackendStats finished_;
+};
+
+// What the tracer needs to know about a backend to drive it, as one value,
+// so that a wrapper (the `auto` fallback) forwards all of it in one line and
+// cannot forget a new capability.
+struct BackendTraits {
+  // Traces Tandem's own BVH (the kernel arrays bvh_nodes etc.) rather than
+  // building its own structure. The caller runs
+  // AccelStructure::update_and_mark() on the KernelScene before sync() when
+  // any of its backends needs it; the others never pay for the build.
+  bool needs_bvh = false;
+  // render() runs on the host's CPU cores (TBB workers). Two such backends
+  // compete for the same cores, so splitting a frame between them cannot beat
+  // the faster one alone; the core tracer uses this to decide.
+  bool uses_host_cores = false;
+  // render() reads the host KernelScene (CPU backends trace it in place). A
+  // backend that works from its own copy made in sync() (the CUDA backend's
+  // device buffers) lets the core tracer compile the next frame into the
+  // KernelScene while this one renders: Brigade's overlap.
+  bool reads_host_scene_while_rendering = true;
+  // sync() may be called from another thread while render() runs, and then
+  // commits into a copy that the running render does not read (the CUDA
+  // backend's second device buffer set): the next frame's upload overlaps
+  // this frame's render.
+  bool syncs_while_rendering = false;
+  bool operator==(const BackendTraits&) const = default;
 };
 
 class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string name() const = 0;
-
-  // Whether the backend traces Tandem's own BVH (the kernel arrays bvh_nodes
-  // etc.) rather than building its own structure. The caller runs
-  // AccelStructure::update_and_mark() on the KernelScene before sync() when
-  // any of its backends needs it; the others never pay for the build.
-  virtual bool needs_bvh() const { return false; }
-
-  // Whether render() runs on the host's CPU cores (TBB workers). Two such
-  // backends compete for the same cores, so splitting a frame between them
-  // cannot beat the faster one alone; the core tracer uses this to decide.
-  virtual bool uses_host_cores() const { return false; }
-
-  // Whether render() reads the host KernelScene (CPU backends trace it in
-  // place). A backend that works from its own copy made in sync() (the CUDA
-  // backend's device buffers) lets the core tracer compile the next frame
-  // into the KernelScene while this one renders: Brigade's overlap.
-  virtual bool reads_host_scene_while_rendering() const { return true; }
+  virtual BackendTraits traits() const = 0;
 
   // Makes the backend's copy of the scene match `scene`, given what changed.
   // `scene` must outlive the next render() calls (backends may keep

@@ -25,4 +25,15 @@ bool TileQueue::next(Tile* tile) {
 
 size_t TileQueue::taken() const { return std::min(next_.load(std::memory_order_relaxed), tiles_.size()); }
 
+bool ResumedTiles::next(Tile* tile) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (taken_ < first_.size()) {
+      *tile = first_[taken_++];
+      return true;
+    }
+  }
+  return rest_.next(tile);
+}
+
 }  // namespace tandem

@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <mutex>
 #include <vector>
 
 namespace tandem {
@@ -35,6 +36,20 @@ class TileQueue final : public TileSource {
  private:
   std::vector<Tile> tiles_;
   std::atomic<size_t> next_{0};
+};
+
+// Hands out `first` (tiles a failed backend took but did not finish), then
+// whatever `rest` still has.
+class ResumedTiles final : public TileSource {
+ public:
+  ResumedTiles(std::vector<Tile> first, TileSource& rest) : first_(std::move(first)), rest_(rest) {}
+  bool next(Tile* tile) override;
+
+ private:
+  std::vector<Tile> first_;
+  TileSource& rest_;
+  std::mutex mutex_;
+  size_t taken_ = 0;
 };
 
 }  // namespace tandem

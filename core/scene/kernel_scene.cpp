@@ -36,6 +36,15 @@ size_t KernelScene::byte_size() const {
   return bytes;
 }
 
+SceneDelta SceneDelta::everything() {
+  SceneDelta all;
+  all.full = all.constants = all.instances_changed = true;
+#define TANDEM_MARK_REALLOCATED(T, name) all.name.reallocated = true;
+  TANDEM_KERNEL_ARRAYS(TANDEM_MARK_REALLOCATED)
+#undef TANDEM_MARK_REALLOCATED
+  return all;
+}
+
 void SceneDelta::merge(const SceneDelta& later) {
 #define TANDEM_MERGE_CHANGE(T, name)                             \
   name.reallocated = name.reallocated || later.name.reallocated; \

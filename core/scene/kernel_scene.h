@@ -33,6 +33,13 @@ class KernelScene {
   size_t byte_size() const;
 };
 
+// Backends that trace Tandem's BVH call this in sync(): the kernels treat a
+// missing BVH as "nothing to hit" (an empty scene), so a caller that forgot
+// AccelStructure would silently get a black image. Throws std::logic_error (a
+// caller's bug, not bad input) naming `backend` when a mesh's BLAS root or
+// the TLAS root is missing or out of range.
+void check_bvh_present(const KernelScene& ks, const char* backend);
+
 // Elements [begin, end) of one array were rewritten; `reallocated` means the
 // array changed size (or was rebuilt) and must be re-sent as a whole.
 struct ArrayChange {
@@ -53,6 +60,9 @@ struct SceneDelta {
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
 
   bool any() const;
+  // What a backend that has seen nothing of the scene needs: every array
+  // reallocated, the constants, the instances.
+  static SceneDelta everything();
   // Adds `later`'s changes (what a second compile found) to this delta.
   void merge(const SceneDelta& later);
   // Bytes an upload of exactly the changed ranges moves (what the CUDA

@@ -45,11 +45,34 @@ uint64_t FrameMetrics::samples() const {
 CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSettings settings)
     : backends_(std::move(backends)), settings_(settings), scheduler_(settings.scheduler) {
   if (backends_.empty()) throw InputError("core tracer: no backend to render with");
-  for (size_t i = 0; i < backends_.size(); ++i) {
-    if (backends_[i]->needs_bvh() && !accel_) accel_ = std::make_unique<AccelStructure>();
-    if (backends_[i]->uses_host_cores()) host_core_backends_.push_back(i);
-  }
   probe_rate_.assign(backends_.size(), 0.0);
+  synced_ahead_.assign(backends_.size(), false);
+  refresh_traits();
+  // Only at the start: a BVH built from some later frame on would need a
+  // full build, and backends only ever lose the need (a GPU falling back).
+  for (const BackendTraits& t : traits_) {
+    if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>();
+  }
+}
+
+void CoreTracer::refresh_traits() {
+  std::vector<BackendTraits> now;
+  for (const auto& b : backends_)
+    now.push_back(b->traits());
+  if (now == traits_) return;
+  traits_ = std::move(now);
+  std::vector<size_t> host;
+  for (size_t i = 0; i < traits_.size(); ++i) {
+    if (traits_[i].uses_host_cores) host.push_back(i);
+  }
+  if (host != host_core_backends_) {
+    // A new set of backends competes for the cores (a GPU fell back to the
+    // CPU): time them alone again.
+    host_core_backends_ = std::move(host);
+    probe_ = 0;
+    frames_since_probe_ = 0;
+    std::fill(probe_rate_.begin(), probe_rate_.end(), 0.0);
+  }
 }
 
 CoreTracer::~CoreTracer() {
@@ -95,16 +118,20 @@ void CoreTracer::begin_frame(Scene& scene) {
   m = FrameMetrics{};
   m.frame = frame_++;
 
+  refresh_traits();
+
   // SyncScene (the compiler also notices changed render settings) and
-  // UpdateAccStruc; prepare_next_frame() may have done most of it already.
+  // UpdateAccStruc; prepare_next_frame() may have done most of it already,
+  // and then `late` holds only the edits made since.
   auto t = Clock::now();
-  SceneDelta delta = compiler_.compile(scene, settings_.render, kernel_scene_);
+  SceneDelta late = compiler_.compile(scene, settings_.render, kernel_scene_);
   m.sync_scene_seconds = seconds_since(t);
   t = Clock::now();
-  if (accel_) accel_->update_and_mark(kernel_scene_, delta);
+  if (accel_) accel_->update_and_mark(kernel_scene_, late);
   m.update_accstruc_seconds = seconds_since(t);
+  SceneDelta delta = late;
   if (prepared_delta_) {
-    prepared_delta_->merge(delta);
+    prepared_delta_->merge(late);
     delta = std::move(*prepared_delta_);
     prepared_delta_.reset();
     m.sync_scene_seconds += prepared_sync_seconds_;
@@ -114,11 +141,16 @@ void CoreTracer::begin_frame(Scene& scene) {
   m.delta_bytes = delta.any() ? delta.bytes(kernel_scene_) : 0;
 
   // SyncAccStruc: each backend commits what changed (the CUDA backend
-  // queues the upload on its copy stream and returns).
+  // queues the upload on its copy stream and returns). Backends that
+  // prepare_next_frame() synced already get only the late edits.
   t = Clock::now();
-  for (auto& b : backends_)
-    b->sync(kernel_scene_, delta);
-  m.sync_accstruc_seconds = seconds_since(t);
+  for (size_t b = 0; b < backends_.size(); ++b) {
+    backends_[b]->sync(kernel_scene_, synced_ahead_[b] ? late : delta);
+    m.overlapped_commit = m.overlapped_commit || synced_ahead_[b];
+    synced_ahead_[b] = false;
+  }
+  m.sync_accstruc_seconds = seconds_since(t) + prepared_commit_seconds_;
+  prepared_commit_seconds_ = 0.0;
 
   if (delta.any()) reset_pending_ = true;
   if (grid_stale_) {
@@ -193,22 +225,34 @@ void CoreTracer::launch_render() {
   f.pass.sample_count = std::max(settings_.samples_per_frame, 1u);
   f.tile_seconds.assign(scheduler_.tile_count(), -1.0);
   f.pass.tile_seconds = f.tile_seconds.data();
-  const std::vector<TileSource*> sources = scheduler_.begin_frame();
+  f.pass.host_scene_may_change = true;
+  for (const BackendTraits& tr : traits_)
+    f.pass.host_scene_may_change = f.pass.host_scene_may_change && !tr.reads_host_scene_while_rendering;
+  f.sources = scheduler_.begin_frame();
   const size_t n = backends_.size();
   f.stats.assign(n, BackendStats{});
   f.errors.assign(n, nullptr);
+  f.claimed.assign(n, false);
   f.start = Clock::now();
   // Every backend renders on its own thread (CPU backends fan out further
   // through TBB; the CUDA backend mostly waits on its stream), so the caller
   // is free to prepare the next frame's Scene meanwhile.
   f.threads.clear();
   for (size_t b = 0; b < n; ++b) {
-    f.threads.emplace_back([this, b, source = sources[b]] {
+    f.threads.emplace_back([this, b] {
+      auto claim = [this, b] {
+        std::lock_guard<std::mutex> lock(flight_.claim_mutex);
+        flight_.claimed[b] = true;
+        flight_.claim_cv.notify_all();
+      };
+      RenderPass pass = flight_.pass;
+      if (traits_[b].syncs_while_rendering) pass.scene_claimed = claim;
       try {
-        flight_.stats[b] = backends_[b]->render(flight_.pass, *source, film_);
+        flight_.stats[b] = backends_[b]->render(pass, *flight_.sources[b], film_);
       } catch (...) {
         flight_.errors[b] = std::current_exception();
       }
+      claim();  // also when the backend never got to claim its scene
     });
   }
   in_flight_ = true;
@@ -217,8 +261,8 @@ void CoreTracer::launch_render() {
 bool CoreTracer::prepare_next_frame(Scene& scene) {
   if (!in_flight_) throw std::logic_error("CoreTracer::prepare_next_frame: no frame in flight");
   if (prepared_delta_) return true;
-  for (const auto& b : backends_) {
-    if (b->reads_host_scene_while_rendering()) return false;
+  for (const BackendTraits& t : traits_) {
+    if (t.reads_host_scene_while_rendering) return false;
   }
   // The settings the next frame will use (a pending change applies then).
   const RenderSettings& next = pending_settings_ ? pending_settings_->render : settings_.render;
@@ -228,8 +272,51 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   t = Clock::now();
   if (accel_) accel_->update_and_mark(kernel_scene_, delta);
   prepared_accstruc_seconds_ = seconds_since(t);
+
+  // SyncAccStruc ahead, for backends that commit into a copy this frame's
+  // render does not read: once each render holds its scene, its backend may
+  // receive the next frame.
+  t = Clock::now();
+  for (size_t b = 0; b < backends_.size(); ++b) {
+    if (!traits_[b].syncs_while_rendering) continue;
+    {
+      std::unique_lock<std::mutex> lock(flight_.claim_mutex);
+      flight_.claim_cv.wait(lock, [&] { return bool(flight_.claimed[b]); });
+    }
+    // A backend whose render failed, or that fell back to the CPU, is
+    // synced by the next begin_frame() instead.
+    if (flight_.errors[b] || !backends_[b]->traits().syncs_while_rendering) continue;
+    backends_[b]->sync(kernel_scene_, delta);
+    synced_ahead_[b] = true;
+  }
+  prepared_commit_seconds_ = seconds_since(t);
   prepared_delta_ = std::move(delta);
   return true;
+}
+
+void CoreTracer::complete_incomplete_renders() {
+  Flight& f = flight_;
+  for (size_t b = 0; b < backends_.size(); ++b) {
+    if (!f.errors[b]) continue;
+    try {
+      std::rethrow_exception(f.errors[b]);
+    } catch (const RenderIncomplete& e) {
+      // The backend stopped part-way and switched to the CPU; nothing
+      // renders now, so it may read the host scene (which holds the next
+      // frame's scene if prepare_next_frame() ran: this frame shows that).
+      backends_[b]->sync(kernel_scene_, SceneDelta::everything());
+      synced_ahead_[b] = true;  // it has everything the next frame needs
+      ResumedTiles tiles(e.unfinished(), *f.sources[b]);
+      RenderPass pass = f.pass;
+      pass.host_scene_may_change = false;
+      BackendStats stats = backends_[b]->render(pass, tiles, film_);
+      stats += e.finished();
+      f.stats[b] = stats;
+      f.errors[b] = nullptr;
+      metrics_.backends[b].completed_after_failure = true;
+    } catch (...) {  // other failures are the caller's (end_frame rethrows)
+    }
+  }
 }
 
 const FrameMetrics& CoreTracer::end_frame() {
@@ -242,11 +329,12 @@ const FrameMetrics& CoreTracer::end_frame() {
   FrameMetrics& m = metrics_;
   m.render_seconds = seconds_since(f.start);
   const size_t n = backends_.size();
+  m.backends.assign(n, BackendFrameMetrics{});
+  complete_incomplete_renders();
   std::vector<double> backend_seconds(n);
   for (size_t b = 0; b < n; ++b)
     backend_seconds[b] = f.stats[b].seconds;
   const std::vector<uint32_t> stolen = scheduler_.stolen_counts();
-  m.backends.resize(n);
   for (size_t b = 0; b < n; ++b) {
     BackendFrameMetrics& bm = m.backends[b];
     bm.name = backends_[b]->name();
@@ -259,6 +347,8 @@ const FrameMetrics& CoreTracer::end_frame() {
     bm.rays = f.stats[b].rays;
     bm.samples = f.stats[b].samples;
     bm.commit_bytes = f.stats[b].commit_bytes;
+    bm.commit_copy_seconds = f.stats[b].commit_copy_seconds;
+    bm.commit_hidden_seconds = f.stats[b].commit_hidden_seconds;
   }
   for (const std::exception_ptr& e : f.errors) {
     if (e) {

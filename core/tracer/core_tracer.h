@@ -18,7 +18,9 @@
 #pragma once
 
 #include <chrono>
+#include <condition_variable>
 #include <exception>
+#include <mutex>
 #include <memory>
 #include <optional>
 #include <string>
@@ -57,6 +59,10 @@ struct BackendFrameMetrics {
   double idle_seconds = 0.0;   // waiting for the slowest backend
   uint64_t rays = 0, samples = 0;
   uint64_t commit_bytes = 0;  // scene data this backend sent to its device
+  // Device time of those copies, and how much of it ran while the previous
+  // frame was still rendering (hidden by the overlap).
+  double commit_copy_seconds = 0.0, commit_hidden_seconds = 0.0;
+  bool completed_after_failure = false;  // the device failed; the CPU finished its tiles
   double mrays_per_second() const { return seconds > 0.0 ? double(rays) / seconds * 1e-6 : 0.0; }
 };
 
@@ -64,8 +70,11 @@ struct FrameMetrics {
   uint64_t frame = 0;
   uint32_t accumulated_spp = 0;  // after this frame
   bool accumulation_reset = false;
-  bool overlapped_prepare =
-      false;  // SyncScene/UpdateAccStruc ran during the previous frame's render
+  // SyncScene/UpdateAccStruc ran during the previous frame's render.
+  bool overlapped_prepare = false;
+  // SyncAccStruc too: the delta went to the device backends during the
+  // previous frame's render (only edits made after that were sent now).
+  bool overlapped_commit = false;
   double sync_scene_seconds = 0.0, update_accstruc_seconds = 0.0, sync_accstruc_seconds = 0.0;
   double render_seconds = 0.0, total_seconds = 0.0;
   uint64_t delta_bytes = 0;  // size of the frame's changed kernel-array ranges
@@ -95,9 +104,11 @@ class CoreTracer {
   const FrameMetrics& end_frame();
   // Between begin_frame() and end_frame(): runs the next frame's SyncScene
   // and UpdateAccStruc now, while this frame renders, when no backend reads
-  // the host KernelScene during render() (GPU-only rendering). Returns false
-  // (and does nothing) otherwise; the next begin_frame() then does it. Scene
-  // edits made after this call still reach the next frame.
+  // the host KernelScene during render() (GPU-only rendering), and
+  // SyncAccStruc for the backends that can commit during a render (the CUDA
+  // backend uploads into its other buffer set). Returns false (and does
+  // nothing) otherwise; the next begin_frame() then does it. Scene edits
+  // made after this call still reach the next frame.
   bool prepare_next_frame(Scene& scene);
 
   // Changing anything that alters the image restarts accumulation; a new
@@ -121,13 +132,21 @@ class CoreTracer {
 
  private:
   void apply_settings(const TracerSettings& settings);
+  void refresh_traits();
   void choose_host_core_backends();
+  void complete_incomplete_renders();
   void record_host_core_probe();
   void launch_render();
 
   // State of the frame between begin_frame() and end_frame().
   struct Flight {
     RenderPass pass;
+    std::vector<TileSource*> sources;
+    // Backends that sync during render() wait to be told that this render
+    // holds its scene copy before the next frame is committed to them.
+    std::mutex claim_mutex;
+    std::condition_variable claim_cv;
+    std::vector<bool> claimed;
     std::vector<double> tile_seconds;
     std::vector<BackendStats> stats;
     std::vector<std::exception_ptr> errors;
@@ -136,6 +155,7 @@ class CoreTracer {
   };
 
   std::vector<std::unique_ptr<Backend>> backends_;
+  std::vector<BackendTraits> traits_;  // as of the last begin_frame()
   TracerSettings settings_;
   SceneCompiler compiler_;
   KernelScene kernel_scene_;
@@ -151,7 +171,9 @@ class CoreTracer {
   uint64_t frames_since_probe_ = 0;
   // What prepare_next_frame() compiled for the next frame.
   std::optional<SceneDelta> prepared_delta_;
+  std::vector<bool> synced_ahead_;  // which backends prepare_next_frame() synced
   double prepared_sync_seconds_ = 0.0, prepared_accstruc_seconds_ = 0.0;
+  double prepared_commit_seconds_ = 0.0;
   Flight flight_;
   bool in_flight_ = false;
   std::optional<TracerSettings> pending_settings_;

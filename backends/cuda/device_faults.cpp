@@ -1,0 +1,212 @@
+#include "backends/cuda/device_faults.h"
+
+#include <cstdlib>
+#include <mutex>
+#include <optional>
+
+#include "core/util/errors.h"
+
+namespace tandem {
+
+FaultSpec parse_fault_spec(const std::string& text) {
+  FaultSpec spec;
+  spec.text = text;
+  if (text.empty()) return spec;
+  const size_t at = text.find('@');
+  const std::string kind = text.substr(0, at);
+  if (kind == "oom")
+    spec.kind = FaultSpec::kOutOfMemory;
+  else if (kind == "launch")
+    spec.kind = FaultSpec::kLaunch;
+  else if (kind == "illegal-address")
+    spec.kind = FaultSpec::kIllegalAddress;
+  else if (kind == "lost")
+    spec.kind = FaultSpec::kLost;
+  else
+    throw InputError("TANDEM_DEVICE_FAULT='" + text +
+                     "': unknown fault (expected oom, launch, illegal-address or lost, "
+                     "optionally followed by @N)");
+  if (at != std::string::npos) {
+    const std::string n = text.substr(at + 1);
+    char* end = nullptr;
+    const unsigned long long v = n.empty() ? 0 : std::strtoull(n.c_str(), &end, 10);
+    if (n.empty() || *end != '\0' || v == 0 || n[0] == '-')
+      throw InputError("TANDEM_DEVICE_FAULT='" + text + "': N in KIND@N must be a count >= 1");
+    spec.nth = v;
+  }
+  return spec;
+}
+
+namespace {
+
+class FaultInjectingDevice final : public DeviceOps {
+ public:
+  FaultInjectingDevice(std::shared_ptr<DeviceOps> inner, FaultSpec spec)
+      : inner_(std::move(inner)), spec_(std::move(spec)) {}
+
+  std::string name() const override { return inner_->name(); }
+
+  void* alloc(size_t bytes) override {
+    on_alloc("alloc", bytes);
+    return inner_->alloc(bytes);
+  }
+  void free(void* p) override {
+    on_op("free");
+    inner_->free(p);
+  }
+  void* alloc_async(size_t bytes, DeviceStream s) override {
+    on_alloc("alloc_async", bytes);
+    return inner_->alloc_async(bytes, s);
+  }
+  void free_async(void* p, DeviceStream s) override {
+    on_op("free_async");
+    inner_->free_async(p, s);
+  }
+  void* alloc_pinned(size_t bytes) override {
+    on_alloc("alloc_pinned", bytes);
+    return inner_->alloc_pinned(bytes);
+  }
+  void free_pinned(void* p) override {
+    on_op("free_pinned");
+    inner_->free_pinned(p);
+  }
+  DeviceStream create_stream() override {
+    on_op("create_stream");
+    return inner_->create_stream();
+  }
+  void destroy_stream(DeviceStream s) override {
+    // Teardown still releases what the inner device holds, faulted or not.
+    inner_->destroy_stream(s);
+  }
+  DeviceEvent create_event(bool timing) override {
+    on_op("create_event");
+    return inner_->create_event(timing);
+  }
+  void destroy_event(DeviceEvent e) override { inner_->destroy_event(e); }
+  void record(DeviceEvent e, DeviceStream s) override {
+    on_op("record");
+    inner_->record(e, s);
+  }
+  void wait(DeviceStream s, DeviceEvent e) override {
+    on_op("wait");
+    inner_->wait(s, e);
+  }
+  void synchronize(DeviceEvent e) override {
+    on_sync("synchronize(event)");
+    inner_->synchronize(e);
+  }
+  void synchronize(DeviceStream s) override {
+    on_sync("synchronize(stream)");
+    inner_->synchronize(s);
+  }
+  double elapsed_seconds(DeviceEvent from, DeviceEvent to) override {
+    on_op("elapsed_seconds");
+    return inner_->elapsed_seconds(from, to);
+  }
+  void copy_to_device(void* dst, const void* src, size_t bytes, DeviceStream s) override {
+    on_op("copy_to_device");
+    inner_->copy_to_device(dst, src, bytes, s);
+  }
+  void copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream s) override {
+    on_op("copy_to_host");
+    inner_->copy_to_host(dst, src, bytes, s);
+  }
+  void zero(void* dst, size_t bytes, DeviceStream s) override {
+    on_op("zero");
+    inner_->zero(dst, bytes, s);
+  }
+  void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
+                     const WavefrontScratch& scratch, Vec3* radiance, unsigned long long* rays,
+                     DeviceStream s) override {
+    on_launch("trace_samples");
+    inner_->trace_samples(kd, batch, variant, scratch, radiance, rays, s);
+  }
+  void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* sums,
+                      DeviceStream s) override {
+    on_launch("reduce_samples");
+    inner_->reduce_samples(batch, radiance, sums, s);
+  }
+  void accumulate_film(const TileBatch& batch, const double* sums, uint32_t samples,
+                       const DeviceFilmView& film, DeviceStream s) override {
+    on_launch("accumulate_film");
+    inner_->accumulate_film(batch, sums, samples, film, s);
+  }
+  void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream s) override {
+    on_launch("resolve_film");
+    inner_->resolve_film(film, rgb, s);
+  }
+  void tone_map_film(const DeviceFilmView& film, float scale, uint32_t curve, uint8_t* rgb8,
+                     DeviceStream s) override {
+    on_launch("tone_map_film");
+    inner_->tone_map_film(film, scale, curve, rgb8, s);
+  }
+  void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* keys, uint32_t n,
+                  bool any_hit, Hit* hits, uint32_t* counter, DeviceStream s) override {
+    on_launch("trace_rays");
+    inner_->trace_rays(kd, rays, keys, n, any_hit, hits, counter, s);
+  }
+
+ private:
+  [[noreturn]] void fail(DeviceFault fault, const char* what, const std::string& detail) {
+    throw DeviceError(fault, std::string("injected device fault (TANDEM_DEVICE_FAULT=") +
+                                 spec_.text + "): " + device_fault_name(fault) + " in " + what +
+                                 detail);
+  }
+  // Every operation: a poisoned device fails everything; `lost` counts all.
+  void on_op(const char* what) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_poisoned(what);
+    if (spec_.kind == FaultSpec::kLost && ++ops_ == spec_.nth) {
+      poisoned_ = DeviceFault::kDeviceLost;
+      fail(DeviceFault::kDeviceLost, what, "");
+    }
+  }
+  void on_alloc(const char* what, size_t bytes) {
+    on_op(what);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (spec_.kind == FaultSpec::kOutOfMemory && ++allocs_ == spec_.nth)
+      fail(DeviceFault::kOutOfMemory, what, " of " + std::to_string(bytes) + " bytes");
+  }
+  void on_launch(const char* what) {
+    on_op(what);
+    std::lock_guard<std::mutex> lock(mutex_);
+    const bool hit = (spec_.kind == FaultSpec::kLaunch || spec_.kind == FaultSpec::kIllegalAddress) &&
+                     ++launches_ == spec_.nth;
+    if (!hit) return;
+    if (spec_.kind == FaultSpec::kLaunch) {
+      poisoned_ = DeviceFault::kLaunchFailure;
+      fail(DeviceFault::kLaunchFailure, what, "");
+    }
+    pending_fault_ = true;  // reported by the next synchronising call
+    faulting_kernel_ = what;
+  }
+  void on_sync(const char* what) {
+    on_op(what);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (pending_fault_) {
+      pending_fault_ = false;
+      poisoned_ = DeviceFault::kIllegalAddress;
+      fail(DeviceFault::kIllegalAddress, what, std::string(" (kernel ") + faulting_kernel_ + ")");
+    }
+  }
+  void check_poisoned(const char* what) {
+    if (poisoned_) fail(*poisoned_, what, " (the device failed earlier)");
+  }
+
+  std::shared_ptr<DeviceOps> inner_;
+  FaultSpec spec_;
+  std::mutex mutex_;
+  uint64_t ops_ = 0, allocs_ = 0, launches_ = 0;
+  bool pending_fault_ = false;
+  const char* faulting_kernel_ = "";
+  std::optional<DeviceFault> poisoned_;
+};
+
+}  // namespace
+
+std::shared_ptr<DeviceOps> inject_faults(std::shared_ptr<DeviceOps> device, const FaultSpec& spec) {
+  if (spec.kind == FaultSpec::kNone) return device;
+  return std::make_shared<FaultInjectingDevice>(std::move(device), spec);
+}
+
+}  // namespace tandem

@@ -1,0 +1,188 @@
+// The operations the CUDA backend asks of a device, behind one small
+// interface. On a GPU they are CUDA runtime calls and kernel launches
+// (cuda_device_ops.cpp); in CI, without a GPU, a simulated device
+// (sim_device.h) runs them on the CPU with delays, and records every access
+// so that tests can assert the backend's ordering (no copy into a buffer a
+// kernel is reading, no kernel reading a buffer whose copy has not landed).
+// A decorator (device_faults.h) makes the n-th operation of a kind fail, on
+// either device. No CUDA headers here: the backend's logic compiles in every
+// build.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "backends/cuda/batch.h"
+#include "backends/kernel_variant.h"
+#include "core/kernel/kernel_data.h"
+
+namespace tandem {
+
+// What went wrong on a device, as far as the caller's recovery cares.
+enum class DeviceFault : uint8_t {
+  kOutOfMemory,     // an allocation failed; the device is still usable
+  kLaunchFailure,   // a kernel could not be launched or aborted
+  kIllegalAddress,  // a kernel faulted; the context is unusable from now on
+  kDeviceLost,      // the device fell off the bus / the driver reset it
+  kOther,
+};
+const char* device_fault_name(DeviceFault fault);
+
+// Any failure of a device operation. The backend factory catches it under
+// `--backend auto` and in backend lists and falls back to the CPU; with
+// `--backend cuda` it reaches the user (exit 1) with the message.
+class DeviceError : public std::runtime_error {
+ public:
+  DeviceError(DeviceFault fault, const std::string& what)
+      : std::runtime_error(what), fault_(fault) {}
+  DeviceFault fault() const { return fault_; }
+
+ private:
+  DeviceFault fault_;
+};
+
+struct DeviceStreamHandle;
+struct DeviceEventHandle;
+using DeviceStream = DeviceStreamHandle*;  // opaque; null is never a valid stream
+using DeviceEvent = DeviceEventHandle*;
+
+// Every call may throw DeviceError. Asynchronous calls (those taking a
+// stream) are ordered within their stream only; events order streams and
+// the host. Device pointers are opaque to the host: only the device's own
+// operations may dereference them.
+class DeviceOps {
+ public:
+  virtual ~DeviceOps() = default;
+  virtual std::string name() const = 0;
+
+  virtual void* alloc(size_t bytes) = 0;
+  virtual void free(void* p) = 0;
+  // Stream-ordered: usable by later work on `stream` (and by other streams
+  // once ordered after it by an event).
+  virtual void* alloc_async(size_t bytes, DeviceStream stream) = 0;
+  virtual void free_async(void* p, DeviceStream stream) = 0;
+  // Page-locked host memory, the only host memory asynchronous copies may
+  // use without becoming synchronous.
+  virtual void* alloc_pinned(size_t bytes) = 0;
+  virtual void free_pinned(void* p) = 0;
+
+  virtual DeviceStream create_stream() = 0;
+  virtual void destroy_stream(DeviceStream stream) = 0;
+  // `timing`: the event can be used with elapsed_seconds().
+  virtual DeviceEvent create_event(bool timing) = 0;
+  virtual void destroy_event(DeviceEvent event) = 0;
+  // Captures the work enqueued on `stream` so far.
+  virtual void record(DeviceEvent event, DeviceStream stream) = 0;
+  // Later work on `stream` waits for the event's most recent record.
+  virtual void wait(DeviceStream stream, DeviceEvent event) = 0;
+  // The host blocks (without spinning) until the event / the stream is done.
+  virtual void synchronize(DeviceEvent event) = 0;
+  virtual void synchronize(DeviceStream stream) = 0;
+  // Seconds from `from` to `to` (negative if `to` completed first); both
+  // must be timing events whose records have completed.
+  virtual double elapsed_seconds(DeviceEvent from, DeviceEvent to) = 0;
+
+  virtual void copy_to_device(void* dst, const void* src, size_t bytes, DeviceStream stream) = 0;
+  virtual void copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream stream) = 0;
+  virtual void zero(void* dst, size_t bytes, DeviceStream stream) = 0;
+
+  // Kernels (cuda_kernels.h says what each computes).
+  virtual void trace_samples(const KernelData* kd, const TileBatch& batch,
+                             CudaKernelVariant variant, const WavefrontScratch& scratch,
+                             Vec3* radiance, unsigned long long* ray_count,
+                             DeviceStream stream) = 0;
+  virtual void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
+                              DeviceStream stream) = 0;
+  virtual void accumulate_film(const TileBatch& batch, const double* pixel_sums,
+                               uint32_t sample_count, const DeviceFilmView& film,
+                               DeviceStream stream) = 0;
+  virtual void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream stream) = 0;
+  virtual void tone_map_film(const DeviceFilmView& film, float exposure_scale, uint32_t curve,
+                             uint8_t* rgb8, DeviceStream stream) = 0;
+  // `work_counter` must be zero on entry (persistent threads share it).
+  virtual void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys,
+                          uint32_t n, bool any_hit, Hit* hits, uint32_t* work_counter,
+                          DeviceStream stream) = 0;
+};
+
+// ---------------------------------------------------------------------------
+// Owners of device resources: release in the destructor (errors ignored: a
+// lost device is being abandoned anyway), so that no exception path leaks a
+// stream, an event or memory.
+
+class DeviceStreamOwner {
+ public:
+  DeviceStreamOwner() = default;
+  explicit DeviceStreamOwner(DeviceOps& ops) : ops_(&ops), stream_(ops.create_stream()) {}
+  ~DeviceStreamOwner() { reset(); }
+  DeviceStreamOwner(DeviceStreamOwner&& o) noexcept { *this = std::move(o); }
+  DeviceStreamOwner& operator=(DeviceStreamOwner&& o) noexcept;
+  DeviceStream get() const { return stream_; }
+  void reset() noexcept;
+
+ private:
+  DeviceOps* ops_ = nullptr;
+  DeviceStream stream_ = nullptr;
+};
+
+class DeviceEventOwner {
+ public:
+  DeviceEventOwner() = default;
+  DeviceEventOwner(DeviceOps& ops, bool timing) : ops_(&ops), event_(ops.create_event(timing)) {}
+  ~DeviceEventOwner() { reset(); }
+  DeviceEventOwner(DeviceEventOwner&& o) noexcept { *this = std::move(o); }
+  DeviceEventOwner& operator=(DeviceEventOwner&& o) noexcept;
+  DeviceEvent get() const { return event_; }
+  void reset() noexcept;
+
+ private:
+  DeviceOps* ops_ = nullptr;
+  DeviceEvent event_ = nullptr;
+};
+
+// Device or pinned host memory. `bytes()` always describes memory that is
+// allocated: a failed (re)allocation leaves the buffer empty, never a size
+// that refers to freed memory.
+class DeviceBuffer {
+ public:
+  enum Kind { kDevice, kPinned };
+  DeviceBuffer() = default;
+  DeviceBuffer(DeviceOps& ops, Kind kind) : ops_(&ops), kind_(kind) {}
+  ~DeviceBuffer() { reset(); }
+  DeviceBuffer(DeviceBuffer&& o) noexcept { *this = std::move(o); }
+  DeviceBuffer& operator=(DeviceBuffer&& o) noexcept;
+
+  // Frees what is held, then allocates `bytes` (at least 1).
+  void allocate(size_t bytes);
+  // Grows to at least `bytes` (nothing happens when it is large enough).
+  void reserve(size_t bytes) {
+    if (bytes > bytes_) allocate(bytes);
+  }
+  void reset() noexcept;
+  void* get() const { return ptr_; }
+  template <class T>
+  T* as() const {
+    return static_cast<T*>(ptr_);
+  }
+  size_t bytes() const { return bytes_; }
+
+ private:
+  DeviceOps* ops_ = nullptr;
+  Kind kind_ = kDevice;
+  void* ptr_ = nullptr;
+  size_t bytes_ = 0;
+};
+
+// The device the CUDA backend runs on: TANDEM_DEVICE=sim selects the
+// simulated device (tests, CI), anything else the first CUDA GPU. Every
+// device is wrapped in the fault injector when TANDEM_DEVICE_FAULT is set.
+// Returns null with `reason` set when there is none.
+std::shared_ptr<DeviceOps> open_device(std::string* reason);
+// Whether open_device() would succeed, without creating anything heavy.
+bool device_available(std::string* reason);
+
+}  // namespace tandem
