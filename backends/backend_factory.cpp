@@ -95,8 +95,8 @@ class CpuFallbackBackend final : public Backend {
       std::lock_guard<std::mutex> lock(mutex_);
       fall_back_locked(failure);
       if (pass.host_scene_may_change) {
-        throw RenderIncomplete("the GPU failed while rendering: " + failure,
-                               std::move(unfinished), finished);
+        throw RenderIncomplete("the GPU failed while rendering: " + failure, std::move(unfinished),
+                               finished);
       }
       active_->sync(*scene_, SceneDelta::everything());
       backend = active_.get();

@@ -1,21 +1,25 @@
-// The CUDA backend (issue 4).
+// The CUDA backend: its device query, the commit planner, and the tests that
+// need a device.
 //
-// Two kinds of tests live here:
-//   - CudaBuild.* and CudaCommit.* run everywhere the backend is built, GPU
-//     or not (CI has none): the device query and the factory's fallbacks,
-//     the double-buffered commit bookkeeping replayed against host-side
-//     mirrors of the two device buffer sets, and the host/device tone map;
+//   - CudaBuild.* and CudaCommit.* run everywhere (CI has no GPU): the device
+//     query and the factory's fallbacks, the double-buffered commit
+//     bookkeeping replayed against host-side mirrors of the two device buffer
+//     sets, and the host/device tone map;
 //   - CudaGpu.* need a device (ctest label "gpu") and skip themselves with
-//     the reason where there is none: images against the host backend (the
-//     same kernels on the CPU), hits against Embree ray by ray, a dynamic
-//     scene committed frame by frame against a fresh upload, and the
-//     device-resident film.
+//     the reason where there is none (fail under TANDEM_REQUIRE_GPU=1): images
+//     against the host backend tile by tile, hits against Embree ray by ray,
+//     100 overlapped frames of commits against the host arrays byte for byte,
+//     the device-resident film, and a host that sleeps while it waits. CI
+//     also runs them on the simulated device (TANDEM_DEVICE=sim).
 #include <gtest/gtest.h>
 
+#include <time.h>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 
@@ -27,7 +31,9 @@
 #include "core/image/image.h"
 #include "core/kernel/tone_map.h"
 #include "core/render/renderer.h"
+#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
+#include "cuda_test_util.h"
 #include "scenes/procedural_scenes.h"
 
 namespace tandem {
@@ -35,64 +41,7 @@ namespace {
 
 using accstruc_test::test_settings;
 
-// ---------------------------------------------------------------------------
-// Scenes driven frame by frame the way the tracer drives them.
-
-struct FrameScene {
-  Scene scene;
-  KernelScene ks;
-  SceneCompiler compiler;
-  RenderSettings settings;
-  AccelStructure accel{test_settings()};
-
-  FrameScene(Scene s, uint32_t width, uint32_t height) : scene(std::move(s)) {
-    settings.width = width;
-    settings.height = height;
-    if (!scene.has_camera()) {
-      scene.set_camera(frame_bounds_camera(scene.bounds(), 0.7f, float(width) / float(height)));
-    }
-  }
-  // Compiles the scene's edits and updates the BVH; returns the delta.
-  SceneDelta next_frame() {
-    SceneDelta delta = compiler.compile(scene, settings, ks);
-    accel.update_and_mark(ks, delta);
-    return delta;
-  }
-};
-
-SceneDelta everything_delta() {
-  SceneDelta d;
-  d.full = d.constants = d.instances_changed = true;
-#define TANDEM_MARK_ALL(T, name) d.name.reallocated = true;
-  TANDEM_KERNEL_ARRAYS(TANDEM_MARK_ALL)
-#undef TANDEM_MARK_ALL
-  return d;
-}
-
-// Frame f of the dynamic-scene sequence: moves an instance, recolours a
-// material, every 10th frame bends a mesh (BLAS refit) and at frame 50 adds
-// an instance (arrays reallocated, full rebuild).
-void edit_frame(Scene& scene, uint32_t f) {
-  const uint32_t inst = f % uint32_t(scene.instances().size());
-  const glm::mat4 t = scene.instances()[inst].transform;
-  const float s = 0.01f * float(f % 7) - 0.03f;
-  scene.set_instance_transform(inst,
-                               glm::translate(glm::mat4(1.0f), glm::vec3(s, 0.5f * s, -s)) * t);
-  Material& m = scene.edit_material(f % uint32_t(scene.materials().size()));
-  m.base_color =
-      glm::vec4(0.2f + 0.07f * float(f % 10), 0.5f, 0.8f - 0.05f * float(f % 9), m.base_color.w);
-  if (f % 10 == 9) {
-    Mesh& mesh = scene.edit_mesh_vertices(f % uint32_t(scene.meshes().size()));
-    for (glm::vec3& p : mesh.positions)
-      p *= 1.001f;
-  }
-  if (f == 50) {
-    Instance extra = scene.instances()[0];
-    extra.transform =
-        glm::translate(glm::mat4(1.0f), glm::vec3(0.1f, 0.0f, 0.1f)) * extra.transform;
-    scene.add_instance(extra);
-  }
-}
+using namespace cuda_test;
 
 // ---------------------------------------------------------------------------
 // Tests that run without a GPU.
@@ -101,7 +50,7 @@ TEST(CudaBuild, DeviceQueryGivesAReason) {
   std::string reason;
   const bool available = cuda_device_available(&reason);
   std::string direct;
-  EXPECT_EQ(cuda_query_device(&direct), available);
+  EXPECT_EQ(cuda_backend_device_available(&direct), available);
   if (available) {
     EXPECT_TRUE(reason.empty()) << reason;
   } else {
@@ -113,7 +62,8 @@ TEST(CudaBuild, DeviceQueryGivesAReason) {
 
 TEST(CudaBuild, FactoryFallsBackOrRefusesWithoutDevice) {
   std::string reason;
-  if (cuda_device_available(&reason)) GTEST_SKIP() << "a CUDA device is present";
+  if (cuda_device_available(&reason))
+    GTEST_SKIP() << "a CUDA device (or the simulated one) is present";
   try {
     create_backends(BackendKind::kCuda);
     ADD_FAILURE() << "--backend cuda without a device must throw";
@@ -131,6 +81,8 @@ TEST(CudaBuild, FactoryFallsBackOrRefusesWithoutDevice) {
 TEST(CudaBuild, VariantNames) {
   EXPECT_EQ(parse_cuda_kernel_variant("mega"), CudaKernelVariant::kMegakernel);
   EXPECT_EQ(parse_cuda_kernel_variant("wavefront"), CudaKernelVariant::kWavefront);
+  EXPECT_EQ(parse_cuda_kernel_variant("megakernel"), CudaKernelVariant::kMegakernel);
+  EXPECT_EQ(parse_cuda_kernel_variant("wave"), CudaKernelVariant::kWavefront);
   EXPECT_THROW(parse_cuda_kernel_variant("quantum"), UsageError);
 }
 
@@ -285,83 +237,106 @@ TEST(CudaCommit, GrowthKeepsHeadroomAndSizeChangesResendWholeArrays) {
 }
 
 // ---------------------------------------------------------------------------
-// Tests that need a GPU.
+// Tests that need a CUDA device. They also run (label cuda) on the simulated
+// device under TANDEM_DEVICE=sim, with smaller frames, so that they are known
+// to work before a GPU run.
 
-#define TANDEM_REQUIRE_CUDA_DEVICE()                                                     \
-  do {                                                                                   \
-    std::string reason_;                                                                 \
-    if (!cuda_device_available(&reason_)) GTEST_SKIP() << "no CUDA device: " << reason_; \
-  } while (0)
-
-ImageRGB render_image(Backend& backend, const FrameScene& fs, uint32_t spp) {
-  OfflineRenderOptions options;
-  options.spp = spp;
-  options.tile_size = 16;
-  return render_offline(backend, fs.settings.width, fs.settings.height, options).image;
-}
-
-struct ImageAgreement {
-  double identical = 0.0, close = 0.0, mean_abs_diff = 0.0, mean_diff = 0.0, mean_diff_stderr = 0.0;
+struct ImageCase {
+  std::string name;
+  std::function<Scene()> scene;
+  uint32_t layout;
 };
 
-ImageAgreement compare_images(const ImageRGB& a, const ImageRGB& b) {
-  ImageAgreement r;
-  const size_t pixels = size_t(a.width) * a.height;
-  double sum = 0.0, sum_sq = 0.0;
-  for (size_t i = 0; i < pixels; ++i) {
-    bool same = true, close = true;
-    double d = 0.0;
-    for (int c = 0; c < 3; ++c) {
-      const float x = a.rgb[3 * i + c], y = b.rgb[3 * i + c];
-      same = same && std::memcmp(&x, &y, sizeof x) == 0;
-      close = close && std::fabs(x - y) <= 1e-4f * std::max(std::fabs(x), std::fabs(y));
-      d += double(x) - double(y);
-      r.mean_abs_diff += std::fabs(double(x) - double(y));
-    }
-    r.identical += same;
-    r.close += close;
-    sum += d;
-    sum_sq += d * d;
+std::vector<ImageCase> image_cases() {
+  const std::filesystem::path gltf = shared_dir() / "scenes" / "gltf";
+  auto sky_plane = [] {
+    Scene s = load_scene("builtin:sky-plane");
+    s.set_environment(test_environment());
+    return s;
+  };
+  std::vector<ImageCase> cases = {
+      {"builtin:cornell", [] { return load_scene("builtin:cornell"); }, kBvhLayoutWide},
+      {"procedural", [] { return make_procedural_scene(30000, 3); }, kBvhLayoutBinary},
+      {"sky-plane + environment map", sky_plane, kBvhLayoutWide},
+  };
+  for (const char* model :
+       {"BoxTextured/glTF-Binary/BoxTextured.glb", "Duck/glTF-Binary/Duck.glb"}) {
+    const std::filesystem::path path = gltf / model;
+    if (!std::filesystem::exists(path)) continue;
+    cases.push_back({model,
+                     [path] {
+                       Scene s = load_scene(path.string());
+                       s.edit_environment().color = glm::vec3(1.0f);
+                       return s;
+                     },
+                     kBvhLayoutBinary});
   }
-  const double n = double(pixels);
-  r.identical /= n;
-  r.close /= n;
-  r.mean_abs_diff /= 3.0 * n;
-  r.mean_diff = sum / n;
-  r.mean_diff_stderr = std::sqrt(std::max(0.0, sum_sq / n - r.mean_diff * r.mean_diff) / n);
-  return r;
+  return cases;
 }
 
 // The host backend runs the same kernels with the same RNG on the CPU, so
-// the images should agree pixel for pixel except where device math functions
-// (sinf, powf: a few ulps apart from glibc) tip a path onto another branch.
-TEST(CudaGpu, ImageMatchesHostBackend) {
+// the images agree pixel for pixel except where device math functions
+// tip a path onto another branch; every tile must agree (one wrong tile is
+// a wrong batch or tile offset somewhere), the ray counts too, and both
+// kernel variants give the same bits. Chunks are kept small so that the
+// samples of a pass run as several launches.
+TEST(CudaGpu, ImagesMatchHostTileByTile) {
   TANDEM_REQUIRE_CUDA_DEVICE();
-  for (const char* spec : {"builtin:cornell", "procedural"}) {
-    FrameScene fs(
-        std::string(spec) == "procedural" ? make_procedural_scene(30000, 3) : load_scene(spec), 64,
-        48);
-    const SceneDelta delta = fs.next_frame();
-    HostBackend host;
-    host.sync(fs.ks, delta);
-    CudaBackend cuda;
-    cuda.sync(fs.ks, delta);
-    const ImageRGB reference = render_image(host, fs, 4);
-    const ImageRGB mega = render_image(cuda, fs, 4);
-    cuda.set_variant(CudaKernelVariant::kWavefront);
-    const ImageRGB wave = render_image(cuda, fs, 4);
-    const ImageAgreement r = compare_images(mega, reference);
-    std::printf(
-        "[cuda] %s on %s vs host: %.2f%% identical, %.2f%% within 1e-4, mean |diff| %.3g, mean "
-        "diff %.3g +- %.3g\n",
-        spec, cuda.device_name().c_str(), 100.0 * r.identical, 100.0 * r.close, r.mean_abs_diff,
-        r.mean_diff, r.mean_diff_stderr);
-    RecordProperty(std::string(spec) + "_identical_pixels", std::to_string(r.identical));
-    EXPECT_GE(r.close, 0.9) << spec;
-    EXPECT_LE(std::fabs(r.mean_diff), 5.0 * r.mean_diff_stderr + 1e-6) << spec << ": biased";
-    // Both variants answer the first hit with the same traversal: same bits.
-    EXPECT_EQ(compare_images(wave, mega).identical, 1.0) << spec;
+  const bool sim = on_simulated_device();
+  const uint32_t width = sim ? 64 : 320, height = sim ? 40 : 180, spp = 6;
+  CudaBackend::LaunchLimits limits;
+  limits.max_batch_pixels = width * height / 3;              // several batches
+  limits.max_items = uint64_t(limits.max_batch_pixels) * 2;  // 2 samples per chunk
+  std::string reason;
+  for (const ImageCase& c : image_cases()) {
+    for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
+      SCOPED_TRACE(c.name + ", " + (layout == kBvhLayoutWide ? "wide" : "binary") + " BVH");
+      FrameScene fs(c.scene(), width, height);
+      fs.accel.set_layout(KBvhLayout(layout));
+      const SceneDelta delta = fs.next_frame();
+      HostBackend host;
+      host.sync(fs.ks, delta);
+      CudaBackend cuda(open_device(&reason), CudaKernelVariant::kMegakernel, limits);
+      cuda.sync(fs.ks, delta);
+      BackendStats host_stats, mega_stats, wave_stats;
+      const ImageRGB reference = render_image(host, width, height, spp, 16, &host_stats);
+      const ImageRGB mega = render_image(cuda, width, height, spp, 16, &mega_stats);
+      cuda.set_variant(CudaKernelVariant::kWavefront);
+      const ImageRGB wave = render_image(cuda, width, height, spp, 16, &wave_stats);
+      const std::vector<TileDisagreement> bad = disagreeing_tiles(mega, reference, 16, 0.9);
+      for (const TileDisagreement& t : bad)
+        ADD_FAILURE() << "tile at (" << t.x0 << ", " << t.y0 << "): " << 100.0 * t.close_fraction
+                      << "% of pixels agree, mean " << t.mean_a << " vs " << t.mean_b;
+      std::printf("[cuda] %s on %s: %.2f%% of pixels identical to the host backend\n",
+                  c.name.c_str(), cuda.device_name().c_str(),
+                  100.0 * double(identical_pixels(mega, reference)) / (width * height));
+      EXPECT_EQ(identical_pixels(wave, mega), size_t(width) * height);
+      EXPECT_EQ(mega_stats.samples, host_stats.samples);
+      EXPECT_NEAR(double(mega_stats.rays), double(host_stats.rays), 0.01 * double(host_stats.rays));
+      EXPECT_EQ(wave_stats.rays, mega_stats.rays);
+      if (sim) {
+        EXPECT_EQ(identical_pixels(mega, reference), size_t(width) * height);
+      }
+    }
   }
+}
+
+// A full HD frame: eight batches of the default launch limits.
+TEST(CudaGpu, FullHdFrameMatchesHostTileByTile) {
+  TANDEM_REQUIRE_CUDA_DEVICE();
+  if (on_simulated_device())
+    GTEST_SKIP() << "a full HD frame takes minutes on the simulated device";
+  FrameScene fs(load_scene("builtin:cornell"), 1920, 1080);
+  const SceneDelta delta = fs.next_frame();
+  HostBackend host;
+  host.sync(fs.ks, delta);
+  CudaBackend cuda;
+  cuda.sync(fs.ks, delta);
+  const ImageRGB reference = render_image(host, 1920, 1080, 2, 32);
+  const ImageRGB image = render_image(cuda, 1920, 1080, 2, 32);
+  const std::vector<TileDisagreement> bad = disagreeing_tiles(image, reference, 32, 0.9);
+  EXPECT_TRUE(bad.empty()) << bad.size() << " tiles disagree, the first at (" << bad[0].x0 << ", "
+                           << bad[0].y0 << ")";
 }
 
 TEST(CudaGpu, HitsMatchEmbree) {
@@ -373,11 +348,12 @@ TEST(CudaGpu, HitsMatchEmbree) {
     SceneDelta delta;
     s.recompile(&delta);
     CudaBackend cuda;
-    cuda.sync(s.ks, everything_delta());
+    cuda.sync(s.ks, SceneDelta::everything());
     const KernelData kd = s.kd();
     for (int kind = 0; kind < 2; ++kind) {
+      const size_t n = on_simulated_device() ? 20000 : 200000;
       const std::vector<RaySample> samples =
-          kind == 0 ? primary_rays(s, 200000, 11) : diffuse_rays(s, 200000, 12);
+          kind == 0 ? primary_rays(s, n, 11) : diffuse_rays(s, n, 12);
       std::vector<Ray> rays;
       std::vector<uint32_t> keys;
       for (const RaySample& r : samples) {
@@ -396,7 +372,8 @@ TEST(CudaGpu, HitsMatchEmbree) {
                   layout_name(layout), a.summary().c_str());
       EXPECT_GE(a.fraction(), 0.999);
     }
-    const std::vector<RaySample> shadows = shadow_rays(s, 100000, 13);
+    const std::vector<RaySample> shadows =
+        shadow_rays(s, on_simulated_device() ? 10000 : 100000, 13);
     std::vector<Ray> rays;
     std::vector<uint32_t> keys;
     for (const RaySample& r : shadows) {
@@ -414,27 +391,92 @@ TEST(CudaGpu, HitsMatchEmbree) {
   }
 }
 
-// 100 frames of edits committed as deltas into the double-buffered device
-// scene (rendering now and then, so uploads overlap renders) must leave the
-// device with exactly the scene a fresh upload gives.
-TEST(CudaGpu, DynamicSceneCommitsMatchFreshUpload) {
+// 100 frames of edits through the core tracer's overlapped loop: each
+// frame's delta is committed while the previous frame renders. Afterwards
+// both device buffer sets hold exactly the host arrays, byte for byte, and
+// the image equals that of a backend given the final scene in one upload.
+TEST(CudaGpu, OverlappedCommitsLeaveBothSetsExact) {
   TANDEM_REQUIRE_CUDA_DEVICE();
-  FrameScene fs(make_procedural_scene(20000, 10), 48, 32);
-  CudaBackend cuda;
-  uint64_t committed = 0;
-  for (uint32_t f = 0; f < 100; ++f) {
-    if (f > 0) edit_frame(fs.scene, f);
-    cuda.sync(fs.ks, fs.next_frame());
-    committed += cuda.last_commit_bytes();
-    if (f % 10 == 5) render_image(cuda, fs, 1);
+  const uint32_t width = on_simulated_device() ? 24 : 64, height = on_simulated_device() ? 16 : 48;
+  Scene scene = make_procedural_scene(20000, 10);
+  scene.set_camera(frame_bounds_camera(scene.bounds(), 0.7f, float(width) / float(height)));
+  std::vector<std::unique_ptr<Backend>> backends;
+  backends.push_back(std::make_unique<CudaBackend>());
+  CudaBackend* cuda = static_cast<CudaBackend*>(backends[0].get());
+  TracerSettings settings;
+  settings.render.width = width;
+  settings.render.height = height;
+  settings.tile_size = 8;
+  CoreTracer tracer(std::move(backends), settings);
+  uint64_t committed = 0, overlapped = 0;
+  double copy = 0.0, hidden = 0.0;
+  const uint32_t frames = 102;  // the last two change nothing: both sets catch up
+  for (uint32_t f = 0; f < frames; ++f) {
+    tracer.begin_frame(scene);
+    if (f + 1 < frames - 2) edit_frame(scene, f + 1);
+    EXPECT_TRUE(tracer.prepare_next_frame(scene));
+    // A late edit after the prepared commit (the camera, as from input).
+    if (f % 3 == 0 && f + 1 < frames - 2) {
+      Camera cam = scene.camera();
+      cam.position.x += 0.001f;
+      scene.set_camera(cam);
+    }
+    const FrameMetrics& m = tracer.end_frame();
+    committed += m.backends[0].commit_bytes;
+    copy += m.backends[0].commit_copy_seconds;
+    hidden += m.backends[0].commit_hidden_seconds;
+    overlapped += m.overlapped_commit;
   }
-  std::printf("[cuda] 100 frames: %.2f MB committed, scene %.2f MB\n", double(committed) * 1e-6,
-              double(fs.ks.byte_size()) * 1e-6);
+  std::printf(
+      "[cuda] %u overlapped frames: %.2f MB committed, copies %.2f ms, %.2f ms of it hidden\n",
+      unsigned(overlapped), double(committed) * 1e-6, copy * 1e3, hidden * 1e3);
+  EXPECT_EQ(overlapped, frames - 1);
+  EXPECT_GT(copy, 0.0);
+  // The tracer's own kernel scene is private; compile the same scene again.
+  FrameScene fs(scene, width, height);
+  fs.next_frame();
+  for (uint32_t set = 0; set < 2; ++set) {
+    const std::vector<std::vector<uint8_t>> device = cuda->read_back_scene(set);
+    for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
+      const size_t bytes = kernel_array_host_count(fs.ks, a) * kernel_array_element_size(a);
+      ASSERT_EQ(device[a].size(), bytes) << "set " << set << ", " << kernel_array_name(a);
+      EXPECT_TRUE(bytes == 0 ||
+                  std::memcmp(device[a].data(), kernel_array_host_data(fs.ks, a), bytes) == 0)
+          << "set " << set << ", " << kernel_array_name(a);
+    }
+  }
   CudaBackend fresh;
-  fresh.sync(fs.ks, everything_delta());
-  const ImageRGB incremental = render_image(cuda, fs, 2);
-  const ImageRGB reference = render_image(fresh, fs, 2);
-  EXPECT_EQ(compare_images(incremental, reference).identical, 1.0);
+  fresh.sync(fs.ks, SceneDelta::everything());
+  EXPECT_EQ(identical_pixels(render_image(*cuda, width, height, 2),
+                             render_image(fresh, width, height, 2)),
+            size_t(width) * height);
+}
+
+// Waiting for the GPU must not cost the host a core: the CPU backend
+// renders on the same cores in a hetero frame.
+TEST(CudaGpu, HostSleepsWhileTheDeviceWorks) {
+  TANDEM_REQUIRE_CUDA_DEVICE();
+  const uint32_t size = on_simulated_device() ? 48 : 512;
+  FrameScene fs(load_scene("builtin:cornell"), size, size);
+  CudaBackend cuda;
+  cuda.sync(fs.ks, fs.next_frame());
+  timespec cpu0, cpu1;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu0);
+  const auto wall0 = std::chrono::steady_clock::now();
+  render_image(cuda, size, size, on_simulated_device() ? 4 : 256, 64);
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu1);
+  const double cpu = double(cpu1.tv_sec - cpu0.tv_sec) + 1e-9 * double(cpu1.tv_nsec - cpu0.tv_nsec);
+  std::printf("[cuda] render: %.3f s wall, %.3f s of the calling thread's CPU time\n", wall, cpu);
+  EXPECT_LT(cpu, 0.25 * wall + 0.01);
+}
+
+RenderPass one_sample(uint32_t sample) {
+  RenderPass pass;
+  pass.sample_begin = sample;
+  pass.sample_count = 1;
+  return pass;
 }
 
 TEST(CudaGpu, DeviceFilmMatchesHostFilmAndToneMap) {
@@ -442,17 +484,17 @@ TEST(CudaGpu, DeviceFilmMatchesHostFilmAndToneMap) {
   FrameScene fs(load_scene("builtin:cornell"), 40, 40);
   CudaBackend cuda;
   cuda.sync(fs.ks, fs.next_frame());
-  const ImageRGB host_film = render_image(cuda, fs, 8);
+  const ImageRGB host_film = render_image(cuda, 40, 40, 8);
   cuda.reset_device_film(40, 40);
   // One sample per pass, as render_offline does for 8 spp, so both films
   // add the same doubles in the same order.
   for (uint32_t pass = 0; pass < 8; ++pass) {
     TileQueue tiles(make_tile_grid(40, 40, 16));
-    const BackendStats st = cuda.render_to_device_film({pass, 1, nullptr}, tiles);
+    const BackendStats st = cuda.render_to_device_film(one_sample(pass), tiles);
     EXPECT_EQ(st.samples, 40u * 40u);
   }
   const ImageRGB device_film = cuda.resolve_device_film();
-  EXPECT_EQ(compare_images(device_film, host_film).identical, 1.0);
+  EXPECT_EQ(identical_pixels(device_film, host_film), size_t(40) * 40);
   const std::vector<uint8_t> gpu8 = cuda.tone_map_device_film(0.5f, ToneMap::kAces);
   const std::vector<uint8_t> host8 = tone_map_to_srgb8(host_film, 0.5f, ToneMap::kAces);
   ASSERT_EQ(gpu8.size(), host8.size());

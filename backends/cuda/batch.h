@@ -8,8 +8,8 @@
 #include <cstdint>
 
 #include "core/kernel/defines.h"
-#include "core/kernel/types.h"
 #include "core/kernel/tone_map.h"
+#include "core/kernel/types.h"
 
 namespace tandem {
 

@@ -82,23 +82,21 @@ struct CudaBackend::Impl {
 
   uint64_t radiance_items() const { return radiance.bytes() / sizeof(Vec3); }
 
-  // Grows the per-batch buffers; only called with no batch in flight.
+  // Grows the per-batch buffers; only called with no batch in flight. Each
+  // buffer on its own: after a failed allocation some are large enough and
+  // some are empty.
   void reserve(uint32_t tile_count, uint32_t pixel_count) {
     const size_t tile_bytes = size_t(tile_count) * sizeof(DeviceTile);
-    if (tile_bytes > tiles.bytes()) {
-      tiles.allocate(tile_bytes);
-      for (Slot& s : slots)
-        s.host_tiles.allocate(tile_bytes);
-    }
     const size_t sum_bytes = 3 * sizeof(double) * size_t(pixel_count);
-    if (sum_bytes > pixel_sums.bytes()) {
-      pixel_sums.allocate(sum_bytes);
-      for (Slot& s : slots)
-        s.host_sums.allocate(sum_bytes);
+    tiles.reserve(tile_bytes);
+    pixel_sums.reserve(sum_bytes);
+    for (Slot& s : slots) {
+      s.host_tiles.reserve(tile_bytes);
+      s.host_sums.reserve(sum_bytes);
     }
     // A single tile larger than max_items pixels still needs one sample of
     // each of its pixels per chunk.
-    if (pixel_count > radiance_items()) radiance.allocate(size_t(pixel_count) * sizeof(Vec3));
+    radiance.reserve(std::max<uint64_t>(limits.max_items, pixel_count) * sizeof(Vec3));
   }
 
   bool buffers_fit(const Slot& slot) const {
@@ -141,11 +139,10 @@ struct CudaBackend::Impl {
       slot.tiles.push_back(t);
       slot.holds_tiles = true;
       if (t.x1 <= t.x0 || t.y1 <= t.y0 || t.x1 > film_width || t.y1 > film_height) {
-        throw std::logic_error("cuda backend: tile [" + std::to_string(t.x0) + ", " +
-                               std::to_string(t.x1) + ") x [" + std::to_string(t.y0) + ", " +
-                               std::to_string(t.y1) + ") is empty or outside the " +
-                               std::to_string(film_width) + "x" + std::to_string(film_height) +
-                               " film");
+        throw std::logic_error(
+            "cuda backend: tile [" + std::to_string(t.x0) + ", " + std::to_string(t.x1) + ") x [" +
+            std::to_string(t.y0) + ", " + std::to_string(t.y1) + ") is empty or outside the " +
+            std::to_string(film_width) + "x" + std::to_string(film_height) + " film");
       }
       slot.pixel_count += t.pixel_count();
     }
@@ -266,7 +263,8 @@ struct CudaBackend::Impl {
   std::vector<Tile> abandon(const DeviceScene::RenderTicket& ticket, bool ended) noexcept {
     std::vector<Tile> unfinished;
     for (Slot& slot : slots) {
-      if (slot.holds_tiles) unfinished.insert(unfinished.end(), slot.tiles.begin(), slot.tiles.end());
+      if (slot.holds_tiles)
+        unfinished.insert(unfinished.end(), slot.tiles.begin(), slot.tiles.end());
       slot.tiles.clear();
       slot.busy = slot.holds_tiles = false;
     }

@@ -1,6 +1,7 @@
 #include "backends/cuda/device_faults.h"
 
 #include <cstdlib>
+#include <exception>
 #include <mutex>
 #include <optional>
 
@@ -50,34 +51,24 @@ class FaultInjectingDevice final : public DeviceOps {
     on_alloc("alloc", bytes);
     return inner_->alloc(bytes);
   }
-  void free(void* p) override {
-    on_op("free");
-    inner_->free(p);
-  }
+  void free(void* p) override { inner_->free(p); }
   void* alloc_async(size_t bytes, DeviceStream s) override {
     on_alloc("alloc_async", bytes);
     return inner_->alloc_async(bytes, s);
   }
-  void free_async(void* p, DeviceStream s) override {
-    on_op("free_async");
-    inner_->free_async(p, s);
-  }
+  void free_async(void* p, DeviceStream s) override { inner_->free_async(p, s); }
   void* alloc_pinned(size_t bytes) override {
     on_alloc("alloc_pinned", bytes);
     return inner_->alloc_pinned(bytes);
   }
-  void free_pinned(void* p) override {
-    on_op("free_pinned");
-    inner_->free_pinned(p);
-  }
+  void free_pinned(void* p) override { inner_->free_pinned(p); }
   DeviceStream create_stream() override {
     on_op("create_stream");
     return inner_->create_stream();
   }
-  void destroy_stream(DeviceStream s) override {
-    // Teardown still releases what the inner device holds, faulted or not.
-    inner_->destroy_stream(s);
-  }
+  // Releasing never fails here: teardown after a fault still frees what
+  // the inner device holds (the simulated device counts it).
+  void destroy_stream(DeviceStream s) override { inner_->destroy_stream(s); }
   DeviceEvent create_event(bool timing) override {
     on_op("create_event");
     return inner_->create_event(timing);
@@ -91,13 +82,17 @@ class FaultInjectingDevice final : public DeviceOps {
     on_op("wait");
     inner_->wait(s, e);
   }
+  // The host still waits for what was queued before it hears of the fault,
+  // as it does on a GPU: nothing queued runs on after the call returns.
   void synchronize(DeviceEvent e) override {
-    on_sync("synchronize(event)");
+    const std::exception_ptr fault = sync_fault("synchronize(event)");
     inner_->synchronize(e);
+    if (fault) std::rethrow_exception(fault);
   }
   void synchronize(DeviceStream s) override {
-    on_sync("synchronize(stream)");
+    const std::exception_ptr fault = sync_fault("synchronize(stream)");
     inner_->synchronize(s);
+    if (fault) std::rethrow_exception(fault);
   }
   double elapsed_seconds(DeviceEvent from, DeviceEvent to) override {
     on_op("elapsed_seconds");
@@ -170,8 +165,9 @@ class FaultInjectingDevice final : public DeviceOps {
   void on_launch(const char* what) {
     on_op(what);
     std::lock_guard<std::mutex> lock(mutex_);
-    const bool hit = (spec_.kind == FaultSpec::kLaunch || spec_.kind == FaultSpec::kIllegalAddress) &&
-                     ++launches_ == spec_.nth;
+    const bool hit =
+        (spec_.kind == FaultSpec::kLaunch || spec_.kind == FaultSpec::kIllegalAddress) &&
+        ++launches_ == spec_.nth;
     if (!hit) return;
     if (spec_.kind == FaultSpec::kLaunch) {
       poisoned_ = DeviceFault::kLaunchFailure;
@@ -180,14 +176,20 @@ class FaultInjectingDevice final : public DeviceOps {
     pending_fault_ = true;  // reported by the next synchronising call
     faulting_kernel_ = what;
   }
-  void on_sync(const char* what) {
-    on_op(what);
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (pending_fault_) {
-      pending_fault_ = false;
-      poisoned_ = DeviceFault::kIllegalAddress;
-      fail(DeviceFault::kIllegalAddress, what, std::string(" (kernel ") + faulting_kernel_ + ")");
+  // The error a synchronising call reports, if any (not thrown yet).
+  std::exception_ptr sync_fault(const char* what) {
+    try {
+      on_op(what);
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (pending_fault_) {
+        pending_fault_ = false;
+        poisoned_ = DeviceFault::kIllegalAddress;
+        fail(DeviceFault::kIllegalAddress, what, std::string(" (kernel ") + faulting_kernel_ + ")");
+      }
+    } catch (const DeviceError&) {
+      return std::current_exception();
     }
+    return nullptr;
   }
   void check_poisoned(const char* what) {
     if (poisoned_) fail(*poisoned_, what, " (the device failed earlier)");

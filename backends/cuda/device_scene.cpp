@@ -31,12 +31,15 @@ DeviceScene::DeviceScene(DeviceOps& ops) : ops_(ops), copy_stream_(ops) {
 DeviceScene::~DeviceScene() {
   // Destructors must not throw: errors here (a lost device) are ignored,
   // the memory is being abandoned anyway.
-  try {
-    ops_.synchronize(copy_stream_.get());
-  } catch (...) {
-  }
-  for (BufferSet& set : sets_)
+  for (BufferSet& set : sets_) {
+    for (DeviceEvent e : {set.rendered.get(), set.uploaded.get()}) {
+      try {
+        ops_.synchronize(e);
+      } catch (...) {
+      }
+    }
     release_buffers(set);
+  }
 }
 
 void DeviceScene::release_buffers(BufferSet& set) noexcept {
@@ -68,7 +71,12 @@ size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
     upload(set, plan, ks);
   } catch (...) {
     // Part of the plan may have reached the device, part not, and buffers
-    // may have been reallocated: start the set over.
+    // may have been reallocated: start the set over, once the last render
+    // that read it is done (the failed commit may not have queued its wait).
+    try {
+      ops_.synchronize(set.rendered.get());
+    } catch (...) {
+    }
     release_buffers(set);
     commits_.invalidate(target);
     set.timing_pending = false;

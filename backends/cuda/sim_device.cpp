@@ -127,8 +127,7 @@ struct SimDevice::Impl {
     auto it = allocations.upper_bound(addr);
     if (it == allocations.begin() || (--it, addr + bytes > it->first + it->second.bytes)) {
       if (device_memory)
-        hazard_locked(what + ": " + std::to_string(bytes) +
-                      " bytes outside any device allocation");
+        hazard_locked(what + ": " + std::to_string(bytes) + " bytes outside any device allocation");
       return;
     }
     Allocation& a = it->second;
@@ -247,9 +246,9 @@ struct SimDevice::Impl {
                   true);
     KernelData local{};
     if (find_containing_locked(kd, sizeof(KernelData))) std::memcpy(&local, kd, sizeof local);
-#define TANDEM_SIM_READ_ARRAY(T, name)                                                       \
-  if (local.name##_count)                                                                    \
-    access_locked(local.name, size_t(local.name##_count) * sizeof(T), false, s,             \
+#define TANDEM_SIM_READ_ARRAY(T, name)                                          \
+  if (local.name##_count)                                                       \
+    access_locked(local.name, size_t(local.name##_count) * sizeof(T), false, s, \
                   std::string(kernel) + " reads " #name, true);
     TANDEM_KERNEL_ARRAYS(TANDEM_SIM_READ_ARRAY)
 #undef TANDEM_SIM_READ_ARRAY
@@ -273,16 +272,16 @@ struct SimDevice::Impl {
       std::lock_guard<std::mutex> lock(mutex);
       ++report.kernels;
     }
-    enqueue(s, options.kernel_seconds, [this, accesses = std::move(accesses),
-                                        body = std::move(body)] {
-      bool ok;
-      {
-        std::lock_guard<std::mutex> lock(mutex);
-        const size_t before = hazards_seen;
-        ok = accesses() && hazards_seen == before;
-      }
-      if (ok) body();
-    });
+    enqueue(s, options.kernel_seconds,
+            [this, accesses = std::move(accesses), body = std::move(body)] {
+              bool ok;
+              {
+                std::lock_guard<std::mutex> lock(mutex);
+                const size_t before = hazards_seen;
+                ok = accesses() && hazards_seen == before;
+              }
+              if (ok) body();
+            });
     (void)name;
   }
 };
@@ -314,7 +313,8 @@ void SimDevice::free(void* p) {
   std::unique_lock<std::mutex> lock(impl_->mutex);
   impl_->drain_all_locked(lock);
   Allocation* a = impl_->find_locked(p);
-  if (!a || a->pinned) throw DeviceError(DeviceFault::kOther, "simulated GPU: free of a bad pointer");
+  if (!a || a->pinned)
+    throw DeviceError(DeviceFault::kOther, "simulated GPU: free of a bad pointer");
   impl_->release_locked(*a);
 }
 
@@ -552,8 +552,8 @@ void SimDevice::trace_samples(const KernelData* kd, const TileBatch& batch,
                              "trace_samples reads tiles", true);
         impl_->access_locked(radiance, batch.items() * sizeof(Vec3), true, *s,
                              "trace_samples writes radiance", true);
-        impl_->access_locked(ray_count, sizeof(*ray_count), true, *s,
-                             "trace_samples counts rays", true);
+        impl_->access_locked(ray_count, sizeof(*ray_count), true, *s, "trace_samples counts rays",
+                             true);
         return true;
       },
       [=] {
@@ -676,8 +676,8 @@ void SimDevice::trace_rays(const KernelData* kd, const Ray* rays, const uint32_t
           impl_->access_locked(alpha_keys, n * sizeof(uint32_t), false, *s,
                                "trace_rays reads alpha keys", true);
         impl_->access_locked(hits, n * sizeof(Hit), true, *s, "trace_rays writes hits", true);
-        impl_->access_locked(work_counter, sizeof(uint32_t), true, *s,
-                             "trace_rays takes work", true);
+        impl_->access_locked(work_counter, sizeof(uint32_t), true, *s, "trace_rays takes work",
+                             true);
         return true;
       },
       [=] {

@@ -29,14 +29,14 @@
 namespace tandem {
 
 struct SimDeviceOptions {
-  double op_seconds = 20e-6;         // every stream operation takes at least this
+  double op_seconds = 20e-6;           // every stream operation takes at least this
   double copy_seconds_per_mib = 2e-4;  // and a copy this much per MiB (about 5 GB/s)
-  double kernel_seconds = 100e-6;    // and a kernel this much besides its computing
-  uint64_t seed = 1;                 // jitter: up to op_seconds more per operation
+  double kernel_seconds = 100e-6;      // and a kernel this much besides its computing
+  uint64_t seed = 1;                   // jitter: up to op_seconds more per operation
 };
 
 struct SimDeviceReport {
-  std::vector<std::string> hazards;  // unordered conflicting accesses, bad addresses
+  std::vector<std::string> hazards;    // unordered conflicting accesses, bad addresses
   uint64_t pageable_async_copies = 0;  // async copies from or to unpinned host memory
   size_t live_device_allocations = 0, live_pinned_allocations = 0;
   size_t live_streams = 0, live_events = 0;

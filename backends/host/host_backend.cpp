@@ -5,7 +5,6 @@
 
 namespace tandem {
 
-
 void HostBackend::sync(const KernelScene& scene, const SceneDelta& /*delta*/) {
   // Nothing to copy: the BVH lives in the KernelScene's own arrays, which
   // AccelStructure has already brought up to date for this delta.

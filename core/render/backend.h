@@ -35,7 +35,6 @@ struct RenderPass {
   std::function<void()> scene_claimed;
 };
 
-
 struct BackendStats {
   double seconds = 0.0;  // wall time inside render()
   uint64_t rays = 0;     // closest-hit + shadow rays traced

@@ -23,7 +23,9 @@ bool TileQueue::next(Tile* tile) {
   return true;
 }
 
-size_t TileQueue::taken() const { return std::min(next_.load(std::memory_order_relaxed), tiles_.size()); }
+size_t TileQueue::taken() const {
+  return std::min(next_.load(std::memory_order_relaxed), tiles_.size());
+}
 
 bool ResumedTiles::next(Tile* tile) {
   {

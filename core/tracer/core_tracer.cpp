@@ -227,7 +227,8 @@ void CoreTracer::launch_render() {
   f.pass.tile_seconds = f.tile_seconds.data();
   f.pass.host_scene_may_change = true;
   for (const BackendTraits& tr : traits_)
-    f.pass.host_scene_may_change = f.pass.host_scene_may_change && !tr.reads_host_scene_while_rendering;
+    f.pass.host_scene_may_change =
+        f.pass.host_scene_may_change && !tr.reads_host_scene_while_rendering;
   f.sources = scheduler_.begin_frame();
   const size_t n = backends_.size();
   f.stats.assign(n, BackendStats{});
