@@ -57,14 +57,14 @@ class CudaOrCpuBackend final : public Backend {
 
 // The CUDA backend for auto/hetero, or null (with a warning) when it cannot
 // be created.
-std::unique_ptr<Backend> try_create_cuda(bool wrap_for_fallback) {
+std::unique_ptr<Backend> try_create_cuda(bool wrap_for_fallback, CudaKernelVariant kernel) {
   std::string reason;
   if (!cuda_query_device(&reason)) {
     log_warning("no usable GPU (" + reason + "); rendering on the CPU");
     return nullptr;
   }
   try {
-    std::unique_ptr<Backend> cuda = std::make_unique<CudaBackend>();
+    std::unique_ptr<Backend> cuda = std::make_unique<CudaBackend>(kernel);
     if (wrap_for_fallback) cuda = std::make_unique<CudaOrCpuBackend>(std::move(cuda));
     return cuda;
   } catch (const std::exception& e) {
@@ -97,7 +97,8 @@ bool cuda_device_available(std::string* reason) {
 #endif
 }
 
-std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind) {
+std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
+                                                      const BackendOptions& options) {
   std::vector<std::unique_ptr<Backend>> out;
   std::string reason;
   switch (kind) {
@@ -105,13 +106,17 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind) {
       if (!cuda_device_available(&reason)) throw InputError("--backend cuda: " + reason);
 #if TANDEM_HAVE_CUDA
       // Asked for by name: failures reach the user instead of a fallback.
-      out.push_back(std::make_unique<CudaBackend>());
+      out.push_back(std::make_unique<CudaBackend>(options.kernel));
       return out;
 #else
       break;  // unreachable: cuda_device_available() is false without CUDA
 #endif
     case BackendKind::kHost:
       // Our BVH and the shared kernels on the CPU: what the CUDA backend runs.
+      if (options.kernel != CudaKernelVariant::kMegakernel) {
+        throw UsageError("--kernel " + std::string(kernel_variant_name(options.kernel)) +
+                         ": the host backend has only the megakernel");
+      }
       out.push_back(std::make_unique<HostBackend>());
       return out;
     case BackendKind::kAuto:
@@ -120,7 +125,7 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind) {
       // auto: the GPU alone (falling back to the CPU if it fails while
       // syncing); hetero: the GPU first, then the CPU backend beside it
       // (the heterogeneous tracer decides the split).
-      std::unique_ptr<Backend> cuda = try_create_cuda(kind == BackendKind::kAuto);
+      std::unique_ptr<Backend> cuda = try_create_cuda(kind == BackendKind::kAuto, options.kernel);
       if (cuda) {
         out.push_back(std::move(cuda));
         if (kind == BackendKind::kAuto) return out;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "backends/kernel_variant.h"
 #include "core/render/backend.h"
 
 namespace tandem {
@@ -18,9 +19,17 @@ BackendKind parse_backend_kind(const std::string& name);
 // built with CUDA, no device, driver too old, ...).
 bool cuda_device_available(std::string* reason);
 
+// How the created backends trace. The kernel applies to the CUDA backend
+// (auto, hetero and cuda) and to the host backend, which has only the
+// megakernel so far (asking it for the wavefront is a UsageError).
+struct BackendOptions {
+  CudaKernelVariant kernel = CudaKernelVariant::kMegakernel;
+};
+
 // The backends that will render for `kind`. `auto` falls back to the CPU
 // with a one-line notice when no GPU is usable; `cuda` without a device
 // throws InputError with the reason.
-std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind);
+std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
+                                                      const BackendOptions& options = {});
 
 }  // namespace tandem

@@ -21,12 +21,6 @@ static_assert(uint32_t(ToneMap::kStandard) == kToneMapStandard &&
                   uint32_t(ToneMap::kReinhard) == kToneMapReinhard,
               "core/kernel/tone_map.h mirrors ToneMap");
 
-CudaKernelVariant parse_cuda_kernel_variant(const std::string& name) {
-  if (name == "mega" || name == "megakernel") return CudaKernelVariant::kMegakernel;
-  if (name == "wave" || name == "wavefront") return CudaKernelVariant::kWavefront;
-  throw UsageError("unknown CUDA kernel variant '" + name + "' (expected mega or wave)");
-}
-
 namespace {
 
 // A batch holds at most this many pixels (a 512x512 frame) and one kernel

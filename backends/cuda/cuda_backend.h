@@ -21,15 +21,13 @@
 #include <string>
 #include <vector>
 
+#include "backends/kernel_variant.h"
 #include "core/image/image.h"
 #include "core/render/backend.h"
 
 namespace tandem {
 
-enum class CudaKernelVariant { kMegakernel, kWavefront };
-
-// Parses "mega" / "megakernel" / "wave" / "wavefront"; throws UsageError.
-CudaKernelVariant parse_cuda_kernel_variant(const std::string& name);
+// CudaKernelVariant and parse_cuda_kernel_variant: backends/kernel_variant.h.
 
 // Whether a CUDA device this build can run on exists; otherwise `reason`
 // says why (no driver, driver too old, no device, no kernel image for the
