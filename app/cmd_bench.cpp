@@ -135,12 +135,6 @@ int run_bench(const std::vector<std::string>& argv) {
   if (args.has("accstruc")) kernel_users.push_back(BackendKind::kHost);
   if (gpu) kernel_users.push_back(BackendKind::kCuda);
   const BackendOptions backend_options = parse_kernel_option(args.value("kernel"), kernel_users);
-  const std::optional<std::string> json_path = args.value("json");
-  if (json_path) check_json_output_path(*json_path);
-  if (gpu) {
-    std::string reason;
-    if (!cuda_device_available(&reason)) throw InputError("bench --gpu: " + reason);
-  }
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
   std::optional<tbb::global_control> limit;
   if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
@@ -149,9 +143,16 @@ int run_bench(const std::vector<std::string>& argv) {
   settings.height = args.get_u32("height", 512, 1, 16384);
   settings.max_depth = args.get_u32("max-depth", 8, 0, 1024);
   const uint32_t spp = args.get_u32("spp", 16, 1, 1u << 16);
+  [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 10, 1, 100000);
+  const std::optional<std::string> json_path = args.value("json");
+  if (json_path) check_json_output_path(*json_path);
+  if (gpu) {
+    std::string reason;
+    if (!cuda_device_available(&reason)) throw InputError("bench --gpu: " + reason);
+  }
 
   Scene scene = load_scene(spec);
-  const bool camera_from_bounds = !scene.has_camera();
+  [[maybe_unused]] const bool camera_from_bounds = !scene.has_camera();  // for --gpu
   const bool is_file = spec.rfind("builtin:", 0) != 0;
   const float env = args.get_float("env-color", is_file ? 1.0f : 0.0f, 0.0f, 1e9f);
   if (env > 0.0f) scene.edit_environment().color = glm::vec3(env);
@@ -180,7 +181,7 @@ int run_bench(const std::vector<std::string>& argv) {
   if (gpu) {
 #if TANDEM_HAVE_CUDA
     GpuBenchConfig config;
-    config.timed_frames = args.get_u32("gpu-frames", config.timed_frames, 1, 100000);
+    config.timed_frames = gpu_frames;
     if (args.has("kernel")) config.kernels = {backend_options.kernel};
     const GpuBenchFigures figures =
         measure_gpu_bench(scene, spec, ks, delta, backend, rays, settings.width, settings.height,

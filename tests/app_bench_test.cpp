@@ -197,6 +197,8 @@ TEST(KernelOption, RefusedWhereItDoesNotApply) {
       {"bench --gpu --accstruc", "cannot be combined"},
       {"bench --gpu --spp 4", "do not apply"},
       {"bench --gpu-frames 3", "needs --gpu"},
+      {"bench --gpu --width 0", "--width"},
+      {"bench --gpu --gpu-frames 0", "--gpu-frames"},
   };
   for (const Case& c : cases) {
     const RunResult r = run_tandem(c.args);
