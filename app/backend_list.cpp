@@ -1,8 +1,8 @@
 #include "app/backend_list.h"
 
+#include <algorithm>
 #include <sstream>
 
-#include "backends/backend_factory.h"
 #include "core/util/errors.h"
 
 namespace tandem {
@@ -16,8 +16,7 @@ std::vector<std::string> split_backend_list(const std::string& spec) {
   return names;
 }
 
-std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
-                                                        bool validate_only) {
+std::vector<BackendKind> parse_backend_list(const std::string& spec) {
   std::vector<BackendKind> kinds;
   for (const std::string& name : split_backend_list(spec))
     kinds.push_back(parse_backend_kind(name));
@@ -29,17 +28,50 @@ std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
       }
     }
   }
+  return kinds;
+}
+
+std::vector<std::unique_ptr<Backend>> make_backend_list(const std::string& spec,
+                                                        const BackendOptions& options,
+                                                        bool validate_only) {
+  const std::vector<BackendKind> kinds = parse_backend_list(spec);
   std::vector<std::unique_ptr<Backend>> out;
   if (validate_only) return out;
-  BackendOptions options;
   // A GPU named beside other backends falls back to the CPU when it fails,
   // as under auto: the run goes on with the others.
-  options.cuda_falls_back = kinds.size() > 1;
+  BackendOptions list_options = options;
+  list_options.cuda_falls_back = kinds.size() > 1;
   for (BackendKind k : kinds) {
-    for (auto& b : create_backends(k, options))
+    for (auto& b : create_backends(k, list_options))
       out.push_back(std::move(b));
   }
   return out;
+}
+
+BackendOptions parse_kernel_option(const std::optional<std::string>& kernel,
+                                   const std::vector<BackendKind>& kinds) {
+  BackendOptions options;
+  if (!kernel) return options;
+  try {
+    options.kernel = parse_cuda_kernel_variant(*kernel);
+  } catch (const UsageError& e) {
+    throw UsageError(std::string("--kernel: ") + e.what());
+  }
+  const auto has = [&](BackendKind k) { return std::count(kinds.begin(), kinds.end(), k) > 0; };
+  if (!has(BackendKind::kCuda) && !has(BackendKind::kHost) && !has(BackendKind::kAuto) &&
+      !has(BackendKind::kHetero)) {
+    throw UsageError(
+        "--kernel applies only to the cuda and host backends, and none of them is in use here "
+        "(the cpu backend is Embree's and has no kernel variants)");
+  }
+  // Checked here too, not only when the backend is created, so that the
+  // usage error comes before a scene is loaded.
+  if (options.kernel == CudaKernelVariant::kWavefront && has(BackendKind::kHost)) {
+    throw UsageError(
+        "--kernel wavefront: the host backend has only the megakernel so far (use "
+        "--kernel megakernel, or the wavefront on --backend cuda)");
+  }
+  return options;
 }
 
 }  // namespace tandem

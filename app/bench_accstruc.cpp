@@ -166,8 +166,20 @@ BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uin
   return set;
 }
 
-void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
-                        int threads) {
+std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set) {
+  std::array<std::vector<Ray>, 3> by_kind;
+  for (size_t i = 0; i < set.rays.size(); ++i)
+    by_kind[size_t(set.kind[i])].push_back(set.rays[i]);
+  return by_kind;
+}
+
+double embree_kind_mrays(const EmbreeBackend& embree, const std::vector<Ray>& rays, bool shadow) {
+  const EmbreeTracer tracer{embree.top_level(), &embree.kernel_data()};
+  return trace_kind(tracer, rays, shadow).mrays;
+}
+
+JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+                             int threads) {
   const uint64_t tris = unique_triangles(ks);
   std::printf("\naccstruc (issue 3): %zu meshes, %llu unique triangles, best of %d runs\n",
               ks.meshes.size(), static_cast<unsigned long long>(tris), kRepeats);
@@ -184,6 +196,17 @@ void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const Benc
       "  ours %8.2f | embree medium %8.2f (ours/embree %.2f) | embree high %8.2f "
       "(ours/embree %.2f)\n",
       mtris(ours), mtris(emb_medium), emb_medium / ours, mtris(emb_high), emb_high / ours);
+  JsonValue json = JsonValue::object();
+  json.set("meshes", uint64_t(ks.meshes.size()))
+      .set("unique_triangles", tris)
+      .set("best_of_runs", kRepeats)
+      .set("blas_build", JsonValue::object()
+                             .set("threads", threads)
+                             .set("ours_mtris_per_second", mtris(ours))
+                             .set("embree_medium_mtris_per_second", mtris(emb_medium))
+                             .set("embree_high_mtris_per_second", mtris(emb_high))
+                             .set("ours_vs_embree_medium", emb_medium / ours)
+                             .set("ours_vs_embree_high", emb_high / ours));
 
   // --- SAH cost of our BLAS (binary and wide, as stored) vs a median split.
   AccelStructure accel([&] {
@@ -212,11 +235,15 @@ void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const Benc
   std::printf("SAH cost (C_trav = C_isect = 1, triangle-weighted mean over BLAS):\n");
   std::printf("  binned SAH binary %.2f, wide %.2f | median split binary %.2f (median/SAH %.2f)\n",
               sah, wide_sah, median_sah, sah > 0.0 ? median_sah / sah : 0.0);
+  json.set("sah_cost", JsonValue::object()
+                           .set("binary", sah)
+                           .set("wide", wide_sah)
+                           .set("median_split_binary", median_sah)
+                           .set("median_over_sah", sah > 0.0 ? median_sah / sah : 0.0));
+  JsonValue traversal = JsonValue::array();
 
   // --- Traversal of the same rays.
-  std::vector<Ray> by_kind[3];
-  for (size_t i = 0; i < rays.rays.size(); ++i)
-    by_kind[size_t(rays.kind[i])].push_back(rays.rays[i]);
+  const std::array<std::vector<Ray>, 3> by_kind = rays_by_kind(rays);
   KernelData binary = ks.view(), wide = ks.view();
   binary.constants.bvh_layout = kBvhLayoutBinary;
   wide.constants.bvh_layout = kBvhLayoutWide;
@@ -228,6 +255,7 @@ void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const Benc
   for (const int t : {1, threads}) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(t));
     std::printf("traversal, %d thread%s (Mrays/s; ratio ours/embree):\n", t, t == 1 ? "" : "s");
+    JsonValue kinds_json = JsonValue::array();
     for (int k = 0; k < 3; ++k) {
       const bool shadow = k == 2;
       const Throughput e = trace_kind(emb, by_kind[k], shadow);
@@ -239,9 +267,23 @@ void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const Benc
           kinds[k], by_kind[k].size(), e.mrays, b.mrays, b.mrays / e.mrays, w.mrays,
           w.mrays / e.mrays, static_cast<unsigned long long>(e.hits),
           static_cast<unsigned long long>(b.hits), static_cast<unsigned long long>(w.hits));
+      kinds_json.push(JsonValue::object()
+                          .set("kind", kinds[k])
+                          .set("rays", uint64_t(by_kind[k].size()))
+                          .set("embree_mrays_per_second", e.mrays)
+                          .set("binary_mrays_per_second", b.mrays)
+                          .set("wide_mrays_per_second", w.mrays)
+                          .set("binary_vs_embree", b.mrays / e.mrays)
+                          .set("wide_vs_embree", w.mrays / e.mrays)
+                          .set("embree_hits", e.hits)
+                          .set("binary_hits", b.hits)
+                          .set("wide_hits", w.hits));
     }
+    traversal.push(JsonValue::object().set("threads", t).set("kinds", std::move(kinds_json)));
     if (threads == 1) break;
   }
+  json.set("traversal", std::move(traversal));
+  return json;
 }
 
 }  // namespace tandem

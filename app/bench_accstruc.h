@@ -3,9 +3,11 @@
 // the ray mix both benchmarks trace.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
+#include "app/json_writer.h"
 #include "core/scene/kernel_scene.h"
 
 namespace tandem {
@@ -24,12 +26,19 @@ struct BenchRays {
 BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
                           uint32_t height);
 
+// The rays of `set` grouped by kind, indexed by BenchRayKind.
+std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set);
+
+// Mrays/s of the CPU backend's Embree tracer over `rays` on all threads
+// (closest hits; any hits with `shadow`), best of a few runs.
+double embree_kind_mrays(const EmbreeBackend& embree, const std::vector<Ray>& rays, bool shadow);
+
 // Prints BLAS build throughput (ours vs Embree's builder), the SAH cost of
 // our BLAS (vs a median-split build), and closest-hit / any-hit throughput
 // of our two layouts vs Embree for primary, diffuse and shadow rays, on one
 // thread and on `threads` threads. `embree` must be synced to `ks`, whose
-// BVH arrays this fills.
-void run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
-                        int threads);
+// BVH arrays this fills. Returns the printed figures for the JSON report.
+JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+                             int threads);
 
 }  // namespace tandem

@@ -5,12 +5,15 @@
 
 #include <string>
 
+#include "app/json_writer.h"
+#include "backends/backend_factory.h"
 #include "core/scene/kernel_scene.h"
 #include "core/scene/scene.h"
 
 namespace tandem {
 
-void run_hetero_bench(Scene& scene, const RenderSettings& settings, uint32_t frames,
-                      const std::string& list);
+// Prints the figures; returns them for the JSON report.
+JsonValue run_hetero_bench(Scene& scene, const RenderSettings& settings, uint32_t frames,
+                           const std::string& list, const BackendOptions& options = {});
 
 }  // namespace tandem

@@ -4,7 +4,8 @@
 // kinds the path tracer casts, so the ratio shows what shading and sampling
 // cost on top of Embree itself. With --accstruc it also measures Tandem's own
 // BVH against Embree (app/bench_accstruc.h) and path traces on the host
-// backend.
+// backend. With --gpu it measures the CUDA backend on the device instead
+// (app/bench_gpu.h). Every mode can write its figures as JSON (--json).
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -15,6 +16,7 @@
 #include "app/backend_list.h"
 #include "app/bench_accstruc.h"
 #include "app/bench_hetero.h"
+#include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
 #include "app/view/bench_frames.h"
@@ -25,6 +27,8 @@
 #include "core/render/renderer.h"
 #include "core/util/errors.h"
 #include "scenes/scene_loader.h"
+
+#include "app/bench_gpu.h"
 
 namespace tandem {
 
@@ -46,6 +50,19 @@ const std::vector<OptionSpec>& bench_options() {
        "together",
        "LIST"},
       {"hetero-frames", true, "frames of 1 spp for --hetero (default 16)", "N"},
+      {"gpu", false,
+       "measure the CUDA backend on the device instead: the same rays as the Embree loop "
+       "(camera, shadow, diffuse) with both BVH layouts, and path tracing at 1920x1080, 1 spp, "
+       "max depth 4 with both kernels and both layouts"},
+      {"gpu-frames", true, "timed path-tracing frames per kernel and layout for --gpu (default 10)",
+       "N"},
+      {"kernel", true,
+       "megakernel | wavefront (mega, wave): the kernel of the cuda and host backends for "
+       "--hetero and --accstruc (default megakernel; the host backend has only the megakernel); "
+       "with --gpu, measure only this kernel",
+       "K"},
+      {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",
+       "FILE"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -85,14 +102,37 @@ int run_bench(const std::vector<std::string>& argv) {
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
-        "usage: tandem bench [SCENE] [options]\n\nMeasures path-tracing throughput against a plain "
-        "Embree ray-casting loop on the same scene.\n\n%s",
+        "usage: tandem bench [SCENE] [options]\n"
+        "       tandem bench --gpu [SCENE] [options]\n"
+        "       tandem bench --frames N [--scene SCENE] [options]  (see bench --frames 1 "
+        "--help)\n\n"
+        "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
+        "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
+        "interactive\nframe loop.\n\n%s",
         format_options_help(bench_options()).c_str());
     return 0;
   }
   if (args.positionals().size() > 1) throw UsageError("bench: expected at most one SCENE argument");
   const std::string spec = args.positionals().empty() ? "builtin:cornell" : args.positionals()[0];
-  if (auto list = args.value("hetero")) make_backend_list(*list, /*validate_only=*/true);
+  // Usage errors first, then the output path and the device, all before
+  // anything is measured.
+  const bool gpu = args.has("gpu");
+  if (gpu && (args.has("accstruc") || args.has("hetero"))) {
+    throw UsageError(
+        "bench --gpu is a mode of its own: it cannot be combined with --accstruc or "
+        "--hetero");
+  }
+  if (gpu && (args.has("spp") || args.has("max-depth"))) {
+    throw UsageError(
+        "bench --gpu path traces with 1 spp and max depth 4; --spp and --max-depth "
+        "do not apply");
+  }
+  if (!gpu && args.has("gpu-frames")) throw UsageError("--gpu-frames needs --gpu");
+  std::vector<BackendKind> kernel_users;  // the backends --kernel would apply to
+  if (auto list = args.value("hetero")) kernel_users = parse_backend_list(*list);
+  if (args.has("accstruc")) kernel_users.push_back(BackendKind::kHost);
+  if (gpu) kernel_users.push_back(BackendKind::kCuda);
+  const BackendOptions backend_options = parse_kernel_option(args.value("kernel"), kernel_users);
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
   std::optional<tbb::global_control> limit;
   if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
@@ -101,8 +141,16 @@ int run_bench(const std::vector<std::string>& argv) {
   settings.height = args.get_u32("height", 512, 1, 16384);
   settings.max_depth = args.get_u32("max-depth", 8, 0, 1024);
   const uint32_t spp = args.get_u32("spp", 16, 1, 1u << 16);
+  [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 10, 1, 100000);
+  const std::optional<std::string> json_path = args.value("json");
+  if (json_path) check_json_output_path(*json_path);
+  if (gpu) {
+    std::string reason;
+    if (!cuda_device_available(&reason)) throw InputError("bench --gpu: " + reason);
+  }
 
   Scene scene = load_scene(spec);
+  [[maybe_unused]] const bool camera_from_bounds = !scene.has_camera();  // for --gpu
   const bool is_file = spec.rfind("builtin:", 0) != 0;
   const float env = args.get_float("env-color", is_file ? 1.0f : 0.0f, 0.0f, 1e9f);
   if (env > 0.0f) scene.edit_environment().color = glm::vec3(env);
@@ -120,12 +168,29 @@ int run_bench(const std::vector<std::string>& argv) {
   const KernelData kd = ks.view();
 
   const int workers = threads ? int(threads) : tbb::info::default_concurrency();
-  std::printf("scene %s: %zu triangles, %ux%u, %u spp, max depth %u, %d threads\n", spec.c_str(),
-              scene.triangle_count_instanced(), settings.width, settings.height, spp,
-              settings.max_depth, workers);
+  if (!gpu) {
+    std::printf("scene %s: %zu triangles, %ux%u, %u spp, max depth %u, %d threads\n", spec.c_str(),
+                scene.triangle_count_instanced(), settings.width, settings.height, spp,
+                settings.max_depth, workers);
+  }
   std::printf("embree build:           %8.3f s\n", build_s);
 
   const BenchRays rays = make_bench_rays(kd, backend, settings.width, settings.height);
+  if (gpu) {
+    GpuBenchConfig config;
+    config.timed_frames = gpu_frames;
+    if (args.has("kernel")) config.kernels = {backend_options.kernel};
+    const GpuBenchFigures figures =
+        measure_gpu_bench(scene, spec, ks, delta, backend, rays, settings.width, settings.height,
+                          workers, camera_from_bounds, config);
+    std::printf("%s", format_gpu_bench_table(figures).c_str());
+    JsonValue report = bench_report("gpu", workers);
+    add_gpu_bench_json(report, figures);
+    report.set("triangles", uint64_t(scene.triangle_count_instanced()));
+    report.set("embree_build_seconds", build_s);
+    write_json_report(json_path, report);
+    return 0;
+  }
   embree_loop_mrays(backend, rays, 1);  // warm-up
   const double raw = embree_loop_mrays(backend, rays, 3);
 
@@ -139,9 +204,21 @@ int run_bench(const std::vector<std::string>& argv) {
   std::printf("path tracing (cpu):     %8.2f Mrays/s, %.3f M samples/s, %.2f s\n", pt_mrays,
               double(result.stats.samples) / result.seconds * 1e-6, result.seconds);
   std::printf("ratio path/plain:       %8.2f\n", pt_mrays / raw);
+  JsonValue report = bench_report("path", workers);
+  set_render_facts(report, spec, settings.width, settings.height, spp, settings.max_depth);
+  report.set("triangles", uint64_t(scene.triangle_count_instanced()));
+  report.set("embree_build_seconds", build_s);
+  report.set("bench_rays", uint64_t(rays.rays.size()));
+  report.set("plain_embree_mrays_per_second", raw);
+  report.set("path_tracing_cpu",
+             JsonValue::object()
+                 .set("mrays_per_second", pt_mrays)
+                 .set("samples_per_second", double(result.stats.samples) / result.seconds)
+                 .set("seconds", result.seconds));
+  report.set("ratio_path_over_plain", pt_mrays / raw);
 
   if (args.has("accstruc")) {
-    run_accstruc_bench(ks, backend, rays, workers);
+    report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));
     // The same path tracing on the host backend: our BVH (binary layout,
     // filled in by run_accstruc_bench) under the same kernels.
     HostBackend host;
@@ -151,10 +228,19 @@ int run_bench(const std::vector<std::string>& argv) {
     std::printf("path tracing (host):    %8.2f Mrays/s, %.3f M samples/s, %.2f s (host/cpu %.2f)\n",
                 host_mrays, double(h.stats.samples) / h.seconds * 1e-6, h.seconds,
                 host_mrays / pt_mrays);
+    report.set("path_tracing_host",
+               JsonValue::object()
+                   .set("mrays_per_second", host_mrays)
+                   .set("samples_per_second", double(h.stats.samples) / h.seconds)
+                   .set("seconds", h.seconds)
+                   .set("host_vs_cpu", host_mrays / pt_mrays));
   }
   if (auto list = args.value("hetero")) {
-    run_hetero_bench(scene, settings, args.get_u32("hetero-frames", 16, 1, 1u << 20), *list);
+    report.set("hetero",
+               run_hetero_bench(scene, settings, args.get_u32("hetero-frames", 16, 1, 1u << 20),
+                                *list, backend_options));
   }
+  write_json_report(json_path, report);
   return 0;
 }
 

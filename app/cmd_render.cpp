@@ -35,6 +35,10 @@ const std::vector<OptionSpec>& render_options() {
        "frame "
        "between backends",
        "B"},
+      {"kernel", true,
+       "megakernel | wavefront (mega, wave): how the cuda backend traces paths (default "
+       "megakernel; the host backend has only the megakernel)",
+       "K"},
       {"split", true,
        "fixed share of each frame for the first backend, 0..1 (default: balanced from measured "
        "throughput)",
@@ -106,7 +110,9 @@ int run_render(const std::vector<std::string>& argv) {
   settings.seed = args.get_u32("seed", 0, 0, 0xffffffffu);
   settings.radiance_clamp = args.get_float("clamp", 0.0f, 0.0f, 1e30f);
   const std::string backend_spec = args.get_string("backend", "auto");
-  make_backend_list(backend_spec, /*validate_only=*/true);  // usage errors before loading
+  // Usage errors before loading.
+  const BackendOptions backend_options =
+      parse_kernel_option(args.value("kernel"), parse_backend_list(backend_spec));
   const float split = args.has("split") ? args.get_float("split", 0.5f, 0.0f, 1.0f) : -1.0f;
   ImageWriteOptions write_options;
   write_options.exposure = args.get_float("exposure", 0.0f, -50.0f, 50.0f);
@@ -184,7 +190,7 @@ int run_render(const std::vector<std::string>& argv) {
   const uint32_t frames = std::min(spp, 32u);
   const uint32_t per_frame = (spp + frames - 1) / frames;
   tracer_settings.samples_per_frame = per_frame;
-  CoreTracer tracer(make_backend_list(backend_spec), tracer_settings);
+  CoreTracer tracer(make_backend_list(backend_spec, backend_options), tracer_settings);
 
   ProgressBar bar(!quiet && stderr_is_terminal());
   const auto start = std::chrono::steady_clock::now();

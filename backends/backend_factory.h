@@ -15,6 +15,9 @@ enum class BackendKind { kAuto, kCpu, kHost, kCuda, kHetero };
 // Parses cpu|host|cuda|hetero|auto; throws UsageError otherwise.
 BackendKind parse_backend_kind(const std::string& name);
 
+// How the created backends trace. The kernel applies to the CUDA backend
+// (auto, hetero and cuda) and to the host backend, which has only the
+// megakernel so far (asking it for the wavefront is a UsageError).
 struct BackendOptions {
   CudaKernelVariant kernel = CudaKernelVariant::kMegakernel;
   // `cuda` as part of a backend list: a device failure while syncing or

@@ -1,20 +1,19 @@
-// Which kernel shape the CUDA backend runs a path with. A header of its own,
-// free of CUDA, so that command-line parsing works in every build.
+// Which kernel a backend traces paths with: one megakernel that runs a whole
+// path per thread, or the wavefront pipeline (one kernel per path stage).
+// Kept apart from cuda_backend.h and free of CUDA headers so that the
+// command line can parse --kernel in every build, CUDA or not.
 #pragma once
 
 #include <string>
-
-#include "core/util/errors.h"
 
 namespace tandem {
 
 enum class CudaKernelVariant { kMegakernel, kWavefront };
 
-// Parses "mega" / "megakernel" / "wave" / "wavefront"; throws UsageError.
-inline CudaKernelVariant parse_cuda_kernel_variant(const std::string& name) {
-  if (name == "mega" || name == "megakernel") return CudaKernelVariant::kMegakernel;
-  if (name == "wave" || name == "wavefront") return CudaKernelVariant::kWavefront;
-  throw UsageError("unknown kernel '" + name + "' (expected megakernel or wavefront)");
-}
+// Parses "megakernel" / "mega" / "wavefront" / "wave"; throws UsageError.
+CudaKernelVariant parse_cuda_kernel_variant(const std::string& name);
+
+// "megakernel" or "wavefront".
+const char* kernel_variant_name(CudaKernelVariant variant);
 
 }  // namespace tandem

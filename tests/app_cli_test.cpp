@@ -1,7 +1,6 @@
 // End-to-end tests of the `tandem` executable: exit codes, messages, output
 // files. Each test runs the real binary the way a user would.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <algorithm>
 #include <array>
@@ -13,37 +12,16 @@
 #include <string>
 
 #include "core/image/image.h"
+#include "tests/app_run_tandem.h"
 #include "tests/test_temp_dir.h"
 
 namespace fs = std::filesystem;
 using tandem::TempDir;
+using tandem::app_test::run_tandem;
+using tandem::app_test::RunResult;
+using tandem::app_test::shell_quote;
 
 namespace {
-
-struct RunResult {
-  int exit_code;
-  std::string output;  // stdout + stderr
-};
-
-std::string shell_quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s)
-    out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-RunResult run_tandem(const std::string& args) {
-  const std::string cmd = shell_quote(TANDEM_BINARY) + " " + args + " 2>&1";
-  RunResult r{-1, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
-    r.output.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
 
 const fs::path kShared = fs::path(TANDEM_SHARED_DIR) / "scenes";
 

@@ -238,7 +238,9 @@ TEST(CoreTracer, PreparingTheNextFrameDuringRenderGivesTheSameFrames) {
   for (int f = 0; f < 4; ++f) {
     piped.begin_frame(piped_scene);
     move_first_instance(piped_scene, f + 1);  // the game advances meanwhile
-    if (f + 1 < 4) EXPECT_TRUE(piped.prepare_next_frame(piped_scene));
+    if (f + 1 < 4) {
+      EXPECT_TRUE(piped.prepare_next_frame(piped_scene));
+    }
     // An edit after the next frame was prepared must still reach it.
     if (f == 2) darken_first_material(piped_scene);
     const FrameMetrics& m = piped.end_frame();

@@ -6,11 +6,14 @@
 #include "app/view/bench_frames.h"
 
 #include <tbb/global_control.h>
+#include <tbb/info.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <optional>
 
+#include "app/backend_list.h"
+#include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/view/scripted_path.h"
 #include "app/view/view_session.h"
@@ -29,7 +32,13 @@ const std::vector<OptionSpec>& frame_bench_options() {
       {"spp", true, "samples per pixel per frame (default 1)", "N"},
       {"max-depth", true, "scattering events per path (default 4)", "D"},
       {"backend", true, "auto, cpu, host, cuda or hetero (default auto)", "B"},
+      {"kernel", true,
+       "megakernel | wavefront (mega, wave): how the cuda backend traces (default megakernel; "
+       "the host backend has only the megakernel)",
+       "K"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
+      {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",
+       "FILE"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -66,9 +75,12 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   o.fixed_scale = 1.0f;  // measure the loop itself, not the adaptation
   o.max_depth = args.get_u32("max-depth", 4, 1, 1024);
   o.backend = parse_backend_kind(args.get_string("backend", "auto"));
+  o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
   o.denoise = false;
   const uint32_t spp = args.get_u32("spp", 1, 1, 4096);
   const uint32_t frames = args.get_u32("frames", 300, 1, 1u << 24);
+  const std::optional<std::string> json_path = args.value("json");
+  if (json_path) check_json_output_path(*json_path);  // before measuring
 
   ViewSession session(o);
   const Camera base = session.camera();
@@ -77,6 +89,8 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::vector<std::string> names;
   std::vector<double> seconds, tiles, share;
   std::vector<uint64_t> commit;
+  std::vector<double> copy_s, hidden_s;
+  uint32_t overlapped_commits = 0;
   double first_frame = 0.0;
   TracerSettings ts = session.tracer().settings();
   ts.samples_per_frame = spp;
@@ -101,16 +115,20 @@ int run_frame_bench(const std::vector<std::string>& argv) {
         names.push_back(b.name);
       seconds.assign(names.size(), 0.0), tiles.assign(names.size(), 0.0);
       share.assign(names.size(), 0.0), commit.assign(names.size(), 0);
+      copy_s.assign(names.size(), 0.0), hidden_s.assign(names.size(), 0.0);
       continue;
     }
     frame_s.push_back(m.total_seconds);
     delta_bytes += m.delta_bytes;
+    overlapped_commits += m.overlapped_commit;
     rays += m.rays();
     for (size_t i = 0; i < m.backends.size() && i < names.size(); ++i) {
       seconds[i] += m.backends[i].seconds;
       tiles[i] += m.backends[i].tiles;
       share[i] += m.backends[i].planned_share;
       commit[i] += m.backends[i].commit_bytes;
+      copy_s[i] += m.backends[i].commit_copy_seconds;
+      hidden_s[i] += m.backends[i].commit_hidden_seconds;
     }
   }
   const double n = double(std::max<size_t>(frame_s.size(), 1));
@@ -131,12 +149,48 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::printf("scene delta per frame:     %8.1f KiB\n", double(delta_bytes) / n / 1024.0);
   std::printf("throughput:                %8.2f Mrays/s\n",
               double(rays) / std::max(total, 1e-9) * 1e-6);
+  std::printf(
+      "commits during the render:  %8u of %zu frames (uploaded while the previous frame "
+      "rendered)\n",
+      overlapped_commits, frame_s.size());
   for (size_t i = 0; i < names.size(); ++i) {
     std::printf(
         "backend %-8s tiles %5.1f%%  planned share %5.1f%%  %7.2f ms/frame  commit %8.1f "
-        "KiB/frame\n",
+        "KiB/frame, copy %.3f ms/frame (%.3f ms hidden behind rendering)\n",
         names[i].c_str(), tile_sum > 0 ? tiles[i] / tile_sum * 100.0 : 0.0, share[i] / n * 100.0,
-        seconds[i] / n * 1e3, double(commit[i]) / n / 1024.0);
+        seconds[i] / n * 1e3, double(commit[i]) / n / 1024.0, copy_s[i] / n * 1e3,
+        hidden_s[i] / n * 1e3);
+  }
+  if (json_path) {
+    JsonValue report =
+        bench_report("frames", threads ? int(threads) : tbb::info::default_concurrency());
+    set_render_facts(report, o.scene, o.width, o.height, spp, o.max_depth);
+    JsonValue backends = JsonValue::array();
+    for (size_t i = 0; i < names.size(); ++i) {
+      backends.push(JsonValue::object()
+                        .set("name", names[i])
+                        .set("tile_share", tile_sum > 0 ? tiles[i] / tile_sum : 0.0)
+                        .set("planned_share", share[i] / n)
+                        .set("ms_per_frame", seconds[i] / n * 1e3)
+                        .set("commit_kib_per_frame", double(commit[i]) / n / 1024.0)
+                        .set("commit_copy_ms_per_frame", copy_s[i] / n * 1e3)
+                        .set("commit_hidden_ms_per_frame", hidden_s[i] / n * 1e3));
+    }
+    report.set("backend", args.get_string("backend", "auto"))
+        .set("kernel", kernel_variant_name(o.backend_options.kernel))
+        .set("triangles", uint64_t(session.scene().triangle_count_instanced()))
+        .set("instances", uint64_t(session.scene().instances().size()))
+        .set("first_frame_ms", first_frame * 1e3)
+        .set("frames_measured", uint64_t(frame_s.size()))
+        .set("overlapped_commits", uint64_t(overlapped_commits))
+        .set("frame_ms_p50", percentile(frame_s, 0.5) * 1e3)
+        .set("frame_ms_p99", percentile(frame_s, 0.99) * 1e3)
+        .set("frame_ms_mean", total / n * 1e3)
+        .set("fps", n / std::max(total, 1e-9))
+        .set("scene_delta_kib_per_frame", double(delta_bytes) / n / 1024.0)
+        .set("mrays_per_second", double(rays) / std::max(total, 1e-9) * 1e-6)
+        .set("backends", std::move(backends));
+    write_json_report(json_path, report);
   }
   return 0;
 }

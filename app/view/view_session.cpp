@@ -57,7 +57,8 @@ ViewSession::ViewSession(const ViewOptions& options)
     light_intensity_.push_back(l.intensity);
   for (const Material& m : scene_.materials())
     emissive_strength_.push_back(m.emissive_strength);
-  tracer_ = std::make_unique<CoreTracer>(create_backends(options_.backend), tracer_settings());
+  tracer_ = std::make_unique<CoreTracer>(
+      create_backends(options_.backend, options_.backend_options), tracer_settings());
 }
 
 TracerSettings ViewSession::tracer_settings() const {
@@ -114,7 +115,8 @@ void ViewSession::screenshot(const std::filesystem::path& path) const {
 void ViewSession::set_backend(BackendKind kind) {
   if (kind == options_.backend) return;
   // A new tracer compiles the scene from scratch on its first frame.
-  tracer_ = std::make_unique<CoreTracer>(create_backends(kind), tracer_settings());
+  tracer_ = std::make_unique<CoreTracer>(create_backends(kind, options_.backend_options),
+                                         tracer_settings());
   options_.backend = kind;
   last_seconds_ = 0.0;
 }

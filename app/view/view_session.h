@@ -23,6 +23,7 @@ struct ViewOptions {
   std::string scene = "builtin:arena";
   uint32_t width = 1280, height = 720;  // window / output resolution
   BackendKind backend = BackendKind::kAuto;
+  BackendOptions backend_options;  // the CUDA backend's kernel
   double target_fps = 30.0;
   float fixed_scale = 0.0f;  // > 0: fixed resolution scale, no adaptation
   uint32_t max_spp_per_frame = 16;

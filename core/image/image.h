@@ -45,6 +45,12 @@ void write_image(const std::filesystem::path& path, const ImageRGB& image,
 void write_png_rgb8(const std::filesystem::path& path, uint32_t width, uint32_t height,
                     const std::vector<uint8_t>& rgb);
 
+// Writes `bytes` to a temporary file beside `path` and renames it over
+// `path`, so readers see the old file or the new one, never a part. Every
+// output file of Tandem (images, benchmark reports) goes through it. Throws
+// InputError naming the file (missing directory, write or rename failure).
+void write_file_atomically(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
+
 // Reads .hdr (Radiance RGBE), .exr (uncompressed scanline, half/float), .pfm,
 // and 8-bit formats stb_image supports (decoded from sRGB to linear).
 // Throws InputError naming the file and the reason.

@@ -26,6 +26,8 @@ std::string lower_extension(const fs::path& p) {
   return ext;
 }
 
+}  // namespace
+
 // Writes bytes to a temporary sibling and renames it over `path`.
 void write_file_atomically(const fs::path& path, const std::vector<uint8_t>& bytes) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
@@ -50,6 +52,8 @@ void write_file_atomically(const fs::path& path, const std::vector<uint8_t>& byt
     throw InputError(path.string() + ": cannot replace file: " + ec.message());
   }
 }
+
+namespace {
 
 template <class T>
 void put(std::vector<uint8_t>& out, T v) {

@@ -1,0 +1,44 @@
+// Runs the built `tandem` binary (TANDEM_BINARY) the way a user would, for
+// the app tests.
+#pragma once
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace tandem::app_test {
+
+struct RunResult {
+  int exit_code;
+  std::string output;  // stdout + stderr
+};
+
+inline std::string shell_quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s)
+    out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// `env` ("NAME=value ..." or empty) is set for this run only.
+inline RunResult run_tandem_with_env(const std::string& env, const std::string& args) {
+  const std::string cmd =
+      (env.empty() ? "" : "env " + env + " ") + shell_quote(TANDEM_BINARY) + " " + args + " 2>&1";
+  RunResult r{-1, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
+    r.output.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+inline RunResult run_tandem(const std::string& args) {
+  return run_tandem_with_env("", args);
+}
+
+}  // namespace tandem::app_test
