@@ -263,6 +263,30 @@ struct SimDevice::Impl {
     return it->second.live && addr + bytes <= it->first + it->second.bytes;
   }
 
+  // An asynchronous copy between pinned host memory and device memory;
+  // `to_device` says which side is which. It takes time by its size and
+  // counts as pageable when the host side is not pinned.
+  void copy(void* dst, const void* src, size_t bytes, DeviceStream s, bool to_device) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!is_pinned_locked(to_device ? src : dst, bytes)) ++report.pageable_async_copies;
+      (to_device ? report.bytes_to_device : report.bytes_to_host) += bytes;
+    }
+    const char* what = to_device ? "copy_to_device" : "copy_to_host";
+    enqueue(s, options.copy_seconds_per_mib * double(bytes) / (1 << 20),
+            [this, dst, src, bytes, s, to_device, what] {
+              bool ok;
+              {
+                std::lock_guard<std::mutex> lock(mutex);
+                const uint64_t before = hazards_seen;
+                access_locked(src, bytes, false, *s, what, !to_device);
+                access_locked(dst, bytes, true, *s, what, to_device);
+                ok = hazards_seen == before;
+              }
+              if (ok) std::memcpy(dst, src, bytes);
+            });
+  }
+
   // Runs `body` as a kernel on `s`: records its accesses first (`accesses`
   // returns false when an address is bad, and the kernel is skipped, as a
   // faulting kernel would be), then computes without the lock.
@@ -277,7 +301,7 @@ struct SimDevice::Impl {
               bool ok;
               {
                 std::lock_guard<std::mutex> lock(mutex);
-                const size_t before = hazards_seen;
+                const uint64_t before = hazards_seen;
                 ok = accesses() && hazards_seen == before;
               }
               if (ok) body();
@@ -483,45 +507,11 @@ double SimDevice::elapsed_seconds(DeviceEvent from, DeviceEvent to) {
 }
 
 void SimDevice::copy_to_device(void* dst, const void* src, size_t bytes, DeviceStream stream) {
-  {
-    std::lock_guard<std::mutex> lock(impl_->mutex);
-    if (!impl_->is_pinned_locked(src, bytes)) ++impl_->report.pageable_async_copies;
-    impl_->report.bytes_to_device += bytes;
-  }
-  DeviceStreamHandle* s = stream;
-  const double seconds = impl_->options.copy_seconds_per_mib * double(bytes) / (1 << 20);
-  impl_->enqueue(stream, seconds, [this, dst, src, bytes, s] {
-    bool ok;
-    {
-      std::lock_guard<std::mutex> lock(impl_->mutex);
-      const size_t before = impl_->hazards_seen;
-      impl_->access_locked(src, bytes, false, *s, "copy_to_device (source)", false);
-      impl_->access_locked(dst, bytes, true, *s, "copy_to_device", true);
-      ok = impl_->hazards_seen == before;
-    }
-    if (ok) std::memcpy(dst, src, bytes);
-  });
+  impl_->copy(dst, src, bytes, stream, true);
 }
 
 void SimDevice::copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream stream) {
-  {
-    std::lock_guard<std::mutex> lock(impl_->mutex);
-    if (!impl_->is_pinned_locked(dst, bytes)) ++impl_->report.pageable_async_copies;
-    impl_->report.bytes_to_host += bytes;
-  }
-  DeviceStreamHandle* s = stream;
-  const double seconds = impl_->options.copy_seconds_per_mib * double(bytes) / (1 << 20);
-  impl_->enqueue(stream, seconds, [this, dst, src, bytes, s] {
-    bool ok;
-    {
-      std::lock_guard<std::mutex> lock(impl_->mutex);
-      const size_t before = impl_->hazards_seen;
-      impl_->access_locked(src, bytes, false, *s, "copy_to_host", true);
-      impl_->access_locked(dst, bytes, true, *s, "copy_to_host (destination)", false);
-      ok = impl_->hazards_seen == before;
-    }
-    if (ok) std::memcpy(dst, src, bytes);
-  });
+  impl_->copy(dst, src, bytes, stream, false);
 }
 
 void SimDevice::zero(void* dst, size_t bytes, DeviceStream stream) {
@@ -530,7 +520,7 @@ void SimDevice::zero(void* dst, size_t bytes, DeviceStream stream) {
     bool ok;
     {
       std::lock_guard<std::mutex> lock(impl_->mutex);
-      const size_t before = impl_->hazards_seen;
+      const uint64_t before = impl_->hazards_seen;
       impl_->access_locked(dst, bytes, true, *s, "zero", true);
       ok = impl_->hazards_seen == before;
     }
