@@ -64,13 +64,6 @@ BackendOptions parse_kernel_option(const std::optional<std::string>& kernel,
         "--kernel applies only to the cuda and host backends, and none of them is in use here "
         "(the cpu backend is Embree's and has no kernel variants)");
   }
-  // Checked here too, not only when the backend is created, so that the
-  // usage error comes before a scene is loaded.
-  if (options.kernel == CudaKernelVariant::kWavefront && has(BackendKind::kHost)) {
-    throw UsageError(
-        "--kernel wavefront: the host backend has only the megakernel so far (use "
-        "--kernel megakernel, or the wavefront on --backend cuda)");
-  }
   return options;
 }
 

@@ -58,7 +58,7 @@ const std::vector<OptionSpec>& bench_options() {
        "N"},
       {"kernel", true,
        "megakernel | wavefront (mega, wave): the kernel of the cuda and host backends for "
-       "--hetero and --accstruc (default megakernel; the host backend has only the megakernel); "
+       "--hetero and --accstruc (default megakernel); "
        "with --gpu, measure only this kernel",
        "K"},
       {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",

@@ -36,8 +36,8 @@ const std::vector<OptionSpec>& render_options() {
        "between backends",
        "B"},
       {"kernel", true,
-       "megakernel | wavefront (mega, wave): how the cuda backend traces paths (default "
-       "megakernel; the host backend has only the megakernel)",
+       "megakernel | wavefront (mega, wave): how the cuda and host backends trace paths "
+       "(default megakernel; both give the same image)",
        "K"},
       {"split", true,
        "fixed share of each frame for the first backend, 0..1 (default: balanced from measured "

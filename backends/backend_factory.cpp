@@ -176,11 +176,7 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
     }
     case BackendKind::kHost:
       // Our BVH and the shared kernels on the CPU: what the CUDA backend runs.
-      if (options.kernel != CudaKernelVariant::kMegakernel) {
-        throw UsageError("--kernel " + std::string(kernel_variant_name(options.kernel)) +
-                         ": the host backend has only the megakernel");
-      }
-      out.push_back(std::make_unique<HostBackend>());
+      out.push_back(std::make_unique<HostBackend>(options.kernel));
       return out;
     case BackendKind::kAuto:
     case BackendKind::kHetero: {

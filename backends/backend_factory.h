@@ -16,8 +16,7 @@ enum class BackendKind { kAuto, kCpu, kHost, kCuda, kHetero };
 BackendKind parse_backend_kind(const std::string& name);
 
 // How the created backends trace. The kernel applies to the CUDA backend
-// (auto, hetero and cuda) and to the host backend, which has only the
-// megakernel so far (asking it for the wavefront is a UsageError).
+// (auto, hetero and cuda) and to the host backend.
 struct BackendOptions {
   CudaKernelVariant kernel = CudaKernelVariant::kMegakernel;
   // `cuda` as part of a backend list: a device failure while syncing or

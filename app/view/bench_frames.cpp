@@ -33,8 +33,8 @@ const std::vector<OptionSpec>& frame_bench_options() {
       {"max-depth", true, "scattering events per path (default 4)", "D"},
       {"backend", true, "auto, cpu, host, cuda or hetero (default auto)", "B"},
       {"kernel", true,
-       "megakernel | wavefront (mega, wave): how the cuda backend traces (default megakernel; "
-       "the host backend has only the megakernel)",
+       "megakernel | wavefront (mega, wave): how the cuda and host backends trace (default "
+       "megakernel)",
        "K"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",

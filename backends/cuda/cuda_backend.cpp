@@ -37,8 +37,8 @@ struct CudaBackend::Impl {
   DeviceScene scene;
   std::array<Slot, 2> slots;
   DeviceBuffer tiles, pixel_sums, radiance, ray_count, host_ray_count;
-  DeviceBuffer wave_rays, wave_keys, wave_hits, wave_queues, wave_counters;
-  uint64_t wave_capacity = 0;
+  DeviceBuffer wave;  // the wavefront's arrays (wavefront.h), carved out of one block
+  WavefrontArrays wave_arrays{};
   DeviceBuffer film_sums, film_samples;
   DeviceFilmView film;
   uint64_t commit_bytes_since_render = 0;
@@ -54,11 +54,7 @@ struct CudaBackend::Impl {
         radiance(*dev, DeviceBuffer::kDevice),
         ray_count(*dev, DeviceBuffer::kDevice),
         host_ray_count(*dev, DeviceBuffer::kPinned),
-        wave_rays(*dev, DeviceBuffer::kDevice),
-        wave_keys(*dev, DeviceBuffer::kDevice),
-        wave_hits(*dev, DeviceBuffer::kDevice),
-        wave_queues(*dev, DeviceBuffer::kDevice),
-        wave_counters(*dev, DeviceBuffer::kDevice),
+        wave(*dev, DeviceBuffer::kDevice),
         film_sums(*dev, DeviceBuffer::kDevice),
         film_samples(*dev, DeviceBuffer::kDevice) {
     if (limits.max_batch_pixels == 0 || limits.max_items == 0)
@@ -107,26 +103,15 @@ struct CudaBackend::Impl {
            slot.pixel_count <= radiance_items();
   }
 
-  void ensure_wavefront_scratch(uint64_t items) {
-    if (items <= wave_capacity) return;
-    wave_capacity = 0;  // until every buffer below exists
-    wave_rays.allocate(items * sizeof(Ray));
-    wave_keys.allocate(items * sizeof(uint32_t));
-    wave_hits.allocate(items * sizeof(Hit));
-    wave_queues.allocate(2 * items * sizeof(uint32_t));
-    wave_counters.allocate(4 * sizeof(uint32_t));
-    wave_capacity = items;
-  }
-
-  WavefrontScratch wavefront_scratch() const {
-    WavefrontScratch w;
-    w.rays = wave_rays.as<Ray>();
-    w.alpha_keys = wave_keys.as<uint32_t>();
-    w.hits = wave_hits.as<Hit>();
-    w.queues = wave_queues.as<uint32_t>();
-    w.counters = wave_counters.as<uint32_t>();
-    w.capacity = wave_capacity;
-    return w;
+  // Enough slots for a launch of `items` pixel samples.
+  void ensure_wavefront(uint64_t items) {
+    const uint32_t slots = uint32_t(std::min<uint64_t>(items, dev->wavefront_slots()));
+    if (slots <= wave_arrays.slots) return;
+    wave_arrays = WavefrontArrays{};  // until the block exists
+    uint64_t bytes = 0;
+    wavefront_arrays_in(nullptr, slots, &bytes);
+    wave.allocate(bytes);
+    wave_arrays = wavefront_arrays_in(wave.get(), slots, &bytes);
   }
 
   // Pulls the next batch of tiles into `slot`; false when the source is
@@ -169,11 +154,11 @@ struct CudaBackend::Impl {
     batch.pixel_count = slot.pixel_count;
     const uint32_t chunk = uint32_t(std::max<uint64_t>(1, radiance_items() / slot.pixel_count));
     if (variant == CudaKernelVariant::kWavefront)
-      ensure_wavefront_scratch(uint64_t(chunk) * slot.pixel_count);
+      ensure_wavefront(uint64_t(chunk) * slot.pixel_count);
     for (uint32_t done = 0; done < pass.sample_count; done += chunk) {
       batch.sample_begin = pass.sample_begin + done;
       batch.sample_count = std::min(chunk, pass.sample_count - done);
-      dev->trace_samples(kd, batch, variant, wavefront_scratch(), radiance.as<Vec3>(),
+      dev->trace_samples(kd, batch, variant, wave_arrays, radiance.as<Vec3>(),
                          ray_count.as<unsigned long long>(), s);
       dev->reduce_samples(batch, radiance.as<const Vec3>(), pixel_sums.as<double>(), s);
     }

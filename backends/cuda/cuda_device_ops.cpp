@@ -21,7 +21,11 @@ class CudaDevice final : public DeviceOps {
   CudaDevice() {
     TANDEM_CUDA_CHECK(cudaSetDevice(0));
     TANDEM_CUDA_CHECK(cudaGetDeviceProperties(&props_, 0));
+    TANDEM_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&host_counter_), sizeof(uint32_t)));
   }
+  ~CudaDevice() override { cudaFreeHost(host_counter_); }
+  CudaDevice(const CudaDevice&) = delete;
+  CudaDevice& operator=(const CudaDevice&) = delete;
 
   std::string name() const override { return props_.name; }
 
@@ -83,12 +87,17 @@ class CudaDevice final : public DeviceOps {
   }
 
   void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontScratch& scratch, Vec3* radiance, unsigned long long* rays,
+                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* rays,
                      DeviceStream s) override {
     if (variant == CudaKernelVariant::kWavefront)
-      launch_wavefront(kd, batch, scratch, radiance, rays, cu(s));
+      launch_wavefront(kd, batch, wave, radiance, rays, host_counter_, cu(s));
     else
       launch_megakernel(kd, batch, radiance, rays, cu(s));
+  }
+  // Four times the threads the GPU holds at once: the queues stay full while
+  // paths end and slots are regenerated.
+  uint32_t wavefront_slots() const override {
+    return uint32_t(4 * props_.multiProcessorCount * props_.maxThreadsPerMultiProcessor);
   }
   void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* sums,
                       DeviceStream s) override {
@@ -112,6 +121,7 @@ class CudaDevice final : public DeviceOps {
 
  private:
   cudaDeviceProp props_{};
+  uint32_t* host_counter_ = nullptr;  // pinned: the wavefront's queue counter
 };
 
 }  // namespace

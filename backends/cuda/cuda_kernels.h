@@ -23,11 +23,12 @@ namespace tandem {
 void launch_megakernel(const KernelData* kd, const TileBatch& batch, Vec3* radiance,
                        unsigned long long* ray_count, cudaStream_t stream);
 
-// Wavefront variant (Laine, Karras & Aila 2013), see wavefront.cu for which
-// stages are separate kernels. Same outputs as launch_megakernel, bit for
-// bit. `scratch` must hold at least batch.items() items.
-void launch_wavefront(const KernelData* kd, const TileBatch& batch, const WavefrontScratch& scratch,
-                      Vec3* radiance, unsigned long long* ray_count, cudaStream_t stream);
+// Wavefront variant (core/kernel/wavefront.h, one kernel per stage). Same
+// outputs as launch_megakernel, bit for bit. Synchronises `stream` every
+// few rounds to read the queue counter into the pinned `host_counter`.
+void launch_wavefront(const KernelData* kd, const TileBatch& batch, const WavefrontArrays& wave,
+                      Vec3* radiance, unsigned long long* ray_count, uint32_t* host_counter,
+                      cudaStream_t stream);
 
 // Closest hits (any_hit = false) or occlusion (any_hit = true: a valid hit
 // means occluded) of n rays with Tandem's BVH, with persistent threads

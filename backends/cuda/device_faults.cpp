@@ -111,11 +111,12 @@ class FaultInjectingDevice final : public DeviceOps {
     inner_->zero(dst, bytes, s);
   }
   void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontScratch& scratch, Vec3* radiance, unsigned long long* rays,
+                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* rays,
                      DeviceStream s) override {
     on_launch("trace_samples");
-    inner_->trace_samples(kd, batch, variant, scratch, radiance, rays, s);
+    inner_->trace_samples(kd, batch, variant, wave, radiance, rays, s);
   }
+  uint32_t wavefront_slots() const override { return inner_->wavefront_slots(); }
   void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* sums,
                       DeviceStream s) override {
     on_launch("reduce_samples");

@@ -91,10 +91,13 @@ class DeviceOps {
   virtual void zero(void* dst, size_t bytes, DeviceStream stream) = 0;
 
   // Kernels (cuda_kernels.h says what each computes).
+  // `wave`: the wavefront variant's arrays (wavefront.h), in device memory,
+  // with at least min(batch.items(), wavefront_slots()) slots.
   virtual void trace_samples(const KernelData* kd, const TileBatch& batch,
-                             CudaKernelVariant variant, const WavefrontScratch& scratch,
-                             Vec3* radiance, unsigned long long* ray_count,
-                             DeviceStream stream) = 0;
+                             CudaKernelVariant variant, const WavefrontArrays& wave, Vec3* radiance,
+                             unsigned long long* ray_count, DeviceStream stream) = 0;
+  // Paths the wavefront keeps in flight: enough to fill the device.
+  virtual uint32_t wavefront_slots() const = 0;
   virtual void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
                               DeviceStream stream) = 0;
   virtual void accumulate_film(const TileBatch& batch, const double* pixel_sums,

@@ -18,6 +18,7 @@
 
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
+#include "core/render/cpu_wavefront.h"
 
 namespace tandem {
 
@@ -529,7 +530,7 @@ void SimDevice::zero(void* dst, size_t bytes, DeviceStream stream) {
 }
 
 void SimDevice::trace_samples(const KernelData* kd, const TileBatch& batch,
-                              CudaKernelVariant /*variant*/, const WavefrontScratch& /*scratch*/,
+                              CudaKernelVariant variant, const WavefrontArrays& wave,
                               Vec3* radiance, unsigned long long* ray_count, DeviceStream stream) {
   if (batch.items() == 0) return;
   DeviceStreamHandle* s = stream;
@@ -544,10 +545,30 @@ void SimDevice::trace_samples(const KernelData* kd, const TileBatch& batch,
                              "trace_samples writes radiance", true);
         impl_->access_locked(ray_count, sizeof(*ray_count), true, *s, "trace_samples counts rays",
                              true);
+        if (variant == CudaKernelVariant::kWavefront) {
+          const uint32_t slots = uint32_t(std::min<uint64_t>(batch.items(), wavefront_slots()));
+          if (wave.slots < slots) {
+            impl_->hazard_locked("trace_samples: wavefront arrays hold fewer slots than needed");
+            return false;
+          }
+          impl_->access_locked(wave.paths, slots * sizeof(PathState), true, *s,
+                               "wavefront writes paths", true);
+          impl_->access_locked(wave.counters, kWaveCounterCount * sizeof(uint32_t), true, *s,
+                               "wavefront counts", true);
+          for (uint32_t* q : {wave.extend_queues[0], wave.extend_queues[1], wave.hit_queue,
+                              wave.miss_queue, wave.shadow_queue, wave.slot_item})
+            impl_->access_locked(q, slots * sizeof(uint32_t), true, *s, "wavefront queues", true);
+        }
         return true;
       },
-      [=] {
+      [=, this] {
         const KernelData& k = *local;
+        if (variant == CudaKernelVariant::kWavefront) {
+          WavefrontArrays w = wave;
+          w.slots = uint32_t(std::min<uint64_t>(batch.items(), wavefront_slots()));
+          *ray_count += run_wavefront_on_cpu(k, BvhTracer{&k}, batch, w, radiance);
+          return;
+        }
         std::atomic<uint64_t> rays{0};
         tbb::parallel_for(tbb::blocked_range<uint64_t>(0, batch.items(), 64),
                           [&](const tbb::blocked_range<uint64_t>& r) {

@@ -16,8 +16,9 @@
 //     simulated device memory: an image rendered on it is bit for bit the
 //     host backend's when the backend's uploads are right.
 //   - Fresh memory is filled with a pattern, not zeroes, as on a GPU.
-// The wavefront variant runs as the megakernel here (same results by
-// contract); its stage split is only exercised on a GPU.
+// The wavefront variant runs the GPU's queue logic (core/kernel/wavefront.h)
+// over the arrays the backend allocated on the device, with the CPU driver
+// of core/render/cpu_wavefront.h.
 #pragma once
 
 #include <memory>
@@ -74,8 +75,10 @@ class SimDevice final : public DeviceOps {
   void copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream stream) override;
   void zero(void* dst, size_t bytes, DeviceStream stream) override;
   void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontScratch& scratch, Vec3* radiance, unsigned long long* ray_count,
+                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* ray_count,
                      DeviceStream stream) override;
+  // Small, so that tests see slots regenerated many times per batch.
+  uint32_t wavefront_slots() const override { return 512; }
   void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
                       DeviceStream stream) override;
   void accumulate_film(const TileBatch& batch, const double* pixel_sums, uint32_t sample_count,

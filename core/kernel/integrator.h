@@ -1,8 +1,25 @@
 // Unidirectional path tracing with next-event estimation and multiple
-// importance sampling (power heuristic) between BSDF and light sampling.
+// importance sampling (power heuristic) between BSDF and light sampling,
+// written as an explicit path state and the stages that advance it:
 //
-// The integrator is a template over a Tracer, the only thing that differs
-// between backends:
+//   path_generate        the camera ray of a pixel sample
+//   path_alpha_key       the stochastic-transparency key of the next ray
+//   path_shade_miss      environment light (MIS), the path ends
+//   path_shade_hit       emission (MIS), a light sample as a shadow-ray
+//                        record, the BSDF sample that continues the path,
+//                        Russian roulette
+//   path_shadow_result   adds a light sample whose shadow ray was unoccluded
+//   path_finish          the sample's radiance (non-finite -> 0, clamp)
+//
+// The megakernel (render_pixel_sample) is a loop over these stages for one
+// path; the wavefront pipelines (the host backend's and the GPU's) run each
+// stage over queues of many paths. Both draw the same random numbers in the
+// same order and add to the radiance in the same order (a path's shadow
+// result is always added before its next hit is shaded), so they give the
+// same bits.
+//
+// Tracing is the only thing that differs between backends: the megakernel
+// takes a Tracer,
 //   Hit  tracer.intersect(const Ray&, uint32_t alpha_key) const;  // closest hit
 //   bool tracer.occluded(const Ray&, uint32_t alpha_key) const;   // any hit
 // alpha_key seeds the stochastic transparency test (see alpha_test_opaque)
@@ -75,87 +92,147 @@ TANDEM_HD bool consistent_side(Vec3 wi_world, Vec3 wi_local, Vec3 ng) {
   return (wi_local.z > 0.0f) == (dot(wi_world, ng) > 0.0f);
 }
 
-template <class Tracer>
-TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, const PathRng& rng,
-                          uint32_t* ray_count) {
+// The state of one path between stages. POD: the wavefront keeps arrays
+// of it in device memory.
+enum PathFlags : uint32_t {
+  kPathAlive = 1u << 0,  // has a ray to trace
+};
+
+struct PathState {
+  Ray ray;          // the next ray to trace (when alive)
+  Vec3 throughput;  // product of BSDF weights so far (beta)
+  Vec3 radiance;    // accumulated so far
+  PathRng rng;      // keyed by (pixel, sample, seed)
+  uint32_t x, y, sample;
+  uint32_t bounce;  // scattering events so far
+  float bsdf_pdf;   // pdf of the BSDF sample that made `ray`; 0: camera ray (no MIS)
+  uint32_t flags;   // PathFlags
+  uint32_t rays;    // rays traced for this path (closest hit and shadow)
+};
+
+// A light sample waiting for its shadow ray: `contribution` (already MIS
+// weighted) is added to the path's radiance if the ray is unoccluded.
+struct ShadowRay {
+  Ray ray;
+  Vec3 contribution;
+  uint32_t alpha_key;
+};
+
+TANDEM_HD bool path_alive(const PathState& p) {
+  return (p.flags & kPathAlive) != 0;
+}
+
+TANDEM_HD void path_generate(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
+                             PathState* p) {
+  const KCamera& cam = kd.constants.camera;
+  p->rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
+  const Vec2 jitter = rng_2d(p->rng, kDimPixelJitter), lens = rng_2d(p->rng, kDimLens);
+  p->ray = generate_camera_ray(cam, float(x) + jitter.x, float(y) + jitter.y, lens.x, lens.y);
+  p->throughput = make_vec3(1.0f);
+  p->radiance = make_vec3(0.0f);
+  p->x = x;
+  p->y = y;
+  p->sample = sample;
+  p->bounce = 0;
+  p->bsdf_pdf = 0.0f;
+  p->flags = kPathAlive;
+  p->rays = 0;
+}
+
+TANDEM_HD uint32_t path_alpha_key(const PathState& p) {
+  return rng_bits(p.rng, bounce_dimension(p.bounce, kBounceAlpha));
+}
+
+// The ray left the scene.
+TANDEM_HD void path_shade_miss(const KernelData& kd, PathState* p) {
+  const Vec3 le = env_radiance(kd, p->ray.dir);
+  if (!is_black(le)) {
+    const float w = p->bsdf_pdf > 0.0f
+                        ? mis_power_heuristic(p->bsdf_pdf, environment_light_pdf(kd, p->ray.dir))
+                        : 1.0f;
+    p->radiance += p->throughput * le * w;
+  }
+  p->flags &= ~kPathAlive;
+}
+
+// The ray hit `hit`. Returns true when it also produced a light sample in
+// `*shadow` whose shadow ray must be traced (path_shadow_result) before the
+// path's next hit is shaded. Afterwards the path is either alive with its
+// next ray or finished.
+TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p,
+                              ShadowRay* shadow) {
   const KIntegratorParams& ip = kd.constants.integrator;
-  Vec3 radiance = make_vec3(0.0f);
-  Vec3 beta = make_vec3(1.0f);
-  float prev_bsdf_pdf = 0.0f;  // 0: camera ray, no MIS on emission
-  uint32_t rays = 0;
+  const PathRng& rng = p->rng;
+  const uint32_t bounce = p->bounce;
+  const SurfacePoint sp = make_surface_point(kd, hit);
+  const KMaterial& mat = kd.materials[sp.material];
+  const Vec3 wo = -p->ray.dir;
+  p->flags &= ~kPathAlive;  // until a next ray exists
 
-  for (uint32_t bounce = 0;; ++bounce) {
-    const uint32_t alpha_key = rng_bits(rng, bounce_dimension(bounce, kBounceAlpha));
-    const Hit hit = tracer.intersect(ray, alpha_key);
-    ++rays;
-    if (!hit_valid(hit)) {
-      const Vec3 le = env_radiance(kd, ray.dir);
-      if (!is_black(le)) {
-        const float w = prev_bsdf_pdf > 0.0f
-                            ? mis_power_heuristic(prev_bsdf_pdf, environment_light_pdf(kd, ray.dir))
-                            : 1.0f;
-        radiance += beta * le * w;
+  if (!is_black(mat.emission) && emits_towards(mat, sp, wo)) {
+    const Vec3 le = material_emission(kd, mat, sp.uv);
+    const float w =
+        p->bsdf_pdf > 0.0f
+            ? mis_power_heuristic(p->bsdf_pdf, triangle_light_pdf(kd, sp, p->ray.dir, hit.t))
+            : 1.0f;
+    p->radiance += p->throughput * le * w;
+  }
+  if (bounce >= ip.max_depth) return false;
+
+  ShadingSetup sh;
+  if (!setup_shading(kd, sp, wo, &sh)) return false;
+
+  // Next-event estimation.
+  bool has_shadow = false;
+  LightSample ls;
+  const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
+  if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
+                   light_uv.x, light_uv.y, &ls)) {
+    const Vec3 wi_local = to_local(sh.frame, ls.wi);
+    if (consistent_side(ls.wi, wi_local, sh.ng)) {
+      const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
+      const Vec3 contrib = p->throughput * e.f * ls.radiance * (fabsf(wi_local.z) / ls.pdf);
+      if (!is_black(contrib) && is_finite(contrib)) {
+        const float w = ls.is_delta ? 1.0f : mis_power_heuristic(ls.pdf, e.pdf);
+        shadow->alpha_key = rng_bits(rng, bounce_dimension(bounce, kBounceShadowAlpha));
+        shadow->ray = ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point);
+        shadow->contribution = contrib * w;
+        has_shadow = true;
       }
-      break;
-    }
-
-    const SurfacePoint sp = make_surface_point(kd, hit);
-    const KMaterial& mat = kd.materials[sp.material];
-    const Vec3 wo = -ray.dir;
-
-    if (!is_black(mat.emission) && emits_towards(mat, sp, wo)) {
-      const Vec3 le = material_emission(kd, mat, sp.uv);
-      const float w =
-          prev_bsdf_pdf > 0.0f
-              ? mis_power_heuristic(prev_bsdf_pdf, triangle_light_pdf(kd, sp, ray.dir, hit.t))
-              : 1.0f;
-      radiance += beta * le * w;
-    }
-    if (bounce >= ip.max_depth) break;
-
-    ShadingSetup sh;
-    if (!setup_shading(kd, sp, wo, &sh)) break;
-
-    // Next-event estimation.
-    LightSample ls;
-    const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
-    if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
-                     light_uv.x, light_uv.y, &ls)) {
-      const Vec3 wi_local = to_local(sh.frame, ls.wi);
-      if (consistent_side(ls.wi, wi_local, sh.ng)) {
-        const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
-        const Vec3 contrib = beta * e.f * ls.radiance * (fabsf(wi_local.z) / ls.pdf);
-        if (!is_black(contrib) && is_finite(contrib)) {
-          const float w = ls.is_delta ? 1.0f : mis_power_heuristic(ls.pdf, e.pdf);
-          const uint32_t shadow_key = rng_bits(rng, bounce_dimension(bounce, kBounceShadowAlpha));
-          const Ray shadow = ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point);
-          ++rays;
-          if (!tracer.occluded(shadow, shadow_key)) radiance += contrib * w;
-        }
-      }
-    }
-
-    // Continue the path by sampling the BSDF.
-    BsdfSample bs;
-    const Vec2 bsdf_uv = rng_2d(rng, bounce_dimension(bounce, kBounceBsdfU));
-    if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local,
-                           rng_1d(rng, bounce_dimension(bounce, kBounceLobe)), bsdf_uv.x, bsdf_uv.y,
-                           &bs)) {
-      break;
-    }
-    const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
-    if (!consistent_side(wi, bs.wi, sh.ng)) break;
-    beta *= bs.weight;
-    prev_bsdf_pdf = bs.pdf;
-    ray = spawn_ray(sp, wi);
-
-    if (bounce + 1 >= ip.rr_start_depth) {
-      const float survive = min_f(max_component(beta), 0.95f);
-      if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) break;
-      beta *= 1.0f / survive;
     }
   }
-  *ray_count += rays;
+
+  // Continue the path by sampling the BSDF.
+  BsdfSample bs;
+  const Vec2 bsdf_uv = rng_2d(rng, bounce_dimension(bounce, kBounceBsdfU));
+  if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local,
+                         rng_1d(rng, bounce_dimension(bounce, kBounceLobe)), bsdf_uv.x, bsdf_uv.y,
+                         &bs)) {
+    return has_shadow;
+  }
+  const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
+  if (!consistent_side(wi, bs.wi, sh.ng)) return has_shadow;
+  p->throughput *= bs.weight;
+  p->bsdf_pdf = bs.pdf;
+  p->ray = spawn_ray(sp, wi);
+
+  if (bounce + 1 >= ip.rr_start_depth) {
+    const float survive = min_f(max_component(p->throughput), 0.95f);
+    if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) return has_shadow;
+    p->throughput *= 1.0f / survive;
+  }
+  p->bounce = bounce + 1;
+  p->flags |= kPathAlive;
+  return has_shadow;
+}
+
+TANDEM_HD void path_shadow_result(const ShadowRay& shadow, bool occluded, PathState* p) {
+  if (!occluded) p->radiance += shadow.contribution;
+}
+
+TANDEM_HD Vec3 path_finish(const KernelData& kd, const PathState& p) {
+  const KIntegratorParams& ip = kd.constants.integrator;
+  Vec3 radiance = p.radiance;
   if (!is_finite(radiance)) return make_vec3(0.0f);
   if (ip.radiance_clamp > 0.0f) {
     const float m = max_component(radiance);
@@ -164,18 +241,30 @@ TANDEM_HD Vec3 trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
   return radiance;
 }
 
-// One camera sample of pixel (x, y). The pixel's paths depend only on
-// (x, y, sample, seed): this is what makes images independent of the tile
-// split and of which backend rendered them.
+// One camera sample of pixel (x, y), the megakernel way: the stages in a
+// loop for one path. The pixel's paths depend only on (x, y, sample, seed):
+// this is what makes images independent of the tile split and of which
+// backend rendered them.
 template <class Tracer>
 TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
                                    uint32_t y, uint32_t sample, uint32_t* ray_count) {
-  const KCamera& cam = kd.constants.camera;
-  const PathRng rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
-  const Vec2 jitter = rng_2d(rng, kDimPixelJitter), lens = rng_2d(rng, kDimLens);
-  const Ray ray =
-      generate_camera_ray(cam, float(x) + jitter.x, float(y) + jitter.y, lens.x, lens.y);
-  return trace_path(kd, tracer, ray, rng, ray_count);
+  PathState p;
+  path_generate(kd, x, y, sample, &p);
+  while (path_alive(p)) {
+    const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
+    ++p.rays;
+    if (!hit_valid(hit)) {
+      path_shade_miss(kd, &p);
+      break;
+    }
+    ShadowRay shadow;
+    if (path_shade_hit(kd, hit, &p, &shadow)) {
+      ++p.rays;
+      path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
+    }
+  }
+  *ray_count += p.rays;
+  return path_finish(kd, p);
 }
 
 }  // namespace tandem
