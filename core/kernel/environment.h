@@ -68,8 +68,13 @@ TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
   const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
   const uint32_t x = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
   const uint32_t y = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
-  // Jacobian of the (u, v) -> direction map at the actual direction.
-  const float sin_theta = sin_pi(uv.y);
+  // Jacobian of the (u, v) -> direction map at the actual direction, with
+  // sin(theta) taken from the direction itself (the rotation about +y keeps
+  // it), not from v: float v near 1 is a multiple of 6e-8, which 5e-5 from
+  // the pole is already a 1e-3 relative error in sin(theta); the
+  // direction's components keep ~1e-7 relative all the way to the pole.
+  const float sin_theta =
+      sqrtf((dir.x * dir.x + dir.z * dir.z) / (dir.x * dir.x + dir.y * dir.y + dir.z * dir.z));
   if (!(sin_theta > 0.0f) || !(env.map_integral > 0.0f)) return 0.0f;
   const float pdf_uv =
       env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
