@@ -6,6 +6,7 @@
 #include <elf.h>
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -96,6 +97,20 @@ TEST(AppBundle, ElfReaderRejectsWhatIsNotAnElfFile) {
   error.clear();
   EXPECT_TRUE(needed_libraries(TANDEM_SOURCE_DIR "/CMakeLists.txt", &error).empty());
   EXPECT_NE(error.find("not a 64-bit"), std::string::npos) << error;
+}
+
+// The bundled tests run away from the source tree and find their data
+// through the environment (tests/test_shared_dir.h).
+TEST(AppBundle, SharedDataDirectoryFollowsTheEnvironment) {
+  const char* old = std::getenv("TANDEM_SHARED_DIR");
+  const std::string saved = old ? old : "";
+  ::setenv("TANDEM_SHARED_DIR", "/bundle/shared", 1);
+  EXPECT_EQ(std::string(TANDEM_SHARED_DIR), "/bundle/shared");
+  ::setenv("TANDEM_SHARED_DIR", "", 1);
+  EXPECT_EQ(std::string(TANDEM_SHARED_DIR), TANDEM_SHARED_DIR_DEFAULT);
+  ::unsetenv("TANDEM_SHARED_DIR");
+  EXPECT_EQ(std::string(TANDEM_SHARED_DIR), TANDEM_SHARED_DIR_DEFAULT);
+  if (old) ::setenv("TANDEM_SHARED_DIR", saved.c_str(), 1);
 }
 
 }  // namespace
