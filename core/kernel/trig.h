@@ -8,9 +8,10 @@
 // range reduction exact, so there is no Payne-Hanek slow path with its
 // double-precision arithmetic and local-memory table on the GPU.
 //
-// Accuracy: at most 2 ulp from sin/cos of the exact pi * x (tests/kernel_trig_test.cpp
-// checks a dense grid of [-2, 2] and every float in [0, 1/4]); exact zeros and
-// ones at multiples of 1/2.
+// Accuracy: at most 1.6 ulp from sin/cos of the exact pi * x (tests/kernel_trig_test.cpp
+// checks every float of [1/8, 1/4], where the polynomials work hardest, and a
+// dense grid of [-2, 2]); exact zeros and ones at multiples of 1/2, and
+// sin_pi(-x) == -sin_pi(x) bit for bit.
 #pragma once
 
 #include "core/kernel/defines.h"

@@ -7,16 +7,21 @@
 # against the CPU backend, both through `tandem compare`; `tandem bench --gpu` and a cuda+cpu
 # bench. Every step has a timeout and the whole run a budget (BUDGET_S, default 330 s), so it
 # ends within 6 minutes. Logs go to $OUT (default /tmp/tandem-gpu), copied to .gpu/out; a
-# summary table (step, PASS/FAIL/SKIP, seconds, key figure) is printed last.
+# summary table (step, PASS/FAIL/SKIP, seconds, key figure) is printed last. The compared
+# .exr renders go to $IMAGES_DIR (default /tmp/tandem-gpu-images), not to $OUT.
 # A step the budget leaves no time for is a SKIP. Exit code: 0 when every step passed, else 1.
 set -uo pipefail # no -e: every step runs, and the table tells which failed
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 OUT=${OUT:-/tmp/tandem-gpu}
 bundle=${BUNDLE_DIR:-/tmp/tandem-bundle}
+# The large linear images stay out of $OUT, which should come back small.
+images=${IMAGES_DIR:-/tmp/tandem-gpu-images}
 budget=${BUDGET_S:-330}
 t_start=$(date +%s.%N)
-mkdir -p "$OUT"
+mkdir -p "$OUT" "$images"
+# Nothing of an earlier run may pass for this one's.
+rm -f "$OUT"/*.log "$OUT"/*.xml "$OUT"/*.png "$OUT"/bench_gpu.json "$images"/*.exr
 rows=()
 step_rc=0 step_s=0 step_skipped=0
 
@@ -194,15 +199,15 @@ compare_row() {
 }
 
 hd=(builtin:cornell --width 1920 --height 1080 --spp 8 --seed 7)
-render_row render_cuda_1080p "${hd[@]}" --backend cuda --output "$OUT/cornell_cuda.exr"
-render_row render_host_1080p "${hd[@]}" --backend host --output "$OUT/cornell_host.exr"
-compare_row compare_cuda_host "$OUT/cornell_host.exr" "$OUT/cornell_cuda.exr"
+render_row render_cuda_1080p "${hd[@]}" --backend cuda --output "$images/cornell_cuda.exr"
+render_row render_host_1080p "${hd[@]}" --backend host --output "$images/cornell_host.exr"
+compare_row compare_cuda_host "$images/cornell_host.exr" "$images/cornell_cuda.exr"
 
 duck=("$bundle/shared/scenes/gltf/Duck/glTF-Binary/Duck.glb" --width 960 --height 540 --spp 16
   --seed 11 --env-color 1)
-render_row render_duck_cuda_cpu "${duck[@]}" --backend cuda+cpu --output "$OUT/duck_cuda_cpu.exr"
-render_row render_duck_cpu "${duck[@]}" --backend cpu --output "$OUT/duck_cpu.exr"
-compare_row compare_duck "$OUT/duck_cpu.exr" "$OUT/duck_cuda_cpu.exr"
+render_row render_duck_cuda_cpu "${duck[@]}" --backend cuda+cpu --output "$images/duck_cuda_cpu.exr"
+render_row render_duck_cpu "${duck[@]}" --backend cpu --output "$images/duck_cpu.exr"
+compare_row compare_duck "$images/duck_cpu.exr" "$images/duck_cuda_cpu.exr"
 
 # --- benchmarks ---------------------------------------------------------------------------------
 run_step bench_gpu 45 "$B/tandem" bench builtin:cornell --gpu --json "$OUT/bench_gpu.json"
