@@ -40,7 +40,7 @@ fi
 gpu_tests=()  # "binary gtest-filter"
 while read -r area filter; do
   gpu_tests+=("${area}_tests $filter")
-done < <(sed -n 's/^ *tandem_test_area(\([a-z]*\) GPU_TESTS "\([^"]*\)".*/\1 \2/p' tests/CMakeLists.txt)
+done < <(sed -n 's/^ *tandem_test_area(\([a-z]*\) [^)]*GPU_TESTS "\([^"]*\)".*/\1 \2/p' tests/CMakeLists.txt)
 [ ${#gpu_tests[@]} -gt 0 ] || die "tests/CMakeLists.txt declares no GPU_TESTS area"
 targets=(tandem)
 for t in "${gpu_tests[@]}"; do targets+=("${t%% *}"); done
