@@ -75,8 +75,9 @@ TEST_F(GpuFallback, AutoAndListsFinishOnTheCpuWithTheRightImage) {
       const size_t warnings = count(r.output, "the GPU failed");
       EXPECT_EQ(warnings, std::string(backend) == "auto" ? 1u : warnings) << r.output;
       EXPECT_LE(warnings, 1u) << r.output;
-      if (warnings)
+      if (warnings) {
         EXPECT_NE(r.output.find("injected device fault"), std::string::npos) << r.output;
+      }
       const auto agree =
           run_tandem_with_env("", "compare " + app_test::shell_quote(out("cpu.exr")) + " " +
                                       app_test::shell_quote(image) + " --block 8");

@@ -23,10 +23,8 @@
 
 namespace tandem::cuda_test {
 
-// The shared test data; TANDEM_SHARED_DIR in the environment overrides the
-// build's path (the GPU bundle runs the tests on another machine).
+// The shared test data (test_shared_dir.h: $TANDEM_SHARED_DIR or the build's).
 inline std::filesystem::path shared_dir() {
-  if (const char* env = std::getenv("TANDEM_SHARED_DIR")) return env;
   return TANDEM_SHARED_DIR;
 }
 
@@ -45,6 +43,15 @@ inline bool gpu_required() {
         FAIL() << "TANDEM_REQUIRE_GPU=1 but the CUDA backend has no device: " << reason_; \
       GTEST_SKIP() << "no CUDA device: " << reason_;                                      \
     }                                                                                     \
+  } while (0)
+
+// Tests of the GPU's own arithmetic: the simulated device computes with the
+// CPU's, so they need a real GPU.
+#define TANDEM_REQUIRE_REAL_GPU()                                                    \
+  do {                                                                               \
+    TANDEM_REQUIRE_CUDA_DEVICE();                                                    \
+    if (::tandem::cuda_test::on_simulated_device())                                  \
+      GTEST_SKIP() << "tests the GPU's own arithmetic: not on the simulated device"; \
   } while (0)
 
 // Whether the CUDA backend runs on the simulated device (TANDEM_DEVICE=sim):

@@ -22,7 +22,8 @@ namespace {
 
 std::string lower_extension(const fs::path& p) {
   std::string ext = p.extension().string();
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  for (char& c : ext)
+    c = char(std::tolower(static_cast<unsigned char>(c)));
   return ext;
 }
 
@@ -33,9 +34,11 @@ void write_file_atomically(const fs::path& path, const std::vector<uint8_t>& byt
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) {
-    throw InputError(path.string() + ": cannot write: directory '" + dir.string() + "' does not exist");
+    throw InputError(path.string() + ": cannot write: directory '" + dir.string() +
+                     "' does not exist");
   }
-  const fs::path tmp = dir / ("." + path.filename().string() + ".tmp." + std::to_string(::getpid()));
+  const fs::path tmp =
+      dir / ("." + path.filename().string() + ".tmp." + std::to_string(::getpid()));
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw InputError(path.string() + ": cannot write: " + std::strerror(errno));
   const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
@@ -61,9 +64,12 @@ void put(std::vector<uint8_t>& out, T v) {
   out.resize(at + sizeof(T));
   std::memcpy(out.data() + at, &v, sizeof(T));
 }
-void put_str(std::vector<uint8_t>& out, const char* s) { out.insert(out.end(), s, s + std::strlen(s) + 1); }
+void put_str(std::vector<uint8_t>& out, const char* s) {
+  out.insert(out.end(), s, s + std::strlen(s) + 1);
+}
 
-void put_attribute_header(std::vector<uint8_t>& out, const char* name, const char* type, int32_t size) {
+void put_attribute_header(std::vector<uint8_t>& out, const char* name, const char* type,
+                          int32_t size) {
   put_str(out, name);
   put_str(out, type);
   put(out, size);
@@ -72,13 +78,13 @@ void put_attribute_header(std::vector<uint8_t>& out, const char* name, const cha
 // OpenEXR 2.0 single-part scanline file, NO_COMPRESSION, FLOAT B/G/R.
 std::vector<uint8_t> encode_exr(const ImageRGB& img) {
   std::vector<uint8_t> out;
-  put<uint32_t>(out, 20000630u);  // magic
-  put<uint32_t>(out, 2u);         // version 2, no flags
+  put<uint32_t>(out, 20000630u);              // magic
+  put<uint32_t>(out, 2u);                     // version 2, no flags
   const char* channels[3] = {"B", "G", "R"};  // channel list must be sorted
   put_attribute_header(out, "channels", "chlist", 3 * (2 + 16) + 1);
   for (const char* c : channels) {
     put_str(out, c);
-    put<int32_t>(out, 2);  // FLOAT
+    put<int32_t>(out, 2);   // FLOAT
     put<uint32_t>(out, 0);  // pLinear + reserved
     put<int32_t>(out, 1);
     put<int32_t>(out, 1);
@@ -89,7 +95,8 @@ std::vector<uint8_t> encode_exr(const ImageRGB& img) {
   const int32_t box[4] = {0, 0, int32_t(img.width) - 1, int32_t(img.height) - 1};
   for (const char* name : {"dataWindow", "displayWindow"}) {
     put_attribute_header(out, name, "box2i", 16);
-    for (int32_t v : box) put(out, v);
+    for (int32_t v : box)
+      put(out, v);
   }
   put_attribute_header(out, "lineOrder", "lineOrder", 1);
   out.push_back(0);
@@ -104,12 +111,14 @@ std::vector<uint8_t> encode_exr(const ImageRGB& img) {
 
   const uint64_t line_bytes = uint64_t(img.width) * 3 * sizeof(float);
   const uint64_t table_end = out.size() + uint64_t(img.height) * 8;
-  for (uint32_t y = 0; y < img.height; ++y) put<uint64_t>(out, table_end + y * (8 + line_bytes));
+  for (uint32_t y = 0; y < img.height; ++y)
+    put<uint64_t>(out, table_end + y * (8 + line_bytes));
   for (uint32_t y = 0; y < img.height; ++y) {
     put<int32_t>(out, int32_t(y));
     put<uint32_t>(out, uint32_t(line_bytes));
     for (int c = 2; c >= 0; --c) {  // B, G, R
-      for (uint32_t x = 0; x < img.width; ++x) put(out, img.pixel(x, y)[c]);
+      for (uint32_t x = 0; x < img.width; ++x)
+        put(out, img.pixel(x, y)[c]);
     }
   }
   return out;
@@ -117,13 +126,15 @@ std::vector<uint8_t> encode_exr(const ImageRGB& img) {
 
 // Portable float map: little-endian (negative scale), rows bottom to top.
 std::vector<uint8_t> encode_pfm(const ImageRGB& img) {
-  const std::string header = "PF\n" + std::to_string(img.width) + " " + std::to_string(img.height) + "\n-1.0\n";
+  const std::string header =
+      "PF\n" + std::to_string(img.width) + " " + std::to_string(img.height) + "\n-1.0\n";
   std::vector<uint8_t> out(header.begin(), header.end());
   out.reserve(out.size() + img.rgb.size() * 4);
   for (uint32_t row = 0; row < img.height; ++row) {
     const uint32_t y = img.height - 1 - row;
     for (uint32_t x = 0; x < img.width; ++x) {
-      for (int c = 0; c < 3; ++c) put(out, img.pixel(x, y)[c]);
+      for (int c = 0; c < 3; ++c)
+        put(out, img.pixel(x, y)[c]);
     }
   }
   return out;
@@ -132,7 +143,8 @@ std::vector<uint8_t> encode_pfm(const ImageRGB& img) {
 std::vector<uint8_t> read_file_bytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path.string() + ": cannot open file");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
   return bytes;
 }
 
@@ -175,7 +187,9 @@ class ByteReader {
   void need(size_t n) const {
     if (n > bytes_.size() || pos_ > bytes_.size() - n) fail("file is truncated");
   }
-  [[noreturn]] void fail(const std::string& why) const { throw InputError(path_.string() + ": " + why); }
+  [[noreturn]] void fail(const std::string& why) const {
+    throw InputError(path_.string() + ": " + why);
+  }
   size_t pos_ = 0;
   const std::vector<uint8_t>& bytes_;
   const fs::path& path_;
@@ -209,24 +223,28 @@ ImageRGB decode_exr(const std::vector<uint8_t>& bytes, const fs::path& path) {
         if (cname.empty()) break;
         const int32_t ptype = r.get<int32_t>();
         r.get<uint32_t>();
-        if (r.get<int32_t>() != 1 || r.get<int32_t>() != 1) r.fail("subsampled channels are not supported");
+        if (r.get<int32_t>() != 1 || r.get<int32_t>() != 1)
+          r.fail("subsampled channels are not supported");
         channels.push_back({cname, ptype});
       }
     } else if (name == "compression") {
       compression = r.get<uint8_t>();
     } else if (name == "dataWindow") {
-      for (int32_t& v : box) v = r.get<int32_t>();
+      for (int32_t& v : box)
+        v = r.get<int32_t>();
     }
     r.pos_ = end;
   }
-  if (compression != 0) r.fail("compressed OpenEXR files are not supported (save without compression)");
+  if (compression != 0)
+    r.fail("compressed OpenEXR files are not supported (save without compression)");
   const int64_t w = int64_t(box[2]) - box[0] + 1, h = int64_t(box[3]) - box[1] + 1;
   if (w <= 0 || h <= 0 || w > 65536 || h > 65536) r.fail("invalid data window");
   int src[3] = {-1, -1, -1};
   size_t pixel_bytes = 0;
   std::vector<size_t> channel_offset;
   for (size_t i = 0; i < channels.size(); ++i) {
-    if (channels[i].type != 1 && channels[i].type != 2) r.fail("only half and float channels are supported");
+    if (channels[i].type != 1 && channels[i].type != 2)
+      r.fail("only half and float channels are supported");
     channel_offset.push_back(pixel_bytes);
     pixel_bytes += channels[i].type == 1 ? 2 : 4;
     if (channels[i].name == "R") src[0] = int(i);
@@ -236,14 +254,16 @@ ImageRGB decode_exr(const std::vector<uint8_t>& bytes, const fs::path& path) {
   if (src[0] < 0) r.fail("no R channel");
   ImageRGB img{uint32_t(w), uint32_t(h)};
   std::vector<uint64_t> offsets(static_cast<size_t>(h));
-  for (auto& o : offsets) o = r.get<uint64_t>();
+  for (auto& o : offsets)
+    o = r.get<uint64_t>();
   for (int64_t line = 0; line < h; ++line) {
     r.pos_ = 0;
     if (offsets[size_t(line)] > bytes.size()) r.fail("scanline offset out of range");
     r.pos_ = size_t(offsets[size_t(line)]);
     const int32_t y = r.get<int32_t>() - box[1];
     const uint32_t size = r.get<uint32_t>();
-    if (y < 0 || y >= h || uint64_t(size) != uint64_t(w) * pixel_bytes) r.fail("corrupt scanline block");
+    if (y < 0 || y >= h || uint64_t(size) != uint64_t(w) * pixel_bytes)
+      r.fail("corrupt scanline block");
     r.need(size);
     const uint8_t* data = bytes.data() + r.pos_;
     for (int c = 0; c < 3; ++c) {
@@ -272,8 +292,8 @@ ImageRGB decode_pfm(const std::vector<uint8_t>& bytes, const fs::path& path) {
   float scale = 0.0f;
   int consumed = 0;
   if (std::sscanf(text.c_str(), "%2s %u %u %f%n", kind, &w, &h, &scale, &consumed) != 4 ||
-      (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0) || w == 0 || h == 0 || w > 65536 ||
-      h > 65536) {
+      (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0) || w == 0 || h == 0 ||
+      w > 65536 || h > 65536) {
     throw InputError(path.string() + ": not a valid PFM header");
   }
   const size_t data_start = size_t(consumed) + 1;
@@ -295,8 +315,10 @@ ImageRGB decode_pfm(const std::vector<uint8_t>& bytes, const fs::path& path) {
         float v;
         std::memcpy(&v, b, 4);
         float* px = img.pixel(x, h - 1 - row);
-        if (comps == 3) px[c] = v;
-        else px[0] = px[1] = px[2] = v;
+        if (comps == 3)
+          px[c] = v;
+        else
+          px[0] = px[1] = px[2] = v;
       }
     }
   }
@@ -305,13 +327,15 @@ ImageRGB decode_pfm(const std::vector<uint8_t>& bytes, const fs::path& path) {
 
 }  // namespace
 
-void write_png_rgb8(const fs::path& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+void write_png_rgb8(const fs::path& path, uint32_t width, uint32_t height,
+                    const std::vector<uint8_t>& rgb) {
   std::vector<uint8_t> bytes;
   auto sink = [](void* ctx, void* data, int size) {
     auto* out = static_cast<std::vector<uint8_t>*>(ctx);
     out->insert(out->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
   };
-  if (!stbi_write_png_to_func(sink, &bytes, int(width), int(height), 3, rgb.data(), int(width) * 3)) {
+  if (!stbi_write_png_to_func(sink, &bytes, int(width), int(height), 3, rgb.data(),
+                              int(width) * 3)) {
     throw InputError(path.string() + ": PNG encoding failed");
   }
   write_file_atomically(path, bytes);
@@ -320,13 +344,15 @@ void write_png_rgb8(const fs::path& path, uint32_t width, uint32_t height, const
 void write_image(const fs::path& path, const ImageRGB& image, const ImageWriteOptions& options) {
   const std::string ext = lower_extension(path);
   if (ext == ".png") {
-    write_png_rgb8(path, image.width, image.height, tone_map_to_srgb8(image, options.exposure, options.tone_map));
+    write_png_rgb8(path, image.width, image.height,
+                   tone_map_to_srgb8(image, options.exposure, options.tone_map));
   } else if (ext == ".exr") {
     write_file_atomically(path, encode_exr(image));
   } else if (ext == ".pfm") {
     write_file_atomically(path, encode_pfm(image));
   } else {
-    throw InputError(path.string() + ": unsupported output format '" + ext + "' (use .png, .exr or .pfm)");
+    throw InputError(path.string() + ": unsupported output format '" + ext +
+                     "' (use .png, .exr or .pfm)");
   }
 }
 
@@ -342,7 +368,8 @@ ImageRGB read_image(const fs::path& path) {
   if (bytes.size() > size_t(INT32_MAX)) throw InputError(path.string() + ": file too large");
   if (ext == ".hdr") {
     float* data = stbi_loadf_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
-    if (!data) throw InputError(path.string() + ": cannot decode HDR image: " + stbi_failure_reason());
+    if (!data)
+      throw InputError(path.string() + ": cannot decode HDR image: " + stbi_failure_reason());
     ImageRGB img{uint32_t(w), uint32_t(h)};
     std::memcpy(img.rgb.data(), data, img.rgb.size() * sizeof(float));
     stbi_image_free(data);
@@ -351,7 +378,8 @@ ImageRGB read_image(const fs::path& path) {
   unsigned char* data = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
   if (!data) throw InputError(path.string() + ": cannot decode image: " + stbi_failure_reason());
   ImageRGB img{uint32_t(w), uint32_t(h)};
-  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = srgb_to_linear(float(data[i]) / 255.0f);
+  for (size_t i = 0; i < img.rgb.size(); ++i)
+    img.rgb[i] = srgb8_to_linear(data[i]);
   stbi_image_free(data);
   return img;
 }

@@ -9,7 +9,8 @@
 namespace tandem {
 
 TANDEM_HD Vec3 rotate_y(Vec3 d, float angle) {
-  const float c = cosf(angle), s = sinf(angle);
+  const SinCos sc = sincos_pi(angle * kInvPi);
+  const float c = sc.cos, s = sc.sin;
   return {c * d.x + s * d.z, d.y, -s * d.x + c * d.z};
 }
 
@@ -21,7 +22,7 @@ TANDEM_HD Vec3 env_texel(const KernelData& kd, uint32_t x, uint32_t y) {
 // Shared with the host-side table builder so both use identical numbers.
 TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   const KEnvironment& env = kd.constants.environment;
-  const float sin_theta = sinf(kPi * (float(y) + 0.5f) / float(env.height));
+  const float sin_theta = sin_pi((float(y) + 0.5f) / float(env.height));
   // A small floor keeps every direction reachable by light sampling.
   return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
 }
@@ -38,7 +39,8 @@ TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
   int x0 = int(x0f) % w;
   if (x0 < 0) x0 += w;
   const int x1 = (x0 + 1) % w;
-  const int y0 = int(clamp_f(y0f, 0.0f, float(h - 1))), y1 = int(clamp_f(y0f + 1.0f, 0.0f, float(h - 1)));
+  const int y0 = int(clamp_f(y0f, 0.0f, float(h - 1))),
+            y1 = int(clamp_f(y0f + 1.0f, 0.0f, float(h - 1)));
   const Vec3 c = env_texel(kd, uint32_t(x0), uint32_t(y0)) * ((1 - tx) * (1 - ty)) +
                  env_texel(kd, uint32_t(x1), uint32_t(y0)) * (tx * (1 - ty)) +
                  env_texel(kd, uint32_t(x0), uint32_t(y1)) * ((1 - tx) * ty) +
@@ -51,8 +53,10 @@ TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
   uint32_t lo = 0, hi = n;
   while (hi - lo > 1) {
     const uint32_t mid = (lo + hi) / 2;
-    if (cdf[mid] <= u) lo = mid;
-    else hi = mid;
+    if (cdf[mid] <= u)
+      lo = mid;
+    else
+      hi = mid;
   }
   return lo;
 }
@@ -64,10 +68,16 @@ TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
   const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
   const uint32_t x = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
   const uint32_t y = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
-  // Jacobian of the (u, v) -> direction map at the actual direction.
-  const float sin_theta = sinf(kPi * uv.y);
+  // Jacobian of the (u, v) -> direction map at the actual direction, with
+  // sin(theta) taken from the direction itself (the rotation about +y keeps
+  // it), not from v: float v near 1 is a multiple of 6e-8, which 5e-5 from
+  // the pole is already a 1e-3 relative error in sin(theta); the
+  // direction's components keep ~1e-7 relative all the way to the pole.
+  const float sin_theta =
+      sqrtf((dir.x * dir.x + dir.z * dir.z) / (dir.x * dir.x + dir.y * dir.y + dir.z * dir.z));
   if (!(sin_theta > 0.0f) || !(env.map_integral > 0.0f)) return 0.0f;
-  const float pdf_uv = env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  const float pdf_uv =
+      env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
   return pdf_uv / (2.0f * kPi * kPi * sin_theta);
 }
 
@@ -97,8 +107,9 @@ TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
   const float u = (float(x) + saturate(dx)) / float(env.width);
   const float v = (float(y) + saturate(dy)) / float(env.height);
   s.dir = rotate_y(equirect_to_direction(u, v), env.rotation);
-  const float sin_theta = sinf(kPi * v);
-  const float pdf_uv = env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  const float sin_theta = sin_pi(v);
+  const float pdf_uv =
+      env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
   s.pdf = sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
   s.radiance = env_radiance(kd, s.dir);
   return s;

@@ -257,7 +257,7 @@ TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, u
       path_shade_miss(kd, &p);
       break;
     }
-    ShadowRay shadow;
+    ShadowRay shadow{};
     if (path_shade_hit(kd, hit, &p, &shadow)) {
       ++p.rays;
       path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/kernel/math.h"
+#include "core/kernel/trig.h"
 
 namespace tandem {
 
@@ -57,9 +58,9 @@ TANDEM_HD Vec3 ggx_sample_visible_normal(Vec3 wo, float alpha, float u1, float u
                               : make_vec3(1.0f, 0.0f, 0.0f);
   const Vec3 t2 = cross(vh, t1);
   const float r = sqrtf(u1);
-  const float phi = kTwoPi * u2;
-  const float p1 = r * cosf(phi);
-  float p2 = r * sinf(phi);
+  const SinCos phi = sincos_pi(2.0f * u2);  // phi = 2 pi u2
+  const float p1 = r * phi.cos;
+  float p2 = r * phi.sin;
   const float s = 0.5f * (1.0f + vh.z);
   p2 = (1.0f - s) * safe_sqrt(1.0f - p1 * p1) + s * p2;
   const Vec3 nh = t1 * p1 + t2 * p2 + vh * safe_sqrt(1.0f - p1 * p1 - p2 * p2);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "core/kernel/math.h"
+#include "core/kernel/trig.h"
 
 namespace tandem {
 
@@ -11,15 +12,17 @@ TANDEM_HD Vec2 sample_disk_concentric(float u1, float u2) {
   const float a = 2.0f * u1 - 1.0f;
   const float b = 2.0f * u2 - 1.0f;
   if (a == 0.0f && b == 0.0f) return {0.0f, 0.0f};
-  float r, phi;
+  // phi in units of pi: the same angles as pi/4 * (b/a) and pi/2 - pi/4 * (a/b).
+  float r, phi_over_pi;
   if (a * a > b * b) {
     r = a;
-    phi = (kPi / 4.0f) * (b / a);
+    phi_over_pi = 0.25f * (b / a);
   } else {
     r = b;
-    phi = (kPi / 2.0f) - (kPi / 4.0f) * (a / b);
+    phi_over_pi = 0.5f - 0.25f * (a / b);
   }
-  return {r * cosf(phi), r * sinf(phi)};
+  const SinCos sc = sincos_pi(phi_over_pi);
+  return {r * sc.cos, r * sc.sin};
 }
 
 // Cosine-weighted hemisphere around +z; pdf = cos(theta) / pi.
@@ -36,8 +39,8 @@ TANDEM_HD float pdf_cosine_hemisphere(float cos_theta) {
 TANDEM_HD Vec3 sample_uniform_sphere(float u1, float u2) {
   const float z = 1.0f - 2.0f * u1;
   const float r = safe_sqrt(1.0f - z * z);
-  const float phi = kTwoPi * u2;
-  return {r * cosf(phi), r * sinf(phi), z};
+  const SinCos sc = sincos_pi(2.0f * u2);  // phi = 2 pi u2
+  return {r * sc.cos, r * sc.sin, z};
 }
 
 // Uniform point on a triangle, returned as barycentrics (b1, b2) with
@@ -76,10 +79,9 @@ TANDEM_HD Vec2 direction_to_equirect(Vec3 d) {
   return {u - floorf(u), v};
 }
 TANDEM_HD Vec3 equirect_to_direction(float u, float v) {
-  const float phi = (u - 0.5f) * kTwoPi;
-  const float theta = v * kPi;
-  const float s = sinf(theta);
-  return {s * sinf(phi), cosf(theta), -s * cosf(phi)};
+  const SinCos phi = sincos_pi(2.0f * u - 1.0f);  // phi = (u - 0.5) 2 pi
+  const SinCos theta = sincos_pi(v);              // theta = v pi
+  return {theta.sin * phi.sin, theta.cos, -theta.sin * phi.cos};
 }
 
 }  // namespace tandem

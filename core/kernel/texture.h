@@ -1,15 +1,17 @@
 // Texture lookups with bilinear filtering, glTF wrap modes and sRGB decode.
-// Filtering is done in code (not by texture hardware) so that every backend
-// returns bit-identical texel values.
+// Filtering is done in code (not by texture hardware) and the decode through
+// a table (srgb_table.h) so that every backend returns bit-identical texel
+// values.
 #pragma once
 
 #include "core/kernel/kernel_data.h"
+#include "core/kernel/srgb_table.h"
 
 namespace tandem {
 
-TANDEM_HD float srgb_to_linear(float c) {
-  return c <= 0.04045f ? c * (1.0f / 12.92f) : powf((c + 0.055f) * (1.0f / 1.055f), 2.4f);
-}
+// The tone map's encode stays on powf: its result is rounded to 8 bits, so a
+// last-bit difference between glibc's and CUDA's powf moves a byte only for
+// a value within an ulp of a rounding boundary.
 TANDEM_HD float linear_to_srgb(float c) {
   return c <= 0.0031308f ? c * 12.92f : 1.055f * powf(c, 1.0f / 2.4f) - 0.055f;
 }
@@ -28,15 +30,14 @@ TANDEM_HD int wrap_coord(int i, int n, uint32_t mode) {
 
 TANDEM_HD Vec4 fetch_texel(const KernelData& kd, const KTexture& tex, int x, int y) {
   const uint32_t packed = kd.texels[tex.texel_offset + uint32_t(y) * tex.width + uint32_t(x)];
-  const float s = 1.0f / 255.0f;
-  Vec4 c = {float(packed & 0xffu) * s, float((packed >> 8) & 0xffu) * s,
-            float((packed >> 16) & 0xffu) * s, float(packed >> 24) * s};
   if (tex.flags & kTextureSrgb) {
-    c.x = srgb_to_linear(c.x);
-    c.y = srgb_to_linear(c.y);
-    c.z = srgb_to_linear(c.z);
+    // Alpha is linear in glTF even in sRGB images.
+    return {srgb8_to_linear(packed), srgb8_to_linear(packed >> 8), srgb8_to_linear(packed >> 16),
+            float(packed >> 24) * (1.0f / 255.0f)};
   }
-  return c;
+  const float s = 1.0f / 255.0f;
+  return {float(packed & 0xffu) * s, float((packed >> 8) & 0xffu) * s,
+          float((packed >> 16) & 0xffu) * s, float(packed >> 24) * s};
 }
 
 // Bilinear lookup at uv (OpenGL convention: texel centres at (i + 0.5) / n,
@@ -69,7 +70,8 @@ TANDEM_HD Vec4 sample_texture(const KernelData& kd, uint32_t texture, Vec2 uv) {
 }
 
 TANDEM_HD Vec2 apply_texture_transform(const KTextureRef& ref, Vec2 uv) {
-  return {ref.m[0] * uv.x + ref.m[1] * uv.y + ref.m[2], ref.m[3] * uv.x + ref.m[4] * uv.y + ref.m[5]};
+  return {ref.m[0] * uv.x + ref.m[1] * uv.y + ref.m[2],
+          ref.m[3] * uv.x + ref.m[4] * uv.y + ref.m[5]};
 }
 
 }  // namespace tandem

@@ -179,9 +179,7 @@ void SceneCompiler::compile_textures(const Scene& scene, KernelScene& out) {
     out.texels.insert(out.texels.end(), t.rgba8.begin(), t.rgba8.end());
     double sum = 0.0;
     for (uint32_t px : t.rgba8) {
-      const Vec3 c = {srgb_to_linear(float(px & 0xffu) / 255.0f),
-                      srgb_to_linear(float((px >> 8) & 0xffu) / 255.0f),
-                      srgb_to_linear(float((px >> 16) & 0xffu) / 255.0f)};
+      const Vec3 c = {srgb8_to_linear(px), srgb8_to_linear(px >> 8), srgb8_to_linear(px >> 16)};
       sum += luminance(c);
     }
     texture_mean_luminance_[i] = t.rgba8.empty() ? 0.0f : float(sum / double(t.rgba8.size()));

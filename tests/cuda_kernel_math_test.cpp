@@ -1,0 +1,68 @@
+// The kernels' own math gives the same bits on the GPU as on the CPU: the
+// point of sincos_pi (core/kernel/trig.h) and of the sRGB decode table
+// (core/kernel/srgb_table.h), which the CPU-side tests check for accuracy.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "backends/backend_factory.h"
+#include "core/kernel/srgb_table.h"
+#include "cuda_test_util.h"
+#include "tests/cuda_kernel_math.h"
+
+#if TANDEM_TESTS_HAVE_CUDA_DEVICE
+namespace tandem {
+namespace {
+
+uint32_t bits(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+}
+
+TEST(CudaGpu, SinCosPiMatchesHostBitForBit) {
+  TANDEM_REQUIRE_REAL_GPU();
+  // Every 193rd float of [-2, 2] (all binades), the samplers' grid k / 2^20,
+  // and large arguments.
+  std::vector<float> x;
+  for (uint32_t u = 0; u <= 0x40000000u; u += 193) {
+    float f;
+    std::memcpy(&f, &u, sizeof f);
+    x.push_back(f);
+    x.push_back(-f);
+  }
+  for (int k = -(2 << 20); k <= (2 << 20); ++k)
+    x.push_back(float(k) * 0x1p-20f);
+  for (float f : {3.0f, 100.25f, -1234.567f, 4194303.5f, 0x1p22f})
+    x.push_back(f);
+  std::vector<SinCos> device;
+  device_sincos_pi(x, &device);
+  ASSERT_EQ(device.size(), x.size());
+  size_t differ = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    const SinCos host = sincos_pi(x[i]);
+    if (bits(host.sin) != bits(device[i].sin) || bits(host.cos) != bits(device[i].cos)) {
+      if (++differ <= 5) {
+        ADD_FAILURE() << std::hexfloat << "x " << x[i] << ": host " << host.sin << ", " << host.cos
+                      << " device " << device[i].sin << ", " << device[i].cos;
+      }
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "of " << x.size() << " arguments";
+}
+
+TEST(CudaGpu, SrgbDecodeTableMatchesHostBitForBit) {
+  TANDEM_REQUIRE_REAL_GPU();
+  std::vector<float> device;
+  device_srgb8_to_linear(&device);
+  ASSERT_EQ(device.size(), 256u);
+  for (uint32_t i = 0; i < 256; ++i)
+    EXPECT_EQ(bits(device[i]), bits(kSrgb8ToLinear[i])) << i;
+}
+
+}  // namespace
+}  // namespace tandem
+#endif  // TANDEM_TESTS_HAVE_CUDA_DEVICE
