@@ -80,13 +80,22 @@ __global__ void __launch_bounds__(kWaveThreads)
 }
 
 __global__ void __launch_bounds__(kWaveThreads)
-    wave_connect_kernel(const KernelData* __restrict__ kd_global, TileBatch batch,
-                        WavefrontArrays w, uint32_t round, Vec3* radiance) {
+    wave_connect_kernel(const KernelData* __restrict__ kd_global, WavefrontArrays w,
+                        uint32_t round) {
   __shared__ KernelData kd;
   load_kernel_data(&kd, kd_global);
   const BvhTracer tracer{&kd};
   persistent_loop(w, kWaveShadow, kWaveConnectTaken,
-                  [&](uint32_t i) { wavefront_connect(kd, tracer, batch, w, round, i, radiance); });
+                  [&](uint32_t i) { wavefront_connect(tracer, w, round, i); });
+}
+
+__global__ void __launch_bounds__(kWaveThreads)
+    wave_retire_kernel(const KernelData* __restrict__ kd_global, TileBatch batch, WavefrontArrays w,
+                       uint32_t round, Vec3* radiance) {
+  __shared__ KernelData kd;
+  load_kernel_data(&kd, kd_global);
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < w.counters[kWaveRetire]) wavefront_retire_ended(kd, batch, w, round, i, radiance);
 }
 
 __global__ void wave_count_rays_kernel(WavefrontArrays w, unsigned long long* ray_count) {
@@ -136,9 +145,11 @@ void launch_wavefront(const KernelData* kd, const TileBatch& batch, const Wavefr
     TANDEM_CUDA_CHECK_LAUNCH("wave_shade_miss_kernel");
     wave_shade_hit_kernel<<<slot_blocks, kWaveThreads, 0, stream>>>(kd, batch, w, round, radiance);
     TANDEM_CUDA_CHECK_LAUNCH("wave_shade_hit_kernel");
-    wave_connect_kernel<<<std::min(connect_blocks, slot_blocks), kWaveThreads, 0, stream>>>(
-        kd, batch, w, round, radiance);
+    wave_connect_kernel<<<std::min(connect_blocks, slot_blocks), kWaveThreads, 0, stream>>>(kd, w,
+                                                                                            round);
     TANDEM_CUDA_CHECK_LAUNCH("wave_connect_kernel");
+    wave_retire_kernel<<<slot_blocks, kWaveThreads, 0, stream>>>(kd, batch, w, round, radiance);
+    TANDEM_CUDA_CHECK_LAUNCH("wave_retire_kernel");
     if (round % kRoundsPerCheck == kRoundsPerCheck - 1) {
       TANDEM_CUDA_CHECK(cudaMemcpyAsync(host_counter, &w.counters[kWaveNextExtend],
                                         sizeof(uint32_t), cudaMemcpyDeviceToHost, stream));

@@ -13,6 +13,7 @@
 //   shade     shades misses (the path ends) and hits (emission, a light
 //             sample into the shadow queue, the next ray);
 //   connect   traces the shadow rays and adds the unoccluded light samples;
+//   retire    writes the radiance of the paths that ended in connect;
 // and every path that goes on is appended to the next round's extend queue.
 // A slot whose path ended writes the sample's radiance and takes the next
 // item of the batch (regeneration), so the queues stay full until the batch
@@ -34,6 +35,7 @@ enum WavefrontCounter : uint32_t {
   kWaveHit,           // entries in the hit queue
   kWaveMiss,          // entries in the miss queue
   kWaveShadow,        // entries in the shadow queue
+  kWaveRetire,        // entries in the retire queue (paths that ended in connect)
   kWaveNextItem,      // next batch item for a free slot
   kWaveRays,          // rays traced (closest hit and shadow) by retired paths
   kWaveExtendTaken,   // persistent threads' work counter for extend
@@ -52,6 +54,7 @@ struct WavefrontArrays {
   uint32_t* hit_queue;
   uint32_t* miss_queue;
   uint32_t* shadow_queue;
+  uint32_t* retire_queue;
   uint32_t* counters;  // WavefrontCounter
   uint32_t slots;
 };
@@ -75,6 +78,7 @@ TANDEM_HD WavefrontArrays wavefront_arrays_in(void* base, uint32_t slots, uint64
   w.hit_queue = reinterpret_cast<uint32_t*>(take(uint64_t(slots) * sizeof(uint32_t)));
   w.miss_queue = reinterpret_cast<uint32_t*>(take(uint64_t(slots) * sizeof(uint32_t)));
   w.shadow_queue = reinterpret_cast<uint32_t*>(take(uint64_t(slots) * sizeof(uint32_t)));
+  w.retire_queue = reinterpret_cast<uint32_t*>(take(uint64_t(slots) * sizeof(uint32_t)));
   w.counters = reinterpret_cast<uint32_t*>(take(kWaveCounterCount * sizeof(uint32_t)));
   w.slots = slots;
   *bytes = offset;
@@ -120,6 +124,7 @@ TANDEM_HD void wavefront_begin_round(const WavefrontArrays& w) {
   w.counters[kWaveExtend] = w.counters[kWaveNextExtend];
   w.counters[kWaveNextExtend] = 0;
   w.counters[kWaveHit] = w.counters[kWaveMiss] = w.counters[kWaveShadow] = 0;
+  w.counters[kWaveRetire] = 0;
   w.counters[kWaveExtendTaken] = w.counters[kWaveConnectTaken] = 0;
 }
 
@@ -178,11 +183,12 @@ TANDEM_HD void wavefront_shade_hit(const KernelData& kd, const TileBatch& batch,
   }
 }
 
-// connect, entry i of the shadow queue.
+// connect, entry i of the shadow queue. A path that ended goes to the
+// retire queue: retiring generates the next camera ray, which would bloat
+// this traversal kernel.
 template <class Tracer>
-TANDEM_HD void wavefront_connect(const KernelData& kd, const Tracer& tracer, const TileBatch& batch,
-                                 const WavefrontArrays& w, uint32_t round, uint32_t i,
-                                 Vec3* radiance) {
+TANDEM_HD void wavefront_connect(const Tracer& tracer, const WavefrontArrays& w, uint32_t round,
+                                 uint32_t i) {
   const uint32_t slot = w.shadow_queue[i];
   PathState& p = w.paths[slot];
   const ShadowRay& shadow = w.shadows[slot];
@@ -191,7 +197,14 @@ TANDEM_HD void wavefront_connect(const KernelData& kd, const Tracer& tracer, con
   if (path_alive(p))
     wavefront_push(wavefront_next_extend_queue(w, round), &w.counters[kWaveNextExtend], slot);
   else
-    wavefront_retire(kd, batch, w, round, slot, radiance);
+    wavefront_push(w.retire_queue, &w.counters[kWaveRetire], slot);
+}
+
+// retire, entry i of the retire queue.
+TANDEM_HD void wavefront_retire_ended(const KernelData& kd, const TileBatch& batch,
+                                      const WavefrontArrays& w, uint32_t round, uint32_t i,
+                                      Vec3* radiance) {
+  wavefront_retire(kd, batch, w, round, w.retire_queue[i], radiance);
 }
 
 }  // namespace tandem

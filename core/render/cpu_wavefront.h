@@ -25,7 +25,7 @@ class CpuWavefrontStorage {
       hits_.resize(slots);
       shadows_.resize(slots);
       for (std::vector<uint32_t>* v :
-           {&slot_item_, &extend_[0], &extend_[1], &hit_, &miss_, &shadow_})
+           {&slot_item_, &extend_[0], &extend_[1], &hit_, &miss_, &shadow_, &retire_})
         v->resize(slots);
     }
     WavefrontArrays w;
@@ -38,6 +38,7 @@ class CpuWavefrontStorage {
     w.hit_queue = hit_.data();
     w.miss_queue = miss_.data();
     w.shadow_queue = shadow_.data();
+    w.retire_queue = retire_.data();
     w.counters = counters_.data();
     w.slots = slots;
     return w;
@@ -47,7 +48,7 @@ class CpuWavefrontStorage {
   std::vector<PathState> paths_;
   std::vector<Hit> hits_;
   std::vector<ShadowRay> shadows_;
-  std::vector<uint32_t> slot_item_, extend_[2], hit_, miss_, shadow_;
+  std::vector<uint32_t> slot_item_, extend_[2], hit_, miss_, shadow_, retire_;
   std::array<uint32_t, kWaveCounterCount> counters_{};
 };
 
@@ -83,8 +84,10 @@ uint64_t run_wavefront_on_cpu(const KernelData& kd, const Tracer& tracer, const 
     detail::parallel_over(w.counters[kWaveHit], [&](uint32_t i) {
       wavefront_shade_hit(kd, batch, w, round, i, radiance);
     });
-    detail::parallel_over(w.counters[kWaveShadow], [&](uint32_t i) {
-      wavefront_connect(kd, tracer, batch, w, round, i, radiance);
+    detail::parallel_over(w.counters[kWaveShadow],
+                          [&](uint32_t i) { wavefront_connect(tracer, w, round, i); });
+    detail::parallel_over(w.counters[kWaveRetire], [&](uint32_t i) {
+      wavefront_retire_ended(kd, batch, w, round, i, radiance);
     });
   }
   return w.counters[kWaveRays];

@@ -163,6 +163,20 @@ for tool in memcheck racecheck; do
   fi
 done
 
+# The wavefront's queue kernels under memcheck too (racecheck of the megakernel above).
+if command -v compute-sanitizer >/dev/null; then
+  run_step memcheck_wavefront 75 compute-sanitizer --tool memcheck --error-exitcode 99 \
+    "$B/tandem" "${small[@]}" --kernel wavefront --output "$OUT/memcheck_wavefront.png"
+  summary=$(grep -E 'ERROR SUMMARY' "$OUT/memcheck_wavefront.log" | tail -n 1 | sed 's/^=* *//')
+  if skipped_row memcheck_wavefront; then
+    :
+  elif [ "$step_rc" = 0 ] && [ -n "$summary" ]; then
+    row memcheck_wavefront PASS "$step_s" "$summary"
+  else
+    row memcheck_wavefront FAIL "$step_s" "exit $step_rc: ${summary:-$(last_line memcheck_wavefront)}"
+  fi
+fi
+
 # --- renders compared ---------------------------------------------------------------------------
 # render_row NAME ARGS...: a render step; the key figure is tandem's throughput summary.
 render_row() {
@@ -202,6 +216,9 @@ hd=(builtin:cornell --width 1920 --height 1080 --spp 8 --seed 7)
 render_row render_cuda_1080p "${hd[@]}" --backend cuda --output "$images/cornell_cuda.exr"
 render_row render_host_1080p "${hd[@]}" --backend host --output "$images/cornell_host.exr"
 compare_row compare_cuda_host "$images/cornell_host.exr" "$images/cornell_cuda.exr"
+render_row render_wave_1080p "${hd[@]}" --backend cuda --kernel wavefront \
+  --output "$images/cornell_wave.exr"
+compare_row compare_wave_mega "$images/cornell_cuda.exr" "$images/cornell_wave.exr"
 
 duck=("$bundle/shared/scenes/gltf/Duck/glTF-Binary/Duck.glb" --width 960 --height 540 --spp 16
   --seed 11 --env-color 1)
