@@ -300,6 +300,10 @@ TEST(CudaGpu, ImagesMatchHostTileByTile) {
       cuda.sync(fs.ks, delta);
       BackendStats host_stats, mega_stats, wave_stats;
       const ImageRGB reference = render_image(host, width, height, spp, 16, &host_stats);
+      HostBackend host_wave(CudaKernelVariant::kWavefront);
+      host_wave.sync(fs.ks, delta);
+      EXPECT_EQ(identical_pixels(render_image(host_wave, width, height, spp), reference),
+                size_t(width) * height);
       const ImageRGB mega = render_image(cuda, width, height, spp, 16, &mega_stats);
       cuda.set_variant(CudaKernelVariant::kWavefront);
       const ImageRGB wave = render_image(cuda, width, height, spp, 16, &wave_stats);
