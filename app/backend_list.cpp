@@ -57,13 +57,6 @@ BackendOptions parse_kernel_option(const std::optional<std::string>& kernel,
   } catch (const UsageError& e) {
     throw UsageError(std::string("--kernel: ") + e.what());
   }
-  const auto has = [&](BackendKind k) { return std::count(kinds.begin(), kinds.end(), k) > 0; };
-  if (!has(BackendKind::kCuda) && !has(BackendKind::kHost) && !has(BackendKind::kAuto) &&
-      !has(BackendKind::kHetero)) {
-    throw UsageError(
-        "--kernel applies only to the cuda and host backends, and none of them is in use here "
-        "(the cpu backend is Embree's and has no kernel variants)");
-  }
   return options;
 }
 

@@ -192,7 +192,7 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
     case BackendKind::kCpu:
       break;
   }
-  out.push_back(std::make_unique<EmbreeBackend>());
+  out.push_back(std::make_unique<EmbreeBackend>(options.kernel));
   return out;
 }
 

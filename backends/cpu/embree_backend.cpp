@@ -5,6 +5,7 @@
 
 #include "core/kernel/alpha.h"
 #include "core/render/cpu_tile_loop.h"
+#include "core/render/cpu_wavefront.h"
 #include "core/util/log.h"
 
 namespace tandem {
@@ -12,12 +13,12 @@ namespace tandem {
 namespace {
 
 // Our data travels with every Embree query through an extended context,
-// which is how the intersection filter reaches the kernel data and the
-// path's alpha key.
+// which is how the intersection filter reaches the kernel data. Each ray's
+// alpha key travels in its id, so that the rays of a packet each have their
+// own.
 struct TandemRayContext {
   RTCIntersectContext rtc;
   const KernelData* kd;
-  uint32_t alpha_key;
 };
 
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
@@ -27,7 +28,8 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
     const uint32_t instance = RTCHitN_instID(args->hit, args->N, i, 0);
     const uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
     const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
-    if (!alpha_test_opaque(*ctx->kd, instance, prim, u, v, ctx->alpha_key)) args->valid[i] = 0;
+    const uint32_t alpha_key = RTCRayN_id(args->ray, args->N, i);
+    if (!alpha_test_opaque(*ctx->kd, instance, prim, u, v, alpha_key)) args->valid[i] = 0;
   }
 }
 
@@ -36,7 +38,7 @@ void embree_error(void*, RTCError code, const char* message) {
               (message ? message : ""));
 }
 
-RTCRay make_rtc_ray(const Ray& r) {
+RTCRay make_rtc_ray(const Ray& r, uint32_t alpha_key) {
   RTCRay ray;
   ray.org_x = r.origin.x;
   ray.org_y = r.origin.y;
@@ -48,7 +50,7 @@ RTCRay make_rtc_ray(const Ray& r) {
   ray.time = 0.0f;
   ray.tfar = r.tmax;
   ray.mask = 0xffffffffu;
-  ray.id = 0;
+  ray.id = alpha_key;
   ray.flags = 0;
   return ray;
 }
@@ -59,9 +61,8 @@ Hit EmbreeTracer::intersect(const Ray& ray, uint32_t alpha_key) const {
   TandemRayContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   ctx.kd = kd;
-  ctx.alpha_key = alpha_key;
   RTCRayHit rh;
-  rh.ray = make_rtc_ray(ray);
+  rh.ray = make_rtc_ray(ray, alpha_key);
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(scene, &ctx.rtc, &rh);
@@ -73,13 +74,72 @@ bool EmbreeTracer::occluded(const Ray& ray, uint32_t alpha_key) const {
   TandemRayContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   ctx.kd = kd;
-  ctx.alpha_key = alpha_key;
-  RTCRay r = make_rtc_ray(ray);
+  RTCRay r = make_rtc_ray(ray, alpha_key);
   rtcOccluded1(scene, &ctx.rtc, &r);
   return r.tfar < 0.0f;  // Embree sets tfar = -inf on a hit
 }
 
-EmbreeBackend::EmbreeBackend() {
+namespace {
+
+// Lane j of a packet from rays[j] (the lanes past n are switched off).
+void fill_packet(RTCRay16& p, const Ray* rays, const uint32_t* keys, uint32_t n, int* valid) {
+  for (uint32_t j = 0; j < 16; ++j) {
+    valid[j] = j < n ? -1 : 0;
+    const Ray& r = rays[j < n ? j : 0];
+    p.org_x[j] = r.origin.x;
+    p.org_y[j] = r.origin.y;
+    p.org_z[j] = r.origin.z;
+    p.tnear[j] = r.tmin;
+    p.dir_x[j] = r.dir.x;
+    p.dir_y[j] = r.dir.y;
+    p.dir_z[j] = r.dir.z;
+    p.time[j] = 0.0f;
+    p.tfar[j] = r.tmax;
+    p.mask[j] = 0xffffffffu;
+    p.id[j] = keys[j < n ? j : 0];
+    p.flags[j] = 0;
+  }
+}
+
+}  // namespace
+
+void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
+                                          Hit* hits) const {
+  TandemRayContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  ctx.kd = kd;
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) int valid[16];
+  fill_packet(rh.ray, rays, alpha_keys, n, valid);
+  for (uint32_t j = 0; j < 16; ++j) {
+    rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(valid, scene, &ctx.rtc, &rh);
+  for (uint32_t j = 0; j < n; ++j) {
+    hits[j] =
+        rh.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID
+            ? make_miss()
+            : Hit{rh.ray.tfar[j], rh.hit.u[j], rh.hit.v[j], rh.hit.instID[0][j], rh.hit.primID[j]};
+  }
+}
+
+void EmbreePacketTracer::occluded_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
+                                         bool* occluded) const {
+  TandemRayContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  ctx.kd = kd;
+  alignas(64) RTCRay16 r;
+  alignas(64) int valid[16];
+  fill_packet(r, rays, alpha_keys, n, valid);
+  rtcOccluded16(valid, scene, &ctx.rtc, &r);
+  for (uint32_t j = 0; j < n; ++j)
+    occluded[j] = r.tfar[j] < 0.0f;
+}
+
+EmbreeBackend::EmbreeBackend(CudaKernelVariant kernel) : kernel_(kernel) {
   device_ = rtcNewDevice(nullptr);
   if (!device_) {
     throw std::runtime_error("cannot create an Embree device (error " +
@@ -184,6 +244,11 @@ void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
 }
 
 BackendStats EmbreeBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {
+  if (kernel_ == CudaKernelVariant::kWavefront) {
+    if (!wavefront_) wavefront_ = std::make_unique<CpuWavefrontStorage>();
+    return render_tiles_wavefront_on_cpu(kd_, EmbreePacketTracer{{top_, &kd_}}, pass, tiles, film,
+                                         *wavefront_);
+  }
   return render_tiles_on_cpu(kd_, EmbreeTracer{top_, &kd_}, pass, tiles, film);
 }
 

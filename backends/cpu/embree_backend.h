@@ -12,13 +12,18 @@
 #include <memory>
 #include <vector>
 
+#include "backends/kernel_variant.h"
 #include "core/render/backend.h"
 
 namespace tandem {
 
+class CpuWavefrontStorage;
+
 class EmbreeBackend final : public Backend {
  public:
-  EmbreeBackend();
+  // kWavefront: the wavefront pipeline with Embree's 16-ray packets instead
+  // of the per-pixel loop with single rays.
+  explicit EmbreeBackend(CudaKernelVariant kernel = CudaKernelVariant::kMegakernel);
   ~EmbreeBackend() override;
   EmbreeBackend(const EmbreeBackend&) = delete;
   EmbreeBackend& operator=(const EmbreeBackend&) = delete;
@@ -38,6 +43,8 @@ class EmbreeBackend final : public Backend {
   void release_scenes();
   void build_all(const KernelScene& scene);
 
+  CudaKernelVariant kernel_;
+  std::unique_ptr<CpuWavefrontStorage> wavefront_;
   RTCDevice device_ = nullptr;
   RTCScene top_ = nullptr;
   std::vector<RTCScene> blas_;
@@ -57,6 +64,15 @@ struct EmbreeTracer {
   const KernelData* kd;
   Hit intersect(const Ray& ray, uint32_t alpha_key) const;
   bool occluded(const Ray& ray, uint32_t alpha_key) const;
+};
+
+// The same with packets of up to 16 rays (rtcIntersect16 / rtcOccluded16),
+// for the wavefront pipeline on the CPU (core/render/cpu_wavefront.h). Each
+// ray carries its own alpha key (in the ray id, which the filter reads).
+struct EmbreePacketTracer : EmbreeTracer {
+  void intersect_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n, Hit* hits) const;
+  void occluded_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
+                       bool* occluded) const;
 };
 
 }  // namespace tandem

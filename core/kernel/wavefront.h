@@ -142,19 +142,32 @@ TANDEM_HD void wavefront_retire(const KernelData& kd, const TileBatch& batch,
   wavefront_regenerate(kd, batch, w, round, slot);
 }
 
-// extend, entry i of this round's extend queue.
-template <class Tracer>
-TANDEM_HD void wavefront_extend(const Tracer& tracer, const WavefrontArrays& w, uint32_t round,
-                                uint32_t i) {
+// extend, entry i of this round's extend queue: the ray to trace and its
+// alpha key, then what to do with the closest hit. Split so that a tracer
+// that takes packets of rays (Embree's rtcIntersect16) can serve many
+// entries at once.
+TANDEM_HD const Ray& wavefront_extend_ray(const WavefrontArrays& w, uint32_t round, uint32_t i,
+                                          uint32_t* alpha_key) {
+  const PathState& p = w.paths[wavefront_extend_queue(w, round)[i]];
+  *alpha_key = path_alpha_key(p);
+  return p.ray;
+}
+TANDEM_HD void wavefront_extend_done(const WavefrontArrays& w, uint32_t round, uint32_t i,
+                                     const Hit& hit) {
   const uint32_t slot = wavefront_extend_queue(w, round)[i];
-  PathState& p = w.paths[slot];
-  const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
-  ++p.rays;
+  ++w.paths[slot].rays;
   w.hits[slot] = hit;
   if (hit_valid(hit))
     wavefront_push(w.hit_queue, &w.counters[kWaveHit], slot);
   else
     wavefront_push(w.miss_queue, &w.counters[kWaveMiss], slot);
+}
+template <class Tracer>
+TANDEM_HD void wavefront_extend(const Tracer& tracer, const WavefrontArrays& w, uint32_t round,
+                                uint32_t i) {
+  uint32_t key;
+  const Ray& ray = wavefront_extend_ray(w, round, i, &key);
+  wavefront_extend_done(w, round, i, tracer.intersect(ray, key));
 }
 
 // shade, entry i of the miss queue: the environment, and the path ends.
@@ -183,21 +196,28 @@ TANDEM_HD void wavefront_shade_hit(const KernelData& kd, const TileBatch& batch,
   }
 }
 
-// connect, entry i of the shadow queue. A path that ended goes to the
-// retire queue: retiring generates the next camera ray, which would bloat
-// this traversal kernel.
-template <class Tracer>
-TANDEM_HD void wavefront_connect(const Tracer& tracer, const WavefrontArrays& w, uint32_t round,
-                                 uint32_t i) {
+// connect, entry i of the shadow queue: the shadow ray, then what its
+// answer means. A path that ended goes to the retire queue: retiring
+// generates the next camera ray, which would bloat this traversal kernel.
+TANDEM_HD const ShadowRay& wavefront_connect_ray(const WavefrontArrays& w, uint32_t i) {
+  return w.shadows[w.shadow_queue[i]];
+}
+TANDEM_HD void wavefront_connect_done(const WavefrontArrays& w, uint32_t round, uint32_t i,
+                                      bool occluded) {
   const uint32_t slot = w.shadow_queue[i];
   PathState& p = w.paths[slot];
-  const ShadowRay& shadow = w.shadows[slot];
   ++p.rays;
-  path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
+  path_shadow_result(w.shadows[slot], occluded, &p);
   if (path_alive(p))
     wavefront_push(wavefront_next_extend_queue(w, round), &w.counters[kWaveNextExtend], slot);
   else
     wavefront_push(w.retire_queue, &w.counters[kWaveRetire], slot);
+}
+template <class Tracer>
+TANDEM_HD void wavefront_connect(const Tracer& tracer, const WavefrontArrays& w, uint32_t round,
+                                 uint32_t i) {
+  const ShadowRay& shadow = wavefront_connect_ray(w, i);
+  wavefront_connect_done(w, round, i, tracer.occluded(shadow.ray, shadow.alpha_key));
 }
 
 // retire, entry i of the retire queue.
