@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <new>
 
 #include "core/image/image.h"
 #include "core/util/errors.h"
@@ -38,7 +39,12 @@ void load_environment_map(Scene& scene, const std::string& path, float intensity
   env.width = img.width;
   env.height = img.height;
   env.source = path;
-  env.texels.resize(size_t(img.width) * img.height);
+  try {
+    env.texels.resize(size_t(img.width) * img.height);
+  } catch (const std::bad_alloc&) {
+    throw InputError(path + ": not enough memory for a " + std::to_string(img.width) + "x" +
+                     std::to_string(img.height) + " environment map");
+  }
   float brightest = 0.0f;
   for (size_t i = 0; i < env.texels.size(); ++i) {
     glm::vec3 c(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);

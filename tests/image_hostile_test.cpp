@@ -226,7 +226,9 @@ TEST(ImageHostile, WritesNeverFollowLinks) {
   // No temporary file is left behind.
   for (const auto& e : fs::directory_iterator(dir.path())) {
     const std::string name = e.path().filename().string();
-    if (name.find(".tmp.") != std::string::npos) EXPECT_TRUE(fs::is_symlink(e.path())) << name;
+    if (name.find(".tmp.") != std::string::npos) {
+      EXPECT_TRUE(fs::is_symlink(e.path())) << name;
+    }
   }
 }
 

@@ -14,6 +14,7 @@
 #include "app/view/view_window.h"
 #include "core/image/image.h"
 #include "core/util/errors.h"
+#include "core/util/interrupt.h"
 
 namespace tandem {
 namespace {
@@ -110,6 +111,8 @@ int run(const std::vector<std::string>& argv) {
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
+  // A signal while a screenshot is written removes its temporary file.
+  tandem::install_interrupt_handlers();
   try {
     return tandem::run(args);
   } catch (const tandem::UsageError& e) {
