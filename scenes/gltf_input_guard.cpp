@@ -22,13 +22,20 @@ std::string format_bytes(uint64_t bytes) {
 }
 
 uint64_t Context::limit(Budget budget) const {
+  // Data that really is in the file's buffers may decode to a few times its
+  // size (bytes to floats, one vertex into every merged attribute array), so
+  // big files get that much on top of the fixed budget; what a small file
+  // can ask for beyond its size stays bounded by the fixed part.
+  uint64_t buffer_bytes = 0;
+  for (const tinygltf::Buffer& b : model.buffers)
+    buffer_bytes += b.data.size();
   switch (budget) {
     case Budget::kAccessorBytes:
-      return limits.max_accessor_bytes;
+      return limits.max_accessor_bytes + 4 * buffer_bytes;
     case Budget::kZeroFilledElements:
       return limits.max_zero_filled_elements;
     case Budget::kGeometryBytes:
-      return limits.max_geometry_bytes;
+      return limits.max_geometry_bytes + 6 * buffer_bytes;
     case Budget::kInstances:
       return limits.max_instances;
     case Budget::kTextureBytes:
