@@ -32,7 +32,7 @@ struct GltfAnimations;
 struct GltfLimits {
   uint32_t max_json_depth = 128;                          // nesting of JSON arrays/objects
   uint64_t max_accessor_bytes = uint64_t(1) << 30;        // all decoded accessors together
-  uint64_t max_zero_filled_elements = uint64_t(1) << 24;  // accessors without bufferView, together
+  uint64_t max_zero_filled_elements = uint64_t(1) << 22;  // accessors without bufferView, together
   uint64_t max_geometry_bytes = uint64_t(2) << 30;  // merged meshes' vertex and triangle arrays
   uint64_t max_instances = uint64_t(1) << 22;       // scene instances (nodes and GPU instancing)
   uint64_t max_texture_pixels = uint64_t(1) << 26;  // one image (8192 x 8192)
