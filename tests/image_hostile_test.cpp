@@ -170,6 +170,24 @@ TEST(ImageHostile, PngHeadersAreCheckedBeforeDecoding) {
   EXPECT_NE(read_error(file).find("corrupt PNG"), std::string::npos);
 }
 
+TEST(ImageHostile, JpegScanWithAnUndefinedHuffmanTableIsRefused) {
+  // stb decodes such a scan with an uninitialised table and asserts (the
+  // fuzzer found it): SOI, SOF0 8x8 grey, a DC table only, then a baseline
+  // scan that also needs AC table 0.
+  const std::string jpeg = std::string("\xff\xd8", 2) +
+                           std::string("\xff\xc0\x00\x0b\x08\x00\x08\x00\x08\x01\x01\x11\x00", 13) +
+                           std::string("\xff\xc4\x00\x14\x00\x01", 6) + std::string(15, '\0') +
+                           std::string("\x00", 1) +
+                           std::string("\xff\xda\x00\x08\x01\x01\x00\x00\x3f\x00", 10) +
+                           std::string("\x12\x34\xff\xd9", 4);
+  TempDir dir("tandem_image");
+  const fs::path file = dir.path() / "t.jpg";
+  write_text(file, jpeg);
+  EXPECT_NE(read_error(file).find("a scan uses a Huffman table the file does not define"),
+            std::string::npos)
+      << read_error(file);
+}
+
 TEST(ImageHostile, NonFilesAreNamedForWhatTheyAre) {
   TempDir dir("tandem_image");
   EXPECT_NE(read_error(dir.path() / "none.exr").find("file not found"), std::string::npos);

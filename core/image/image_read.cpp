@@ -410,6 +410,64 @@ ImageRGB decode_8bit(const uint8_t* bytes, size_t size, const std::string& name,
   return img;
 }
 
+// stb's JPEG decoder builds Huffman tables only from DHT segments and
+// asserts (aborting the process) when a scan decodes with a table the file
+// never defined, since that table is uninitialised memory. So every scan's
+// tables must have been defined before it. Returns the problem, or "".
+std::string check_jpeg_tables(const uint8_t* data, size_t size) {
+  bool dc[4] = {}, ac[4] = {};
+  size_t p = 2;
+  while (p + 4 <= size) {
+    if (data[p] != 0xff) return "corrupt JPEG: no marker where one must be";
+    const uint8_t marker = data[p + 1];
+    if (marker == 0xff) {
+      ++p;
+      continue;
+    }
+    if (marker == 0xd8 || marker == 0x01 || (marker >= 0xd0 && marker <= 0xd7)) {
+      p += 2;
+      continue;
+    }
+    if (marker == 0xd9) return "";
+    const size_t length = size_t(data[p + 2]) << 8 | data[p + 3];
+    const size_t seg = p + 4, end = p + 2 + length;
+    if (length < 2 || end > size) return "corrupt JPEG: a segment runs past the end of the file";
+    if (marker == 0xc4) {  // DHT: class/id, 16 code counts, the codes
+      for (size_t q = seg; q < end;) {
+        const uint8_t tc = data[q] >> 4, th = data[q] & 15;
+        if (tc > 1 || th > 3 || end - q < 17) return "corrupt JPEG: invalid Huffman table";
+        size_t codes = 0;
+        for (size_t k = 1; k <= 16; ++k)
+          codes += data[q + k];
+        if (end - q - 17 < codes) return "corrupt JPEG: invalid Huffman table";
+        (tc ? ac : dc)[th] = true;
+        q += 17 + codes;
+      }
+    } else if (marker == 0xda) {  // SOS: components with their tables, Ss, Se, Ah/Al
+      const size_t n = seg < end ? data[seg] : 0;
+      if (n < 1 || n > 4 || end - seg < 1 + 2 * n + 3) return "corrupt JPEG: invalid scan header";
+      const uint8_t ss = data[seg + 1 + 2 * n], se = data[seg + 2 + 2 * n];
+      const uint8_t ah = data[seg + 3 + 2 * n] >> 4;
+      for (size_t i = 0; i < n; ++i) {
+        const uint8_t td = data[seg + 2 + 2 * i] >> 4, ta = data[seg + 2 + 2 * i] & 15;
+        if (td > 3 || ta > 3 || (ss == 0 && ah == 0 && !dc[td]) || (se > 0 && !ac[ta])) {
+          return "corrupt JPEG: a scan uses a Huffman table the file does not define";
+        }
+      }
+      // Skip the entropy-coded data up to the next marker (FF 00 is a
+      // stuffed byte, FF D0..D7 a restart marker inside the data).
+      p = end;
+      while (p + 1 < size && !(data[p] == 0xff && data[p + 1] != 0 &&
+                               !(data[p + 1] >= 0xd0 && data[p + 1] <= 0xd7))) {
+        ++p;
+      }
+      continue;
+    }
+    p = end;
+  }
+  return "";
+}
+
 }  // namespace
 
 EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
@@ -467,7 +525,8 @@ EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
           info.problem = "corrupt JPEG: the frame header has a zero width or height";
           return info;
         }
-        info.header_ok = true;
+        info.problem = check_jpeg_tables(data, size);
+        info.header_ok = info.problem.empty();
         return info;
       }
       p += 2 + length;
