@@ -494,6 +494,19 @@ EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
       info.problem = "corrupt PNG: invalid IHDR header values";
       return info;
     }
+    // stb grows its buffer to a chunk's declared length before reading it
+    // (the fuzzer made a 159-byte file ask for 2 GiB): every chunk must be
+    // in the file.
+    for (size_t p = 8; p + 12 <= size;) {
+      const uint64_t length = be32(data + p);
+      if (length > size - p - 12) {
+        info.problem = "corrupt PNG: a chunk claims " + std::to_string(length) +
+                       " bytes, more than the rest of the file";
+        return info;
+      }
+      if (std::memcmp(data + p + 4, "IEND", 4) == 0) break;
+      p += 12 + size_t(length);
+    }
     info.header_ok = true;
     return info;
   }
