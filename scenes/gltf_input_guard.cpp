@@ -121,6 +121,23 @@ bool glb_json_chunk(const unsigned char* data, size_t size, const char** json, s
   return true;
 }
 
+std::string glb_bin_chunk_problem(const unsigned char* data, size_t size) {
+  if (size < 20 || std::memcmp(data, "glTF", 4) != 0) return "";
+  uint32_t length = 0, json_length = 0, bin_length = 0;
+  std::memcpy(&length, data + 8, 4);
+  std::memcpy(&json_length, data + 12, 4);
+  const uint64_t bin_at = 20 + uint64_t(json_length);
+  if (length > size || bin_at + 8 > length) return "";  // tinygltf explains these
+  std::memcpy(&bin_length, data + bin_at, 4);
+  // tinygltf 2.7 checks the BIN data against the length without its 8-byte
+  // chunk header, and then reads up to 8 bytes past the end of the file.
+  if (bin_at + 8 + bin_length > length) {
+    return "invalid glTF: the BIN chunk (" + std::to_string(bin_length) +
+           " bytes) runs past the end of the file (" + std::to_string(length) + " bytes)";
+  }
+  return "";
+}
+
 namespace {
 
 // Whether `inner` is `outer` or below it; both canonical.

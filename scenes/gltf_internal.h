@@ -86,6 +86,9 @@ size_t json_nesting_depth(const char* json, size_t size, size_t limit, size_t* w
 // The JSON chunk of a .glb, or false when the container is malformed (then
 // tinygltf explains what is wrong).
 bool glb_json_chunk(const unsigned char* data, size_t size, const char** json, size_t* json_size);
+// What is wrong with a .glb's BIN chunk that tinygltf would read past the
+// end of the file for, or "".
+std::string glb_bin_chunk_problem(const unsigned char* data, size_t size);
 
 // Where tinygltf may read buffers and images from: inside the scene file's
 // folder (after resolving symlinks and "..") unless outside is allowed.

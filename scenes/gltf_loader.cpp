@@ -433,6 +433,9 @@ Scene load_gltf_from_memory(const unsigned char* data, size_t size, const std::s
     fail(label, "the file starts with a UTF-8 byte order mark, which glTF forbids");
   }
   check_json_nesting(label, data, size, binary, options.limits.max_json_depth);
+  if (const std::string problem = gltf::glb_bin_chunk_problem(data, size); !problem.empty()) {
+    fail(label, problem);
+  }
 
   // Whatever runs out of memory, the message names the file and the stage
   // (InputErrors, budgets included, pass through unchanged).

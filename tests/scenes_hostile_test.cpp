@@ -68,6 +68,27 @@ TEST(GltfHostile, DeepNestingIsRefusedBeforeParsing) {
   EXPECT_NE(load_error(file).find("nested more than 128 levels"), std::string::npos);
 }
 
+TEST(GltfHostile, GlbBinChunkPastTheEndIsRefused) {
+  // Found by the fuzzer: a BIN chunk that claims 20 bytes with 16 left made
+  // tinygltf read past the end of the file.
+  std::string json = R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":17}]})";
+  json.resize((json.size() + 3) / 4 * 4, ' ');
+  std::string glb = "glTF";
+  auto u32 = [&](uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+  u32(2);
+  u32(uint32_t(12 + 8 + json.size() + 8 + 16));
+  u32(uint32_t(json.size()));
+  glb += "JSON" + json;
+  u32(20);
+  glb += std::string("BIN\0", 4) + std::string(16, '\x01');
+  TempDir dir("tandem_hostile");
+  const fs::path file = dir.path() / "bin.glb";
+  write_text(file, glb);
+  EXPECT_NE(load_error(file).find("the BIN chunk (20 bytes) runs past the end of the file"),
+            std::string::npos)
+      << load_error(file);
+}
+
 TEST(GltfHostile, ModerateNestingInExtrasStillLoads) {
   TempDir dir("tandem_hostile");
   const fs::path file = dir.path() / "ok.gltf";
