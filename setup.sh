@@ -2,7 +2,8 @@
 # One command from a fresh Debian 12 machine to a result:
 #   ./setup.sh demo   install what is missing, build, render builtin:cornell to demo.png
 #   ./setup.sh test   install what is missing, build, run the whole test suite
-#                     (Release suite, then the AddressSanitizer+UBSan suite)
+#                     (Release suite, then the AddressSanitizer+UBSan suite, then
+#                     one bounded minute of libFuzzer per fuzz target)
 # Package installation is idempotent: only missing packages are installed.
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -16,7 +17,8 @@ esac
 packages=(cmake ninja-build g++ pkg-config
           libembree-dev libtbb-dev libglm-dev libtinygltf-dev libstb-dev
           libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
-          xvfb xauth)
+          xvfb xauth
+          clang libclang-rt-14-dev)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -40,6 +42,46 @@ if [ -x /usr/local/cuda/bin/nvcc ] && ! command -v nvcc >/dev/null; then
 fi
 
 jobs="$(nproc)"
+
+# libFuzzer (clang, ASan + UBSan) on the glTF loader and the image readers,
+# seeded from the shared scenes and from images the release build writes;
+# 60 s per target, so CI time stays bounded. A crash, sanitizer report, leak
+# or RSS over the limit fails the run and leaves the input in build/fuzz/findings.
+# A fixed -seed keeps CI reproducible; explore more with another seed or longer.
+run_fuzzers() {
+  cmake -S . -B build/fuzz -G Ninja -DTANDEM_FUZZ=ON -DTANDEM_BUILD_TESTS=OFF \
+        -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ >/dev/null
+  cmake --build build/fuzz -j "$jobs" --target fuzz_gltf fuzz_image
+  local corpus=build/fuzz/corpus findings=build/fuzz/findings
+  rm -rf "$corpus"
+  mkdir -p "$corpus/gltf" "$corpus/image" "$findings"
+  if [ -d ../shared/scenes ]; then
+    find ../shared/scenes -type f \( -name '*.gltf' -o -name '*.glb' \) -size -256k \
+      -exec sh -c 'for f; do cp "$f" "$0/$(printf %s "$f" | md5sum | cut -c1-16)"; done' \
+      "$corpus/gltf" {} +
+    find ../shared/scenes -type f \( -name '*.png' -o -name '*.jpg' \) -size -64k \
+      -exec sh -c 'for f; do cp "$f" "$0/$(printf %s "$f" | md5sum | cut -c1-16)"; done' \
+      "$corpus/image" {} +
+  fi
+  for ext in exr pfm png; do
+    ./build/release/app/tandem render builtin:cornell --width 6 --height 4 --spp 1 --quiet \
+      --backend cpu --output "$corpus/image/seed.$ext"
+  done
+  printf '#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n\200\100\000\201\000\000\200\202' \
+    > "$corpus/image/seed.hdr"
+  for target in gltf image; do
+    echo "setup: fuzzing $target for 60 s"
+    if ! ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1" \
+         ./build/fuzz/tools/fuzz/fuzz_$target "$corpus/$target" -dict="tools/fuzz/$target.dict" \
+           -max_total_time=60 -rss_limit_mb=2048 -timeout=30 -print_final_stats=1 -seed=1 \
+           -artifact_prefix="$findings/$target-" > "$findings/$target.log" 2>&1; then
+      tail -n 80 "$findings/$target.log" >&2
+      echo "setup: fuzz_$target found a bug (input and log in $findings)" >&2
+      exit 1
+    fi
+    grep -E '^stat::number_of_executed_units|^Done' "$findings/$target.log" || true
+  done
+}
 cmake --preset release >/dev/null
 cmake --build --preset release -j "$jobs"
 
@@ -55,6 +97,7 @@ case "$mode" in
     cmake --preset asan >/dev/null
     cmake --build --preset asan -j "$jobs"
     ctest --preset asan -j "$jobs"
+    run_fuzzers
     echo "setup: all tests passed"
     ;;
 esac

@@ -1,30 +1,41 @@
 #include "app/backend_list.h"
 
-#include <algorithm>
-#include <sstream>
-
+#include "backends/backend_factory.h"
 #include "core/util/errors.h"
 
 namespace tandem {
 
 std::vector<std::string> split_backend_list(const std::string& spec) {
+  // Empty items are kept ("cpu+" -> cpu, ""), so parse_backend_list can
+  // refuse them instead of reading "cpu+" as "cpu".
   std::vector<std::string> names;
-  std::stringstream parts(spec);
-  std::string part;
-  while (std::getline(parts, part, '+'))
-    names.push_back(part);
-  return names;
+  size_t start = 0;
+  while (true) {
+    const size_t at = spec.find('+', start);
+    names.push_back(spec.substr(start, at == std::string::npos ? std::string::npos : at - start));
+    if (at == std::string::npos) return names;
+    start = at + 1;
+  }
 }
 
+// Messages name the list, not an option: the same list comes from
+// `render --backend` and from `bench --hetero`.
 std::vector<BackendKind> parse_backend_list(const std::string& spec) {
+  if (spec.empty()) {
+    throw UsageError("the backend list is empty (expected e.g. cpu, hetero or cpu+host)");
+  }
   std::vector<BackendKind> kinds;
-  for (const std::string& name : split_backend_list(spec))
+  for (const std::string& name : split_backend_list(spec)) {
+    if (name.empty()) {
+      throw UsageError("backend list '" + spec +
+                       "' has an empty name (a '+' at the start or end, or two in a row)");
+    }
     kinds.push_back(parse_backend_kind(name));
-  if (kinds.empty()) throw UsageError("--backend: empty backend list");
+  }
   if (kinds.size() > 1) {
     for (BackendKind k : kinds) {
       if (k == BackendKind::kAuto || k == BackendKind::kHetero) {
-        throw UsageError("--backend " + spec + ": auto and hetero cannot be part of a list");
+        throw UsageError("backend list '" + spec + "': auto and hetero cannot be part of a list");
       }
     }
   }
@@ -57,6 +68,7 @@ BackendOptions parse_kernel_option(const std::optional<std::string>& kernel,
   } catch (const UsageError& e) {
     throw UsageError(std::string("--kernel: ") + e.what());
   }
+  (void)kinds;  // every backend has both kernels now
   return options;
 }
 

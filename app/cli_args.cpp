@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 
 #include "core/util/errors.h"
@@ -90,12 +91,33 @@ float ParsedArgs::get_float(const std::string& name, float fallback, float min, 
   if (!v) return fallback;
   errno = 0;
   char* end = nullptr;
-  const float f = std::strtof(v->c_str(), &end);
-  if (v->empty() || *end != '\0' || errno == ERANGE || !std::isfinite(f) || f < min || f > max) {
-    throw UsageError(command_ + ": --" + name + " expects a number in [" + std::to_string(min) +
-                     ", " + std::to_string(max) + "], got '" + *v + "'");
+  // Parsed as double: a tiny value such as 1e-50 underflows float (ERANGE)
+  // but is a perfectly good request for 0.
+  const double d = std::strtod(v->c_str(), &end);
+  const bool overflow = errno == ERANGE && std::fabs(d) > 1.0;
+  if (v->empty() || *end != '\0' || overflow || !std::isfinite(d) || d < double(min) ||
+      d > double(max)) {
+    throw UsageError(command_ + ": --" + name + " expects a number in [" + format_number(min) +
+                     ", " + format_number(max) + "], got '" + *v + "'");
   }
-  return f;
+  return float(d);
+}
+
+std::vector<std::string> split_list(const std::string& text, char separator) {
+  std::vector<std::string> items;
+  size_t start = 0;
+  while (true) {
+    const size_t at = text.find(separator, start);
+    items.push_back(text.substr(start, at == std::string::npos ? std::string::npos : at - start));
+    if (at == std::string::npos) return items;
+    start = at + 1;
+  }
+}
+
+std::string format_number(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", value);
+  return buf;
 }
 
 std::string format_options_help(const std::vector<OptionSpec>& specs) {

@@ -37,6 +37,13 @@ class ParsedArgs {
   std::vector<std::string> positionals_;
 };
 
+// Splits `text` at every `separator`, keeping empty items ("a,,b," -> a, "",
+// b, ""), so that callers can reject them.
+std::vector<std::string> split_list(const std::string& text, char separator);
+
+// A number for messages: "1e+30", "0.5", "-50" (not 31 digits of float).
+std::string format_number(double value);
+
 std::string format_options_help(const std::vector<OptionSpec>& specs);
 
 }  // namespace tandem

@@ -11,8 +11,10 @@
 // Monte Carlo render are independent estimates, so n = N^2 pixels give an
 // (n - 1)-dof estimate and z is close to standard normal when A and B agree.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <string>
@@ -69,6 +71,7 @@ struct BlockTest {
   size_t identical = 0;  // block-channels where A and B agree exactly (e.g. black background)
   size_t outliers = 0;   // |z| > 3
   size_t blocks = 0, outlier_blocks = 0;  // blocks with a z; those with max |z| > kBlockOutlierZ
+  size_t testable_blocks = 0;             // blocks of at least 2 pixels (a variance exists)
   double mean_z = 0.0, max_abs_z = 0.0;
   uint32_t worst_x = 0, worst_y = 0;  // top-left pixel of the block with the largest |z|
   int worst_channel = 0;
@@ -96,6 +99,7 @@ BlockTest block_test(const ImageRGB& a, const ImageRGB& b, uint32_t block) {
       const uint32_t x1 = std::min(a.width, bx + block), y1 = std::min(a.height, by + block);
       const double n = double(x1 - bx) * double(y1 - by);
       if (n < 2) continue;  // edge blocks of one pixel have no variance estimate
+      ++t.testable_blocks;
       double block_max_z = -1.0;
       for (int c = 0; c < 3; ++c) {
         double s = 0.0, s2 = 0.0;
@@ -252,9 +256,26 @@ int run_compare(const std::vector<std::string>& argv) {
     if (bad) throw InputError(path + ": contains " + std::to_string(bad) + " NaN/inf values");
     return img;
   };
+  // compare tests linear radiance; an 8-bit image has been through a tone
+  // curve and exposure, which the sRGB decoding on reading does not undo.
+  auto warn_if_tone_mapped = [](const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& ch : ext)
+      ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext != ".exr" && ext != ".pfm" && ext != ".hdr") {
+      std::fprintf(stderr,
+                   "tandem: warning: %s is an 8-bit (tone-mapped) image; compare expects linear "
+                   "renders (.exr, .pfm, .hdr), so its tone curve and exposure are compared as "
+                   "if they were radiance\n",
+                   path.c_str());
+    }
+  };
   const ImageRGB a = load(path_a, nullptr, path_a), b = load(path_b, &a, path_a);
+  warn_if_tone_mapped(path_a);
+  warn_if_tone_mapped(path_b);
   const std::optional<std::string> path_c = args.value("reference-noise");
   const ImageRGB c = path_c ? load(*path_c, &a, path_a) : ImageRGB();
+  if (path_c) warn_if_tone_mapped(*path_c);
 
   double mean_a[3] = {}, mean_b[3] = {}, rel[3] = {}, sq = 0.0;
   const size_t pixels = size_t(a.width) * a.height;
@@ -275,6 +296,13 @@ int run_compare(const std::vector<std::string>& argv) {
   }
   const double rmse = std::sqrt(sq / double(pixels * 3));
   const BlockTest ab = block_test(a, b, block);
+  // With no block of two pixels there is no noise estimate at all: no
+  // verdict, rather than an AGREE that tested nothing.
+  if (ab.testable_blocks == 0) {
+    throw InputError("compare: " + path_a + " is " + std::to_string(a.width) + "x" +
+                     std::to_string(a.height) +
+                     ": too small for the block test (a block needs at least 2 pixels)");
+  }
   BlockTest ac;
   double noise_ratio[3] = {};  // std. dev. of B's noise / A's, at the samples each was given
   if (path_c) {

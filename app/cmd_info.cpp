@@ -13,6 +13,8 @@ namespace {
 const std::vector<OptionSpec>& info_options() {
   static const std::vector<OptionSpec> specs = {
       {"gltf-scene", true, "glTF scene index (default: the file's default scene)", "N"},
+      {"allow-outside-uris", false,
+       "let glTF buffer/image URIs name files outside the scene file's folder"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -34,6 +36,7 @@ int run_info(const std::vector<std::string>& argv) {
   if (args.positionals().size() != 1) throw UsageError("info: expected exactly one SCENE argument");
   SceneLoadOptions options;
   options.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
+  options.allow_outside_uris = args.has("allow-outside-uris");
   const Scene scene = load_scene(args.positionals()[0], options);
 
   size_t emissive_triangles = 0;

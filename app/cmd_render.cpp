@@ -2,10 +2,13 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "app/backend_list.h"
@@ -13,9 +16,11 @@
 #include "app/commands.h"
 #include "app/progress.h"
 #include "backends/backend_factory.h"
+#include "core/image/image.h"
 #include "core/scene/kernel_scene.h"
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
+#include "core/util/interrupt.h"
 #include "core/util/log.h"
 #include "scenes/scene_loader.h"
 
@@ -61,6 +66,10 @@ const std::vector<OptionSpec>& render_options() {
       {"tile-size", true, "tile edge in pixels (default 32)", "N"},
       {"clamp", true, "clamp per-sample radiance to this value (biased; default off)", "X"},
       {"quiet", false, "no progress bar or summary"},
+      {"save-on-interrupt", false,
+       "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
+      {"allow-outside-uris", false,
+       "let glTF buffer/image URIs name files outside the scene file's folder"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -68,19 +77,57 @@ const std::vector<OptionSpec>& render_options() {
 
 glm::vec3 parse_color(const std::string& text) {
   std::vector<float> values;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
+  // split_list keeps empty items, so "1,2,3," and ",1" are errors too.
+  for (const std::string& item : split_list(text, ',')) {
     char* end = nullptr;
-    const float v = std::strtof(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || !std::isfinite(v) || v < 0.0f) {
+    errno = 0;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v) || v < 0.0 ||
+        v > double(std::numeric_limits<float>::max())) {
       throw UsageError("render: --env-color expects R,G,B or one value >= 0, got '" + text + "'");
     }
-    values.push_back(v);
+    values.push_back(float(v));
   }
   if (values.size() == 1) return glm::vec3(values[0]);
   if (values.size() == 3) return {values[0], values[1], values[2]};
   throw UsageError("render: --env-color expects R,G,B or one value, got '" + text + "'");
+}
+
+// Radiance is accumulated in float over many samples: a colour times an
+// intensity near float's range becomes infinity and renders black. 1e30
+// leaves room for the sums of any realistic number of samples.
+constexpr double kMaxEnvironmentRadiance = 1e30;
+
+void check_environment_radiance(const glm::vec3& color, float intensity) {
+  for (int k = 0; k < 3; ++k) {
+    const double radiance = double(color[k]) * double(intensity);
+    if (radiance > kMaxEnvironmentRadiance) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf,
+                    "render: --env-color %g times --env-intensity %g is %g, beyond the largest "
+                    "radiance that can be rendered (%g)",
+                    double(color[k]), double(intensity), radiance, kMaxEnvironmentRadiance);
+      throw UsageError(buf);
+    }
+  }
+}
+
+// After SIGINT/SIGTERM during the render: say so, optionally keep the image,
+// and exit as the shell expects for that signal (128 + its number).
+int finish_interrupted(int sig, const CoreTracer& tracer, uint32_t spp, const std::string& output,
+                       const ImageWriteOptions& write_options, bool save) {
+  const uint32_t done = tracer.accumulated_spp();
+  if (save && done > 0) {
+    write_image(output, tracer.image(), write_options);
+    std::fprintf(stderr,
+                 "tandem: interrupted by %s after %u of %u spp; wrote the image so far to %s\n",
+                 signal_name(sig), done, spp, output.c_str());
+  } else {
+    std::fprintf(stderr, "tandem: interrupted by %s after %u of %u spp; no image written%s\n",
+                 signal_name(sig), done, spp,
+                 save ? " (no sample was complete)" : " (--save-on-interrupt keeps it)");
+  }
+  return 128 + sig;
 }
 
 }  // namespace
@@ -122,6 +169,7 @@ int run_render(const std::vector<std::string>& argv) {
   const uint32_t tile_size = args.get_u32("tile-size", 32, 1, 4096);
   SceneLoadOptions load_options;
   load_options.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
+  load_options.allow_outside_uris = args.has("allow-outside-uris");
   std::optional<tbb::global_control> thread_limit;
   if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
 
@@ -134,6 +182,8 @@ int run_render(const std::vector<std::string>& argv) {
       throw UsageError("render: --output must end in .png, .exr or .pfm, got '" + output + "'");
     }
   }
+  // ... and that it can be written at all: a render is too costly to throw away at the end.
+  check_output_path(output);
 
   Scene scene = load_scene(scene_spec, load_options);
   if (auto env = args.value("env")) {
@@ -142,6 +192,7 @@ int run_render(const std::vector<std::string>& argv) {
     Environment& e = scene.edit_environment();
     e.color = parse_color(*color);
     e.intensity = args.get_float("env-intensity", 1.0f, 0.0f, 1e9f);
+    check_environment_radiance(e.color, e.intensity);
   } else if (args.has("env-intensity")) {
     scene.edit_environment().intensity = args.get_float("env-intensity", 1.0f, 0.0f, 1e9f);
   }
@@ -149,8 +200,7 @@ int run_render(const std::vector<std::string>& argv) {
     scene.edit_environment().rotation =
         args.get_float("env-rotation", 0.0f, -1e6f, 1e6f) * float(M_PI) / 180.0f;
   }
-  if (scene.triangle_count_instanced() == 0)
-    log_warning(scene_spec + ": the scene has no triangles");
+  // (An empty glTF scene has been reported by the loader already.)
 
   // Resolution: explicit, or from the camera's aspect ratio.
   const float aspect =
@@ -196,7 +246,9 @@ int run_render(const std::vector<std::string>& argv) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<BackendFrameMetrics> totals;
   double render_seconds = 0.0;
-  while (tracer.accumulated_spp() < spp) {
+  // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
+  std::optional<GracefulStop> stop(std::in_place);
+  while (tracer.accumulated_spp() < spp && !stop->requested()) {
     const uint32_t left = spp - tracer.accumulated_spp();
     if (left < tracer_settings.samples_per_frame) {
       tracer_settings.samples_per_frame = left;  // does not restart accumulation
@@ -223,6 +275,11 @@ int run_render(const std::vector<std::string>& argv) {
   bar.finish();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const int stop_signal = stop->signal();
+  stop.reset();  // from here a signal ends the process (and removes a partial output)
+  if (stop_signal != 0)
+    return finish_interrupted(stop_signal, tracer, spp, output, write_options,
+                              args.has("save-on-interrupt"));
 
   write_image(output, tracer.image(), write_options);
 

@@ -8,6 +8,7 @@
 
 #include "app/commands.h"
 #include "core/util/errors.h"
+#include "core/util/interrupt.h"
 
 namespace {
 
@@ -29,6 +30,7 @@ void print_usage() {
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
+  tandem::install_interrupt_handlers();
   try {
     if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
       print_usage();
@@ -51,7 +53,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tandem: error: %s\n", e.what());
     return 1;
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "tandem: error: out of memory\n");
+    // Loaders name the file themselves; this is whatever else ran short.
+    std::fprintf(stderr,
+                 "tandem: error: %s: not enough memory for this command (try a smaller image, "
+                 "fewer samples per frame or a smaller scene)\n",
+                 args.empty() ? "tandem" : args[0].c_str());
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tandem: error: %s\n", e.what());

@@ -177,12 +177,28 @@ size_t accessor_element_size(int component_type, int type) {
   return cs * size_t(n);
 }
 
+void AccessorCache::charge(const tinygltf::Accessor& a, size_t bytes_per_element,
+                           const std::string& who) {
+  // Elements of an accessor without a bufferView cost no file bytes at all,
+  // so they are counted separately (and more strictly) as well.
+  if (a.bufferView < 0) {
+    ctx_.charge(Budget::kZeroFilledElements, a.count,
+                who + " (" + std::to_string(a.count) + " elements without a bufferView)");
+  }
+  // Sparse indices and values are decoded into temporaries alongside.
+  const uint64_t sparse =
+      a.sparse.isSparse ? uint64_t(a.sparse.count) * (4 + bytes_per_element) : 0;
+  ctx_.charge(Budget::kAccessorBytes, uint64_t(a.count) * bytes_per_element + sparse,
+              who + " (" + std::to_string(a.count) + " elements)");
+}
+
 const std::vector<float>& AccessorCache::floats(int index, const std::string& what) {
   if (auto it = floats_.find(index); it != floats_.end()) return it->second;
   const tinygltf::Model& m = ctx_.model;
   const tinygltf::Accessor& a = m.accessors[size_t(index)];
   const std::string who = what + " (accessor " + std::to_string(index) + ")";
   const size_t n = size_t(component_count(a.type));
+  charge(a, n * sizeof(float), who);
   std::vector<float> out(a.count * n, 0.0f);  // no bufferView: zeros
   if (a.bufferView >= 0) {
     read_elements(a, view_data(m, a.bufferView, a.byteOffset), dense_stride(m, a), a.count,
@@ -214,6 +230,7 @@ const std::vector<uint32_t>& AccessorCache::uints(int index, const std::string& 
   const tinygltf::Model& m = ctx_.model;
   const tinygltf::Accessor& a = m.accessors[size_t(index)];
   const std::string who = what + " (accessor " + std::to_string(index) + ")";
+  charge(a, sizeof(uint32_t), who);
   std::vector<uint32_t> out(a.count, 0u);
   const int ct = a.componentType;
   if (a.bufferView >= 0) {

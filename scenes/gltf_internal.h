@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <set>
 #include <string>
@@ -20,32 +21,35 @@
 
 #include "core/scene/scene.h"
 #include "scenes/gltf_animation.h"
+#include "scenes/gltf_loader.h"
 
 namespace tandem::gltf {
 
 // --- limits -----------------------------------------------------------------
-// A hostile file must not make us allocate absurd amounts of memory. Data
-// that lives in a buffer is bounded by the file size once ranges are checked;
-// these bound what is not (zero-filled accessors, merged meshes, images).
+// Hard limits of the data structures; the memory budgets a file is held to
+// are GltfLimits (gltf_loader.h), counted by Context::charge().
 inline constexpr uint64_t kMaxMeshVertices = (uint64_t(1) << 31) - 1;   // per tandem Mesh
 inline constexpr uint64_t kMaxMeshTriangles = (uint64_t(1) << 31) - 1;  // per tandem Mesh
-// All meshes of a file together. Accessors can be shared by any number of
-// primitives, so merged geometry is not bounded by the file size; 2^27
-// vertices are already ~1.5 GiB of positions.
-inline constexpr uint64_t kMaxTotalVertices = uint64_t(1) << 27;
-inline constexpr uint64_t kMaxTotalTriangles = uint64_t(1) << 27;
-inline constexpr uint64_t kMaxZeroAccessorElements = uint64_t(1)
-                                                     << 24;  // accessors without bufferView
-// Larger images are skipped with a warning: a small PNG can claim any size,
-// and a 16-bit RGBA decode of 2^26 pixels already takes 512 MiB.
-inline constexpr uint64_t kMaxTexturePixels = uint64_t(1) << 26;    // 8192 x 8192
 inline constexpr uint64_t kMaxFileBytes = (uint64_t(1) << 32) - 1;  // tinygltf takes 32-bit sizes
+
+// "1.5 GiB", "12 KiB", "17 bytes": sizes in budget messages.
+std::string format_bytes(uint64_t bytes);
+
+// What Context::charge() counts, one running total each.
+enum class Budget {
+  kAccessorBytes,
+  kZeroFilledElements,
+  kGeometryBytes,
+  kInstances,
+  kTextureBytes
+};
 
 // Error/warning helper: every message is prefixed with the file path, as
 // the user gave it, so messages are complete sentences on their own.
 class Context {
  public:
-  Context(std::string path, const tinygltf::Model& model) : model(model), path_(std::move(path)) {}
+  Context(std::string path, const tinygltf::Model& model, const GltfLimits& limits = {})
+      : model(model), limits(limits), path_(std::move(path)) {}
 
   [[noreturn]] void fail(const std::string& reason) const;
   void warn(const std::string& message) const;
@@ -53,11 +57,48 @@ class Context {
   void warn_once(const std::string& key, const std::string& message);
   const std::string& path() const { return path_; }
 
+  // Adds `amount` to the running total of `budget`, or fails (before the
+  // caller allocates anything) naming `what` and the sizes. Thread-safe is
+  // not needed: all charging happens on the loading thread.
+  void charge(Budget budget, uint64_t amount, const std::string& what) const;
+  // Whether `amount` more would still fit (for things skipped, not failed).
+  bool fits(Budget budget, uint64_t amount) const;
+  uint64_t used(Budget budget) const { return used_[int(budget)]; }
+
   const tinygltf::Model& model;
+  const GltfLimits& limits;
 
  private:
+  uint64_t limit(Budget budget) const;
+
   std::string path_;
   std::set<std::string> warned_;
+  mutable uint64_t used_[5] = {};
+};
+
+// --- gltf_input_guard.cpp ------------------------------------------------------
+// Checks on the raw file before tinygltf sees it, and on the files it opens.
+
+// The deepest nesting of JSON arrays/objects in `json` (outside strings),
+// stopping early at `limit` + 1. tinygltf converts JSON to its Value type
+// recursively, so a file nested thousands deep overflows the stack there.
+size_t json_nesting_depth(const char* json, size_t size, size_t limit, size_t* where);
+// The JSON chunk of a .glb, or false when the container is malformed (then
+// tinygltf explains what is wrong).
+bool glb_json_chunk(const unsigned char* data, size_t size, const char** json, size_t* json_size);
+// What is wrong with a .glb's BIN chunk that tinygltf would read past the
+// end of the file for, or "".
+std::string glb_bin_chunk_problem(const unsigned char* data, size_t size);
+
+// Where tinygltf may read buffers and images from: inside the scene file's
+// folder (after resolving symlinks and "..") unless outside is allowed.
+struct UriPolicy {
+  std::filesystem::path base_dir;  // canonical folder of the scene file
+  std::string joined_base;         // the folder as given to tinygltf, to show URIs as written
+  bool allow_outside = false;
+  std::string refused;  // why the first refused file was refused, for the error
+  // Whether `path` (as tinygltf joined it) may be read; records the reason.
+  bool permits(const std::string& path);
 };
 
 // --- gltf_accessor.cpp ---------------------------------------------------------
@@ -81,6 +122,9 @@ class AccessorCache {
   const std::vector<uint32_t>& uints(int accessor, const std::string& what);
 
  private:
+  // Counts an accessor's decoded size against the budgets before allocating.
+  void charge(const tinygltf::Accessor& a, size_t bytes_per_element, const std::string& who);
+
   const Context& ctx_;
   std::map<int, std::vector<float>> floats_;
   std::map<int, std::vector<uint32_t>> uints_;
@@ -108,8 +152,15 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
 // Encoded bytes of images that tinygltf read from URIs, by image index
 // (filled by the image-loader callback, which never decodes; see
 // gltf_loader.cpp for why).
+// Sixteen image entries naming one file hold one copy of its bytes.
 struct EncodedImages {
   std::map<int, std::vector<unsigned char>> by_image;
+  std::map<int, int> same_as;         // image index -> an earlier image with identical bytes
+  std::map<int, std::string> errors;  // why an image's file was not read (e.g. UriPolicy)
+  void keep(int index, const unsigned char* bytes, size_t size);
+  bool has(int index) const { return by_image.count(index) || same_as.count(index); }
+  // Bytes of image `index`, or nullptr when tinygltf did not read any.
+  const std::vector<unsigned char>* bytes(int index) const;
 };
 
 struct MaterialResult {

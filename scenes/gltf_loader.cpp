@@ -84,25 +84,35 @@ bool keep_encoded_image(tinygltf::Image* image, const int index, std::string*, s
                         int, const unsigned char* bytes, int size, void* user) {
   if (image->bufferView >= 0) return true;
   auto* encoded = static_cast<gltf::EncodedImages*>(user);
-  if (bytes != nullptr && size > 0) encoded->by_image[index].assign(bytes, bytes + size);
+  if (bytes != nullptr && size > 0) encoded->keep(index, bytes, size_t(size));
   return true;
 }
 
 // tinygltf reads external buffers and images through these. Only regular
 // files: a URI naming a FIFO or device would otherwise block or stream
 // forever.
-bool regular_file_exists(const std::string& path, void*) {
+// tinygltf reads external buffers and images through these. Only regular
+// files inside the scene's folder (UriPolicy): a URI naming a FIFO or device
+// would otherwise block or stream forever, and one naming "../../x" would
+// read (and, through tinygltf's size-mismatch message, describe) any file.
+bool regular_file_exists(const std::string& path, void* user) {
   std::error_code ec;
-  return std::filesystem::is_regular_file(path, ec);
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
+  return user == nullptr || static_cast<gltf::UriPolicy*>(user)->permits(path);
 }
 
 bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
                        void* user) {
-  if (!regular_file_exists(path, nullptr)) {
+  if (!regular_file_exists(path, user)) {
     if (err != nullptr) *err += "Not a regular file : " + path + "\n";
     return false;
   }
-  return tinygltf::ReadWholeFile(out, err, path, user);
+  return tinygltf::ReadWholeFile(out, err, path, nullptr);
+}
+
+// No expansion of "~" or variables: a URI is a path relative to the file.
+std::string keep_file_path(const std::string& path, void*) {
+  return path;
 }
 
 glm::dmat4 local_transform(const tinygltf::Node& node) {
@@ -199,7 +209,9 @@ class SceneBuilder {
 
   // `local`: an EXT_mesh_gpu_instancing entry's transform under the node.
   void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index,
-                    const glm::dmat4& local = glm::dmat4(1.0)) {
+                    const glm::dmat4& local = glm::dmat4(1.0), bool charge = true) {
+    if (charge)
+      ctx_.charge(gltf::Budget::kInstances, 1, "node " + std::to_string(node_index) + " instance");
     const glm::mat4 transform(world * local);
     bindings_.push_back({uint32_t(instances_.size()), uint32_t(node_index), glm::mat4(local)});
     if (!finite(transform)) {
@@ -252,6 +264,8 @@ class SceneBuilder {
       return;
     }
     const std::string base = node_name(index, node);
+    // Charged up front so a huge count fails before any instance is made.
+    ctx_.charge(gltf::Budget::kInstances, count, who + " (" + std::to_string(count) + " entries)");
     for (size_t i = 0; i < count; ++i) {
       glm::dmat4 m(1.0);
       if (t) m = glm::translate(m, glm::dvec3((*t)[3 * i], (*t)[3 * i + 1], (*t)[3 * i + 2]));
@@ -263,7 +277,7 @@ class SceneBuilder {
         m *= glm::mat4_cast(q / len);
       }
       if (s) m = glm::scale(m, glm::dvec3((*s)[3 * i], (*s)[3 * i + 1], (*s)[3 * i + 2]));
-      add_instance(base + "[" + std::to_string(i) + "]", mesh, world, index, m);
+      add_instance(base + "[" + std::to_string(i) + "]", mesh, world, index, m, false);
     }
   }
 
@@ -372,41 +386,88 @@ void warn_about_extensions(Context& ctx, bool loading_animations) {
 
 }  // namespace
 
+namespace {
+
+// Refuses JSON nested deeper than the limit before tinygltf parses it.
+void check_json_nesting(const std::string& label, const unsigned char* data, size_t size,
+                        bool binary, uint32_t limit) {
+  const char* json = reinterpret_cast<const char*>(data);
+  size_t json_size = size;
+  if (binary && !gltf::glb_json_chunk(data, size, &json, &json_size)) return;  // tinygltf explains
+  size_t where = 0;
+  if (gltf::json_nesting_depth(json, json_size, limit, &where) > limit) {
+    fail(label, "the JSON is nested more than " + std::to_string(limit) + " levels deep (at byte " +
+                    std::to_string(where + (binary ? 20 : 0)) + "); refusing to parse it");
+  }
+}
+
+Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::EncodedImages& encoded,
+                  const GltfOptions& options, GltfSummary* summary, std::string& stage);
+
+}  // namespace
+
 Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
                 GltfSummary* summary) {
   const std::string label = path.string();
-  const std::vector<unsigned char> data = read_file(path, label);
+  std::vector<unsigned char> data;
+  try {
+    data = read_file(path, label);
+  } catch (const std::bad_alloc&) {
+    fail(label, "not enough memory to read the file");
+  }
+  return load_gltf_from_memory(data.data(), data.size(), label,
+                               path.has_parent_path() ? path.parent_path() : ".", options, summary);
+}
 
-  std::string ext = path.extension().string();
+Scene load_gltf_from_memory(const unsigned char* data, size_t size, const std::string& label,
+                            const std::filesystem::path& base_dir, const GltfOptions& options,
+                            GltfSummary* summary) {
+  if (size == 0) fail(label, "the file is empty");
+  if (size > gltf::kMaxFileBytes) fail(label, "the file is larger than 4 GiB");
+  std::string ext = std::filesystem::path(label).extension().string();
   for (char& c : ext)
     c = char(std::tolower(static_cast<unsigned char>(c)));
-  const bool magic = data.size() >= 4 && std::memcmp(data.data(), "glTF", 4) == 0;
+  const bool magic = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
   const bool binary = magic || ext == ".glb";  // .glb without magic: let tinygltf explain
-  if (!binary && data.size() >= 3 && data[0] == 0xEF && data[1] == 0xBB && data[2] == 0xBF) {
+  if (!binary && size >= 3 && data[0] == 0xEF && data[1] == 0xBB && data[2] == 0xBF) {
     fail(label, "the file starts with a UTF-8 byte order mark, which glTF forbids");
   }
+  check_json_nesting(label, data, size, binary, options.limits.max_json_depth);
+  if (const std::string problem = gltf::glb_bin_chunk_problem(data, size); !problem.empty()) {
+    fail(label, problem);
+  }
 
-  tinygltf::Model model;
-  gltf::EncodedImages encoded;
-  {
+  // Whatever runs out of memory, the message names the file and the stage
+  // (InputErrors, budgets included, pass through unchanged).
+  std::string stage = "parsing the JSON";
+  try {
+    tinygltf::Model model;
+    gltf::EncodedImages encoded;
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&keep_encoded_image, &encoded);
-    loader.SetFsCallbacks({&regular_file_exists, &tinygltf::ExpandFilePath, &read_regular_file,
-                           &tinygltf::WriteWholeFile, nullptr});
+    gltf::UriPolicy policy;
+    policy.allow_outside = options.allow_outside_uris;
+    policy.joined_base = base_dir.string();
+    std::error_code ec;
+    policy.base_dir = std::filesystem::canonical(base_dir, ec);
+    loader.SetFsCallbacks({&regular_file_exists, &keep_file_path, &read_regular_file,
+                           &tinygltf::WriteWholeFile, &policy});
     std::string err, warn;
-    const std::string base_dir = path.has_parent_path() ? path.parent_path().string() : ".";
     bool ok = false;
     try {
-      ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data.data(),
-                                                unsigned(data.size()), base_dir)
+      ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size),
+                                                base_dir.string())
                   : loader.LoadASCIIFromString(&model, &err, &warn,
-                                               reinterpret_cast<const char*>(data.data()),
-                                               unsigned(data.size()), base_dir);
+                                               reinterpret_cast<const char*>(data), unsigned(size),
+                                               base_dir.string());
+    } catch (const std::bad_alloc&) {
+      throw;
     } catch (const std::exception& e) {
       // tinygltf catches JSON errors but not, e.g., std::vector::at on odd input.
       fail(label, std::string("invalid glTF: ") + e.what());
     }
     if (!ok) {
+      if (!policy.refused.empty()) fail(label, policy.refused);
       const std::string reason = first_line(err);
       fail(label,
            "invalid glTF: " + (reason.empty() ? "tinygltf could not parse the file" : reason));
@@ -416,9 +477,31 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
     if (!first_line(err).empty()) fail(label, "invalid glTF: " + first_line(err));
     // Its warnings are about images, which we report ourselves, by name.
     if (!warn.empty()) log_debug(label + ": tinygltf: " + first_line(warn));
+    // Images tinygltf could not read because the policy refused them.
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      const tinygltf::Image& img = model.images[i];
+      if (img.bufferView >= 0 || img.uri.empty() || img.uri.rfind("data:", 0) == 0) continue;
+      if (encoded.has(int(i))) continue;
+      gltf::UriPolicy probe = policy;
+      probe.refused.clear();
+      if (!probe.permits(policy.joined_base + "/" + img.uri))
+        encoded.errors[int(i)] = probe.refused;
+    }
+    return load_parsed(label, model, encoded, options, summary, stage);
+  } catch (const std::bad_alloc&) {
+    fail(label,
+         "ran out of memory while " + stage + " (the file needs more memory than is available)");
+  } catch (const std::length_error&) {
+    fail(label, "an array became too large to allocate while " + stage);
   }
+}
 
-  Context ctx(label, model);
+namespace {
+
+Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::EncodedImages& encoded,
+                  const GltfOptions& options, GltfSummary* summary, std::string& stage) {
+  stage = "validating the file";
+  Context ctx(label, model, options.limits);
   gltf::validate_model(ctx);
   warn_about_extensions(ctx, options.animations != nullptr);
 
@@ -434,8 +517,11 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
 
   gltf::AccessorCache cache(ctx);
   const uint32_t default_material = uint32_t(model.materials.size());
+  stage = "decoding meshes";
   gltf::DecodedMeshes meshes = gltf::decode_meshes(ctx, cache, default_material);
+  stage = "decoding textures";
   gltf::MaterialResult materials = gltf::convert_materials(ctx, encoded);
+  stage = "building the scene";
 
   std::vector<int> roots;
   if (scene_index >= 0) {
@@ -489,7 +575,7 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
   }
   if (scene.triangle_count_instanced() == 0) ctx.warn("the scene has no triangles");
   scene.source =
-      path.filename().string() +
+      std::filesystem::path(label).filename().string() +
       (model.asset.generator.empty() ? "" : " (generator: " + model.asset.generator + ")");
 
   if (summary != nullptr) {
@@ -517,5 +603,7 @@ Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options,
   }
   return scene;
 }
+
+}  // namespace
 
 }  // namespace tandem

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -19,6 +20,25 @@ namespace tandem {
 
 struct GltfAnimations;
 
+// What a file may make the loader allocate. Sizes written in a small file
+// (counts of accessors without data, images that claim huge dimensions, one
+// accessor shared by many primitives) must not turn into unbounded memory,
+// so every decoded accessor, merged mesh, instance and texel is counted
+// against these before it is allocated; going over is an InputError that
+// names the file, the object and the size (textures over budget are
+// skipped with a warning instead). Accessor and geometry budgets grow with
+// the bytes actually in the file's buffers (4x and 6x), so big real scenes
+// load; the defaults suit real scenes, tests and the fuzzer lower them.
+struct GltfLimits {
+  uint32_t max_json_depth = 128;                          // nesting of JSON arrays/objects
+  uint64_t max_accessor_bytes = uint64_t(1) << 30;        // all decoded accessors together
+  uint64_t max_zero_filled_elements = uint64_t(1) << 22;  // accessors without bufferView, together
+  uint64_t max_geometry_bytes = uint64_t(2) << 30;  // merged meshes' vertex and triangle arrays
+  uint64_t max_instances = uint64_t(1) << 22;       // scene instances (nodes and GPU instancing)
+  uint64_t max_texture_pixels = uint64_t(1) << 26;  // one image (8192 x 8192)
+  uint64_t max_texture_bytes = uint64_t(2) << 30;   // decoded texels of all textures together
+};
+
 struct GltfOptions {
   // Which of the file's scenes to load. -1: the file's default scene (its
   // "scene" property, or scene 0 when it has none).
@@ -26,6 +46,11 @@ struct GltfOptions {
   // When set, node animations are loaded into it (see gltf_animation.h) so
   // the caller can play them; otherwise they are ignored with a warning.
   GltfAnimations* animations = nullptr;
+  // Buffer and image URIs must resolve (symlinks followed) inside the folder
+  // of the scene file, so a downloaded scene cannot read other files; this
+  // lets them point anywhere.
+  bool allow_outside_uris = false;
+  GltfLimits limits;
 };
 
 // Summary numbers for tests and `tandem info`: counts taken from the file
@@ -58,5 +83,11 @@ struct GltfSummary {
 // `summary` is given it is filled in as well.
 Scene load_gltf(const std::filesystem::path& path, const GltfOptions& options = {},
                 GltfSummary* summary = nullptr);
+
+// The same for a file already in memory (the fuzzer's entry point): `label`
+// names it in messages, relative URIs resolve against `base_dir`.
+Scene load_gltf_from_memory(const unsigned char* data, size_t size, const std::string& label,
+                            const std::filesystem::path& base_dir, const GltfOptions& options = {},
+                            GltfSummary* summary = nullptr);
 
 }  // namespace tandem

@@ -5,10 +5,17 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <functional>
+#include <map>
+#include <new>
+#include <set>
+#include <string_view>
 #include <thread>
+#include <tuple>
 
 #include <stb_image.h>
 
+#include "core/image/image.h"
 #include "scenes/gltf_internal.h"
 
 namespace tandem::gltf {
@@ -63,21 +70,39 @@ struct DecodedImage {
   std::string error;
 };
 
+// Width and height from the PNG/JPEG header (without decoding), or an error
+// that says what is wrong: a size over the limit, or a corrupt header.
+bool image_size(const unsigned char* bytes, size_t size, uint64_t max_pixels, uint32_t& w,
+                uint32_t& h, std::string& error) {
+  const EncodedImageInfo info = probe_encoded_image(bytes, size);
+  if (info.format != EncodedImageInfo::kUnknown) {
+    if (!info.header_ok) {
+      error = info.problem;
+      return false;
+    }
+    w = info.width;
+    h = info.height;
+  } else {
+    int iw = 0, ih = 0, comp = 0;
+    if (size > size_t(INT_MAX) || !stbi_info_from_memory(bytes, int(size), &iw, &ih, &comp)) {
+      error = "not a PNG or JPEG image";
+      return false;
+    }
+    w = uint32_t(iw);
+    h = uint32_t(ih);
+  }
+  if (w < 1 || h < 1 || uint64_t(w) * h > max_pixels) {
+    error = "it claims " + std::to_string(w) + "x" + std::to_string(h) +
+            " pixels, over the limit of " + std::to_string(max_pixels) + " pixels per texture";
+    return false;
+  }
+  return true;
+}
+
 DecodedImage decode_image(const unsigned char* bytes, size_t size, int index) {
   DecodedImage out;
   if (size > size_t(INT_MAX)) {
     out.error = "the encoded image is larger than 2 GiB";
-    return out;
-  }
-  // Check the header first so a tiny file that claims a huge size cannot
-  // make the decoder allocate gigabytes.
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info_from_memory(bytes, int(size), &w, &h, &comp)) {
-    out.error = std::string("not a decodable PNG/JPEG image (") + stbi_failure_reason() + ")";
-    return out;
-  }
-  if (w < 1 || h < 1 || uint64_t(w) * uint64_t(h) > kMaxTexturePixels) {
-    out.error = "image size " + std::to_string(w) + "x" + std::to_string(h) + " is not supported";
     return out;
   }
   tinygltf::Image image;
@@ -143,6 +168,26 @@ class MaterialConverter {
     return out;
   }
 
+  // The encoded bytes of image i: in a bufferView or read from its URI.
+  bool encoded_bytes(int i, const unsigned char*& data, size_t& size, std::string& error) const {
+    const tinygltf::Model& m = ctx_.model;
+    const tinygltf::Image& img = m.images[size_t(i)];
+    if (img.bufferView >= 0) {
+      const tinygltf::BufferView& v = m.bufferViews[size_t(img.bufferView)];
+      data = m.buffers[size_t(v.buffer)].data.data() + v.byteOffset;
+      size = v.byteLength;
+      return true;
+    }
+    if (const std::vector<unsigned char>* b = encoded_.bytes(i)) {
+      data = b->data();
+      size = b->size();
+      return true;
+    }
+    const auto e = encoded_.errors.find(i);
+    error = e != encoded_.errors.end() ? e->second : "the file was not found or could not be read";
+    return false;
+  }
+
   void decode_referenced_images() {
     const tinygltf::Model& m = ctx_.model;
     std::vector<int> images;
@@ -153,43 +198,72 @@ class MaterialConverter {
     std::sort(images.begin(), images.end());
     images.erase(std::unique(images.begin(), images.end()), images.end());
     decoded_.resize(m.images.size());
-    // How many distinct glTF textures will take each image, so the last one
-    // can take the pixels instead of copying them.
-    image_users_.assign(m.images.size(), 0);
-    std::vector<int> textures = referenced_textures();
-    std::sort(textures.begin(), textures.end());
-    textures.erase(std::unique(textures.begin(), textures.end()), textures.end());
-    for (int t : textures) {
-      if (t >= 0 && m.textures[size_t(t)].source >= 0)
-        ++image_users_[size_t(m.textures[size_t(t)].source)];
+    canonical_.resize(m.images.size());
+    for (size_t i = 0; i < canonical_.size(); ++i)
+      canonical_[i] = int(i);
+
+    // Images with identical bytes (one file named by several entries, one
+    // bufferView used twice) are decoded once: canonical_ maps each to the
+    // first. Then every image to decode is sized from its header and
+    // charged against the texture budget, in file order, before decoding.
+    struct Job {
+      int image;
+      const unsigned char* data;
+      size_t size;
+    };
+    std::vector<Job> jobs;
+    std::map<std::pair<size_t, size_t>, std::vector<Job>> by_content;
+    for (int i : images) {
+      Job job{i, nullptr, 0};
+      std::string error;
+      if (!encoded_bytes(i, job.data, job.size, error)) {
+        decoded_[size_t(i)].error = error;
+        continue;
+      }
+      const size_t hash =
+          std::hash<std::string_view>{}({reinterpret_cast<const char*>(job.data), job.size});
+      std::vector<Job>& same = by_content[{job.size, hash}];
+      const auto twin = std::find_if(same.begin(), same.end(), [&](const Job& o) {
+        return std::memcmp(o.data, job.data, job.size) == 0;
+      });
+      if (twin != same.end()) {
+        canonical_[size_t(i)] = twin->image;
+        continue;
+      }
+      same.push_back(job);
+      uint32_t w = 0, h = 0;
+      if (!image_size(job.data, job.size, ctx_.limits.max_texture_pixels, w, h, error)) {
+        decoded_[size_t(i)].error = error;
+        continue;
+      }
+      const uint64_t bytes = uint64_t(w) * h * 4;
+      if (!ctx_.fits(Budget::kTextureBytes, bytes)) {
+        decoded_[size_t(i)].error = budget_message(w, h, bytes);
+        continue;
+      }
+      ctx_.charge(Budget::kTextureBytes, bytes, image_label(m, i));
+      jobs.push_back(job);
     }
 
     // PNG decoding dominates load time for textured models; images are
     // independent, so decode them on all cores.
     std::atomic<size_t> next{0};
     auto worker = [&] {
-      for (size_t k = next++; k < images.size(); k = next++) {
-        const int i = images[k];
-        const tinygltf::Image& img = m.images[size_t(i)];
-        DecodedImage& d = decoded_[size_t(i)];
+      for (size_t k = next++; k < jobs.size(); k = next++) {
+        const Job& job = jobs[k];
+        DecodedImage& d = decoded_[size_t(job.image)];
         try {
-          if (img.bufferView >= 0) {
-            const tinygltf::BufferView& v = m.bufferViews[size_t(img.bufferView)];
-            d = decode_image(m.buffers[size_t(v.buffer)].data.data() + v.byteOffset, v.byteLength,
-                             i);
-          } else if (const auto it = encoded_.by_image.find(i); it != encoded_.by_image.end()) {
-            d = decode_image(it->second.data(), it->second.size(), i);
-          } else {
-            d.error = "the file was not found or could not be read";
-          }
+          d = decode_image(job.data, job.size, job.image);
         } catch (const std::exception& e) {  // bad_alloc: must not escape a thread
           d = DecodedImage{};
-          d.error = std::string("decoding failed (") + e.what() + ")";
+          d.error = std::string("decoding failed (") +
+                    (dynamic_cast<const std::bad_alloc*>(&e) ? "not enough memory" : e.what()) +
+                    ")";
         }
       }
     };
     const size_t threads =
-        std::min<size_t>(images.size(), std::max(1u, std::thread::hardware_concurrency()));
+        std::min<size_t>(jobs.size(), std::max(1u, std::thread::hardware_concurrency()));
     std::vector<std::thread> pool;
     for (size_t t = 1; t < threads; ++t)
       pool.emplace_back(worker);
@@ -198,12 +272,45 @@ class MaterialConverter {
       t.join();
 
     for (int i : images) {
+      if (canonical_[size_t(i)] != i) continue;
       if (!decoded_[size_t(i)].ok) {
         ++result_.images_unavailable;
         ctx_.warn(image_label(m, i) + " is unavailable: " + decoded_[size_t(i)].error +
                   "; textures using it are ignored");
       }
     }
+    // How many distinct tandem textures will take each decoded image, so
+    // the last one can take the pixels instead of copying them.
+    std::set<std::tuple<int, int, int, bool>> keys;
+    for (int t : referenced_textures()) {
+      if (t >= 0 && m.textures[size_t(t)].source >= 0) keys.insert(texture_key(t));
+    }
+    image_users_.assign(m.images.size(), 0);
+    for (const auto& k : keys)
+      ++image_users_[size_t(std::get<0>(k))];
+  }
+
+  std::string budget_message(uint32_t w, uint32_t h, uint64_t bytes) const {
+    return "its " + std::to_string(w) + "x" + std::to_string(h) + " pixels need " +
+           format_bytes(bytes) + ", and the textures already take " +
+           format_bytes(ctx_.used(Budget::kTextureBytes)) + " of this loader's limit of " +
+           format_bytes(ctx_.limits.max_texture_bytes);
+  }
+
+  // Textures that show the same decoded image with the same sampling share
+  // one tandem texture.
+  std::tuple<int, int, int, bool> texture_key(int t) const {
+    const tinygltf::Model& m = ctx_.model;
+    const tinygltf::Texture& gt = m.textures[size_t(t)];
+    int wrap_s = TINYGLTF_TEXTURE_WRAP_REPEAT, wrap_t = TINYGLTF_TEXTURE_WRAP_REPEAT;
+    bool nearest = false;
+    if (gt.sampler >= 0) {
+      const tinygltf::Sampler& s = m.samplers[size_t(gt.sampler)];
+      wrap_s = s.wrapS;
+      wrap_t = s.wrapT;
+      nearest = s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST;
+    }
+    return {canonical_[size_t(gt.source)], wrap_s, wrap_t, nearest};
   }
 
   // Tandem texture for glTF texture `t`, created on first use; -1 when its
@@ -218,7 +325,10 @@ class MaterialConverter {
           "texture " + std::to_string(t) +
           " has no PNG/JPEG source (e.g. KTX2/WebP via an extension, which is not supported); "
           "it is ignored");
-    } else if (DecodedImage& img = decoded_[size_t(gt.source)]; img.ok) {
+    } else if (const auto key = texture_key(t); texture_by_key_.count(key)) {
+      id = texture_by_key_[key];
+    } else if (const int source = std::get<0>(key); decoded_[size_t(source)].ok) {
+      DecodedImage& img = decoded_[size_t(source)];
       Texture out;
       const tinygltf::Image& gi = m.images[size_t(gt.source)];
       out.name = gt.name;
@@ -227,25 +337,38 @@ class MaterialConverter {
       if (out.name.empty()) out.name = "texture " + std::to_string(t);
       out.width = img.width;
       out.height = img.height;
-      // Several glTF textures may share an image (with different samplers).
-      if (--image_users_[size_t(gt.source)] == 0) {
+      // Several glTF textures may show an image with different samplers;
+      // all but the last take a copy, which counts against the budget.
+      bool have_pixels = true;
+      if (--image_users_[size_t(source)] == 0) {
         out.rgba8 = std::move(img.rgba8);
       } else {
-        out.rgba8 = img.rgba8;
+        const uint64_t bytes = uint64_t(img.rgba8.size()) * 4;
+        if (ctx_.fits(Budget::kTextureBytes, bytes)) {
+          ctx_.charge(Budget::kTextureBytes, bytes, "texture " + std::to_string(t));
+          out.rgba8 = img.rgba8;
+        } else {
+          ctx_.warn("texture " + std::to_string(t) + " is ignored: a copy of " +
+                    image_label(m, source) + " for its sampler settings does not fit: " +
+                    budget_message(img.width, img.height, bytes));
+          have_pixels = false;
+        }
       }
-      if (gt.sampler >= 0) {
-        const tinygltf::Sampler& s = m.samplers[size_t(gt.sampler)];
+      if (have_pixels) {
+        const auto [s_wrap, t_wrap, nearest] =
+            std::tuple(std::get<1>(key), std::get<2>(key), std::get<3>(key));
         auto wrap = [](int w) {
           return w == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE     ? WrapMode::kClampToEdge
                  : w == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? WrapMode::kMirroredRepeat
                                                               : WrapMode::kRepeat;
         };
-        out.wrap_s = wrap(s.wrapS);
-        out.wrap_t = wrap(s.wrapT);
-        out.nearest = s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST;
+        out.wrap_s = wrap(s_wrap);
+        out.wrap_t = wrap(t_wrap);
+        out.nearest = nearest;
+        id = int32_t(result_.textures.size());
+        result_.textures.push_back(std::move(out));
+        texture_by_key_[key] = id;
       }
-      id = int32_t(result_.textures.size());
-      result_.textures.push_back(std::move(out));
     }
     texture_map_[size_t(t)] = id;
     return id;
@@ -372,6 +495,8 @@ class MaterialConverter {
   Context& ctx_;
   const EncodedImages& encoded_;
   std::vector<DecodedImage> decoded_;
+  std::vector<int> canonical_;  // image index -> first image with the same bytes
+  std::map<std::tuple<int, int, int, bool>, int32_t> texture_by_key_;
   std::vector<int32_t> texture_map_;
   std::vector<int> image_users_;
   MaterialResult result_;
@@ -410,6 +535,22 @@ bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out) {
     out[i] = r | (g << 8) | (b << 16) | (a << 24);
   }
   return true;
+}
+
+void EncodedImages::keep(int index, const unsigned char* data, size_t size) {
+  for (const auto& [other, bytes] : by_image) {
+    if (bytes.size() == size && std::memcmp(bytes.data(), data, size) == 0) {
+      same_as[index] = other;
+      return;
+    }
+  }
+  by_image[index].assign(data, data + size);
+}
+
+const std::vector<unsigned char>* EncodedImages::bytes(int index) const {
+  if (const auto alias = same_as.find(index); alias != same_as.end()) index = alias->second;
+  const auto it = by_image.find(index);
+  return it == by_image.end() ? nullptr : &it->second;
 }
 
 MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded) {

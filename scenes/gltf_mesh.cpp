@@ -77,7 +77,6 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
   out.meshes.resize(m.meshes.size());
   out.keys.resize(m.meshes.size());
   out.uses_default_material.assign(m.meshes.size(), false);
-  uint64_t total_vertices = 0, total_triangles = 0;
 
   for (size_t mi = 0; mi < m.meshes.size(); ++mi) {
     const tinygltf::Mesh& gm = m.meshes[mi];
@@ -102,9 +101,16 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
         ctx.warn_once("morph", "morph targets are not supported; meshes keep their base shape");
       }
 
-      // Indices are checked for every primitive, shown or not: an index out
-      // of range is a broken file.
       const size_t vertex_count = m.accessors[size_t(pos)].count;
+      // Points and lines are not rendered: nothing of them is decoded (the
+      // validator has checked their accessors' formats and ranges).
+      if (p.mode < TINYGLTF_MODE_TRIANGLES) {
+        ctx.warn_once("mode" + std::to_string(p.mode),
+                      who + " (and any others like it) draws points or lines, which are skipped");
+        continue;
+      }
+      // Index values are checked while decoding: an index out of range is a
+      // broken file.
       const std::vector<uint32_t>* indices = nullptr;
       size_t index_count = vertex_count;
       if (p.indices >= 0) {
@@ -118,12 +124,6 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
                    std::to_string(vertex_count) + " vertices)");
         }
       }
-      const std::vector<float>& positions = cache.floats(pos, who + " POSITION");
-      if (p.mode < TINYGLTF_MODE_TRIANGLES) {
-        ctx.warn_once("mode" + std::to_string(p.mode),
-                      who + " (and any others like it) draws points or lines, which are skipped");
-        continue;
-      }
       if (p.mode == TINYGLTF_MODE_TRIANGLES && index_count % 3 != 0) {
         ctx.warn(who + " has " + std::to_string(index_count) +
                  " indices, not a multiple of 3; the last ones are ignored");
@@ -135,12 +135,18 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
           mesh.triangles.size() + tris > kMaxMeshTriangles) {
         ctx.fail("mesh " + std::to_string(mi) + " has more than 2^31 vertices or triangles");
       }
-      total_vertices += vertex_count;
-      total_triangles += tris;
-      if (total_vertices > kMaxTotalVertices || total_triangles > kMaxTotalTriangles) {
-        ctx.fail("the file has more than " + std::to_string(kMaxTotalVertices) +
-                 " vertices or triangles in its meshes, which is beyond this renderer's limit");
-      }
+      // The merged mesh copies every vertex (all attributes a mesh can have,
+      // counted for every vertex because one primitive with an attribute
+      // gives it to all) and triangle: one accessor shared by many
+      // primitives must not multiply into unbounded memory.
+      constexpr uint64_t kVertexBytes =
+          sizeof(glm::vec3) * 2 + sizeof(glm::vec4) + sizeof(glm::vec2) * 2;
+      constexpr uint64_t kTriangleBytes = sizeof(glm::uvec3) + sizeof(uint32_t);
+      ctx.charge(Budget::kGeometryBytes,
+                 uint64_t(vertex_count) * kVertexBytes + uint64_t(tris) * kTriangleBytes,
+                 who + " (" + std::to_string(vertex_count) + " vertices, " + std::to_string(tris) +
+                     " triangles)");
+      const std::vector<float>& positions = cache.floats(pos, who + " POSITION");
 
       Part part;
       part.first_vertex = mesh.positions.size();

@@ -180,10 +180,11 @@ void validate_accessors(const Context& ctx) {
     const size_t esize = accessor_element_size(a.componentType, a.type);
     if (a.bufferView == -1) {
       // All zeros (possibly with sparse values): nothing in the file bounds
-      // the count, so cap it.
-      if (a.count > kMaxZeroAccessorElements) {
+      // the count, so cap it (the decoder also counts all such accessors
+      // together against the same limit).
+      if (a.count > ctx.limits.max_zero_filled_elements) {
         ctx.fail(who + " has no bufferView and count " + str(a.count) + " (limit " +
-                 str(size_t(kMaxZeroAccessorElements)) + ")");
+                 str(size_t(ctx.limits.max_zero_filled_elements)) + ")");
       }
     } else {
       check_ref(ctx, a.bufferView, m.bufferViews.size(), false, who, "bufferView");

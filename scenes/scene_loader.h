@@ -9,12 +9,16 @@ namespace tandem {
 
 struct SceneLoadOptions {
   int gltf_scene = -1;  // -1: the file's default scene
+  // glTF URIs may name files outside the scene file's folder (see GltfOptions).
+  bool allow_outside_uris = false;
 };
 
 // Throws InputError naming the scene and the reason.
 Scene load_scene(const std::string& spec, const SceneLoadOptions& options = {});
 
 // Loads an environment map (.hdr/.exr/.pfm, equirectangular) into `scene`.
+// Throws InputError when its brightest texel times `intensity` is beyond
+// what float radiance can accumulate (it would render black).
 void load_environment_map(Scene& scene, const std::string& path, float intensity);
 
 }  // namespace tandem

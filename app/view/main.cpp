@@ -4,13 +4,17 @@
 // Xvfb). Exit codes as `tandem`: 1 bad input, 2 bad usage.
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "app/cli_args.h"
 #include "app/view/view_session.h"
 #include "app/view/view_window.h"
+#include "core/image/image.h"
 #include "core/util/errors.h"
+#include "core/util/interrupt.h"
 
 namespace tandem {
 namespace {
@@ -30,6 +34,8 @@ const std::vector<OptionSpec>& view_options() {
       {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
       {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
       {"no-window", false, "scripted run without opening a window"},
+      {"allow-outside-uris", false,
+       "let glTF buffer/image URIs name files outside the scene file's folder"},
       {"help", false, "show this help"},
   };
   return specs;
@@ -57,10 +63,23 @@ int run(const std::vector<std::string>& argv) {
   o.exposure = args.get_float("exposure", 0.0f, -20.0f, 20.0f);
   o.denoise = !args.has("no-denoise");
   o.split_view = args.has("split-view");
+  o.allow_outside_uris = args.has("allow-outside-uris");
   const uint32_t frames = args.get_u32("frames", 0, 1, 1u << 24);
   const std::string screenshot = args.get_string("screenshot", "");
   if (!screenshot.empty() && frames == 0 && args.has("no-window")) {
     throw UsageError("--no-window needs --frames");
+  }
+  if (!screenshot.empty()) {
+    // Screenshots are what the window shows: tone-mapped 8-bit PNG. Check
+    // the name and the folder now, not after the frames are rendered.
+    std::string ext = std::filesystem::path(screenshot).extension().string();
+    for (char& c : ext)
+      c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".png") {
+      throw UsageError("--screenshot writes PNG; the file name must end in .png, got '" +
+                       screenshot + "'");
+    }
+    check_output_path(screenshot);
   }
 
   ViewSession session(o);
@@ -92,6 +111,8 @@ int run(const std::vector<std::string>& argv) {
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
+  // A signal while a screenshot is written removes its temporary file.
+  tandem::install_interrupt_handlers();
   try {
     return tandem::run(args);
   } catch (const tandem::UsageError& e) {
@@ -99,6 +120,9 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const tandem::InputError& e) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "tandem-view: error: not enough memory (try a smaller window or scene)\n");
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());

@@ -12,7 +12,8 @@ namespace tandem {
 
 namespace {
 
-Scene load_view_scene(const std::string& spec, GltfAnimations& animations) {
+Scene load_view_scene(const std::string& spec, GltfAnimations& animations,
+                      bool allow_outside_uris) {
   const std::string prefix = "builtin:";
   if (spec.rfind(prefix, 0) == 0) return make_builtin_scene(spec.substr(prefix.size()));
   std::string ext = std::filesystem::path(spec).extension().string();
@@ -24,6 +25,7 @@ Scene load_view_scene(const std::string& spec, GltfAnimations& animations) {
   }
   GltfOptions gltf;
   gltf.animations = &animations;  // tandem-view plays node animations
+  gltf.allow_outside_uris = allow_outside_uris;
   return load_gltf(spec, gltf);
 }
 
@@ -42,7 +44,7 @@ AdaptiveSettings adaptive_settings(const ViewOptions& o) {
 
 ViewSession::ViewSession(const ViewOptions& options)
     : options_(options), adaptive_(adaptive_settings(options)) {
-  scene_ = load_view_scene(options.scene, animations_);
+  scene_ = load_view_scene(options.scene, animations_, options.allow_outside_uris);
   if (scene_.source == "builtin:arena") arena_ = std::make_unique<ArenaSimulation>(scene_);
   if (!scene_.has_camera()) {
     scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,

@@ -31,6 +31,7 @@ struct ViewOptions {
   float exposure = 0.0f;  // stops
   bool denoise = true;    // edge-aware filter on motion frames
   bool split_view = false;
+  bool allow_outside_uris = false;  // glTF URIs may leave the scene's folder
 };
 
 class ViewSession {

@@ -51,9 +51,36 @@ void write_png_rgb8(const std::filesystem::path& path, uint32_t width, uint32_t 
 // InputError naming the file (missing directory, write or rename failure).
 void write_file_atomically(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
 
+// Checks that `path` can be written before anything is spent on producing
+// it: not a directory, in an existing, writable directory. Throws
+// InputError naming the path and the reason.
+void check_output_path(const std::filesystem::path& path);
+
+// What readers accept. Every header field and the file length are checked
+// against these (in 64-bit arithmetic) before any pixel is allocated.
+struct ImageReadLimits {
+  uint64_t max_pixels = uint64_t(1) << 27;      // 16384 x 8192: 1.5 GiB as float RGB
+  uint64_t max_file_bytes = uint64_t(4) << 30;  // read into memory whole
+};
+
 // Reads .hdr (Radiance RGBE), .exr (uncompressed scanline, half/float), .pfm,
 // and 8-bit formats stb_image supports (decoded from sRGB to linear).
 // Throws InputError naming the file and the reason.
-ImageRGB read_image(const std::filesystem::path& path);
+ImageRGB read_image(const std::filesystem::path& path, const ImageReadLimits& limits = {});
+// The same for bytes in memory; `name` names them in messages and its
+// extension picks the format.
+ImageRGB read_image_from_memory(const uint8_t* data, size_t size, const std::string& name,
+                                const ImageReadLimits& limits = {});
+
+// What the header of a PNG or JPEG says, without decoding it. PNG/JPEG are
+// recognised by their signature; header_ok is false (with `problem` saying
+// why) when the header is corrupt or truncated.
+struct EncodedImageInfo {
+  enum Format { kUnknown, kPng, kJpeg } format = kUnknown;
+  bool header_ok = false;
+  uint32_t width = 0, height = 0;
+  std::string problem;
+};
+EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size);
 
 }  // namespace tandem

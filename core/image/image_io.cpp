@@ -1,19 +1,22 @@
-// Image file formats. EXR and PFM are written and read by our own small
-// codecs (uncompressed float scanlines are all Tandem needs, and this keeps
-// OpenEXR out of the dependency list); PNG/HDR/JPEG go through stb.
-#include <stb_image.h>
+// Image writers. EXR and PFM are written by our own small codecs
+// (uncompressed float scanlines are all Tandem needs, and this keeps
+// OpenEXR out of the dependency list); PNG goes through stb. The readers
+// are in image_read.cpp.
+#include <fcntl.h>
 #include <stb_image_write.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
+#include <random>
 #include <string>
 
 #include "core/image/image.h"
-#include "core/kernel/texture.h"
 #include "core/util/errors.h"
+#include "core/util/interrupt.h"
 
 namespace tandem {
 namespace fs = std::filesystem;
@@ -27,32 +30,70 @@ std::string lower_extension(const fs::path& p) {
   return ext;
 }
 
+fs::path output_dir(const fs::path& path) {
+  return path.has_parent_path() ? path.parent_path() : fs::path(".");
+}
+
+// Creates a temporary file next to `path`, exclusively: O_CREAT|O_EXCL
+// fails on anything already there, a symlink planted under the name
+// included, and O_NOFOLLOW makes sure of it. The random part makes the
+// name unpredictable, so nobody can plant one in advance either.
+int create_temp_file(const fs::path& path, std::string& tmp_name) {
+  const fs::path dir = output_dir(path);
+  static thread_local std::mt19937_64 rng(std::random_device{}() ^ (uint64_t(::getpid()) << 32));
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    char suffix[24];
+    std::snprintf(suffix, sizeof suffix, "%016llx", static_cast<unsigned long long>(rng()));
+    tmp_name = (dir / ("." + path.filename().string() + ".tmp." + suffix)).string();
+    const int fd =
+        ::open(tmp_name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    if (fd >= 0 || errno != EEXIST) return fd;
+  }
+  errno = EEXIST;
+  return -1;
+}
+
+bool write_all(int fd, const uint8_t* data, size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    data += n;
+    size -= size_t(n);
+  }
+  return true;
+}
+
 }  // namespace
 
-// Writes bytes to a temporary sibling and renames it over `path`.
+// Writes bytes to a temporary sibling and renames it over `path`. A signal
+// during the write removes the temporary file (TempFileRegistration).
 void write_file_atomically(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) {
-    throw InputError(path.string() + ": cannot write: directory '" + dir.string() +
-                     "' does not exist");
+  check_output_path(path);
+  std::string tmp;
+  const int fd = create_temp_file(path, tmp);
+  if (fd < 0) {
+    throw InputError(path.string() + ": cannot create a temporary file in '" +
+                     output_dir(path).string() + "': " + std::strerror(errno));
   }
-  const fs::path tmp =
-      dir / ("." + path.filename().string() + ".tmp." + std::to_string(::getpid()));
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw InputError(path.string() + ": cannot write: " + std::strerror(errno));
-  const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  const bool flushed = std::fflush(f) == 0 && ::fsync(fileno(f)) == 0;
-  const bool closed = std::fclose(f) == 0;
-  if (!ok || !flushed || !closed) {
-    const std::string reason = std::strerror(errno);
-    fs::remove(tmp, ec);
-    throw InputError(path.string() + ": write failed: " + reason);
+  const TempFileRegistration registration(tmp.c_str());
+  const bool written = write_all(fd, bytes.data(), bytes.size());
+  int saved = errno;
+  const bool synced = written && ::fsync(fd) == 0;
+  if (written && !synced) saved = errno;
+  const bool closed = ::close(fd) == 0;
+  if (written && synced && !closed) saved = errno;
+  if (!written || !synced || !closed) {
+    ::unlink(tmp.c_str());
+    throw InputError(path.string() + ": write failed: " + std::strerror(saved));
   }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw InputError(path.string() + ": cannot replace file: " + ec.message());
+  // rename() replaces a symlink at `path` itself, never the file it names.
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int rename_error = errno;  // before unlink() can change errno
+    ::unlink(tmp.c_str());
+    throw InputError(path.string() + ": cannot replace the file: " + std::strerror(rename_error));
   }
 }
 
@@ -140,192 +181,39 @@ std::vector<uint8_t> encode_pfm(const ImageRGB& img) {
   return out;
 }
 
-std::vector<uint8_t> read_file_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path.string() + ": cannot open file");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                             std::istreambuf_iterator<char>());
-  return bytes;
-}
-
-float half_to_float(uint16_t h) {
-  const uint32_t sign = uint32_t(h >> 15) << 31;
-  const uint32_t exp = (h >> 10) & 0x1fu;
-  const uint32_t mant = h & 0x3ffu;
-  float f;
-  if (exp == 0) {
-    f = std::ldexp(float(mant), -24);
-  } else if (exp == 31) {
-    f = mant ? NAN : INFINITY;
-  } else {
-    f = std::ldexp(float(mant | 0x400u), int(exp) - 25);
-  }
-  return sign ? -f : f;
-}
-
-class ByteReader {
- public:
-  ByteReader(const std::vector<uint8_t>& b, const fs::path& p) : bytes_(b), path_(p) {}
-  template <class T>
-  T get() {
-    need(sizeof(T));
-    T v;
-    std::memcpy(&v, bytes_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return v;
-  }
-  std::string get_str() {
-    std::string s;
-    while (true) {
-      need(1);
-      const char c = char(bytes_[pos_++]);
-      if (c == 0) return s;
-      if (s.size() > 255) fail("attribute name too long");
-      s.push_back(c);
-    }
-  }
-  void need(size_t n) const {
-    if (n > bytes_.size() || pos_ > bytes_.size() - n) fail("file is truncated");
-  }
-  [[noreturn]] void fail(const std::string& why) const {
-    throw InputError(path_.string() + ": " + why);
-  }
-  size_t pos_ = 0;
-  const std::vector<uint8_t>& bytes_;
-  const fs::path& path_;
-};
-
-ImageRGB decode_exr(const std::vector<uint8_t>& bytes, const fs::path& path) {
-  ByteReader r(bytes, path);
-  if (r.get<uint32_t>() != 20000630u) r.fail("not an OpenEXR file (bad magic number)");
-  const uint32_t version = r.get<uint32_t>();
-  if ((version & 0xffu) != 2 || (version & 0x1e00u) != 0) {
-    r.fail("only single-part scanline OpenEXR files are supported");
-  }
-  struct Channel {
-    std::string name;
-    int32_t type;
-  };
-  std::vector<Channel> channels;
-  int compression = -1;
-  int32_t box[4] = {0, 0, -1, -1};
-  while (true) {
-    const std::string name = r.get_str();
-    if (name.empty()) break;
-    const std::string type = r.get_str();
-    const int32_t size = r.get<int32_t>();
-    if (size < 0) r.fail("negative attribute size");
-    r.need(size_t(size));
-    const size_t end = r.pos_ + size_t(size);
-    if (name == "channels") {
-      while (true) {
-        const std::string cname = r.get_str();
-        if (cname.empty()) break;
-        const int32_t ptype = r.get<int32_t>();
-        r.get<uint32_t>();
-        if (r.get<int32_t>() != 1 || r.get<int32_t>() != 1)
-          r.fail("subsampled channels are not supported");
-        channels.push_back({cname, ptype});
-      }
-    } else if (name == "compression") {
-      compression = r.get<uint8_t>();
-    } else if (name == "dataWindow") {
-      for (int32_t& v : box)
-        v = r.get<int32_t>();
-    }
-    r.pos_ = end;
-  }
-  if (compression != 0)
-    r.fail("compressed OpenEXR files are not supported (save without compression)");
-  const int64_t w = int64_t(box[2]) - box[0] + 1, h = int64_t(box[3]) - box[1] + 1;
-  if (w <= 0 || h <= 0 || w > 65536 || h > 65536) r.fail("invalid data window");
-  int src[3] = {-1, -1, -1};
-  size_t pixel_bytes = 0;
-  std::vector<size_t> channel_offset;
-  for (size_t i = 0; i < channels.size(); ++i) {
-    if (channels[i].type != 1 && channels[i].type != 2)
-      r.fail("only half and float channels are supported");
-    channel_offset.push_back(pixel_bytes);
-    pixel_bytes += channels[i].type == 1 ? 2 : 4;
-    if (channels[i].name == "R") src[0] = int(i);
-    if (channels[i].name == "G") src[1] = int(i);
-    if (channels[i].name == "B") src[2] = int(i);
-  }
-  if (src[0] < 0) r.fail("no R channel");
-  ImageRGB img{uint32_t(w), uint32_t(h)};
-  std::vector<uint64_t> offsets(static_cast<size_t>(h));
-  for (auto& o : offsets)
-    o = r.get<uint64_t>();
-  for (int64_t line = 0; line < h; ++line) {
-    r.pos_ = 0;
-    if (offsets[size_t(line)] > bytes.size()) r.fail("scanline offset out of range");
-    r.pos_ = size_t(offsets[size_t(line)]);
-    const int32_t y = r.get<int32_t>() - box[1];
-    const uint32_t size = r.get<uint32_t>();
-    if (y < 0 || y >= h || uint64_t(size) != uint64_t(w) * pixel_bytes)
-      r.fail("corrupt scanline block");
-    r.need(size);
-    const uint8_t* data = bytes.data() + r.pos_;
-    for (int c = 0; c < 3; ++c) {
-      const int ch = src[c] >= 0 ? src[c] : src[0];
-      const uint8_t* base = data + channel_offset[size_t(ch)] * size_t(w);
-      for (int64_t x = 0; x < w; ++x) {
-        float v;
-        if (channels[size_t(ch)].type == 2) {
-          std::memcpy(&v, base + x * 4, 4);
-        } else {
-          uint16_t hv;
-          std::memcpy(&hv, base + x * 2, 2);
-          v = half_to_float(hv);
-        }
-        img.pixel(uint32_t(x), uint32_t(y))[c] = v;
-      }
-    }
-  }
-  return img;
-}
-
-ImageRGB decode_pfm(const std::vector<uint8_t>& bytes, const fs::path& path) {
-  const std::string text(bytes.begin(), bytes.begin() + std::min<size_t>(bytes.size(), 128));
-  char kind[3] = {};
-  unsigned w = 0, h = 0;
-  float scale = 0.0f;
-  int consumed = 0;
-  if (std::sscanf(text.c_str(), "%2s %u %u %f%n", kind, &w, &h, &scale, &consumed) != 4 ||
-      (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0) || w == 0 || h == 0 ||
-      w > 65536 || h > 65536) {
-    throw InputError(path.string() + ": not a valid PFM header");
-  }
-  const size_t data_start = size_t(consumed) + 1;
-  const int comps = kind[1] == 'F' ? 3 : 1;
-  const size_t need = size_t(w) * h * comps * 4;
-  if (bytes.size() < data_start || bytes.size() - data_start < need) {
-    throw InputError(path.string() + ": PFM pixel data is truncated");
-  }
-  const bool big_endian = scale > 0.0f;
-  ImageRGB img(w, h);
-  const uint8_t* p = bytes.data() + data_start;
-  for (unsigned row = 0; row < h; ++row) {
-    for (unsigned x = 0; x < w; ++x) {
-      for (int c = 0; c < comps; ++c) {
-        uint8_t b[4];
-        std::memcpy(b, p, 4);
-        p += 4;
-        if (big_endian) std::swap(b[0], b[3]), std::swap(b[1], b[2]);
-        float v;
-        std::memcpy(&v, b, 4);
-        float* px = img.pixel(x, h - 1 - row);
-        if (comps == 3)
-          px[c] = v;
-        else
-          px[0] = px[1] = px[2] = v;
-      }
-    }
-  }
-  return img;
-}
-
 }  // namespace
+
+void check_output_path(const fs::path& path) {
+  const std::string name = path.string();
+  if (path.empty()) throw InputError("the output path is empty");
+  struct stat st = {};
+  if (::lstat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+    throw InputError(name + ": is a directory; give a file name for the output");
+  }
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+    throw InputError(name + ": is a link to a directory; give a file name for the output");
+  }
+  const fs::path dir = output_dir(path);
+  if (::stat(dir.c_str(), &st) != 0) {
+    const int e = errno;
+    // ENOTDIR: some component of the directory is a regular file.
+    if (e == ENOTDIR) {
+      throw InputError(name + ": cannot write: a component of '" + dir.string() +
+                       "' is a file, not a directory");
+    }
+    if (e == ENOENT) {
+      throw InputError(name + ": cannot write: directory '" + dir.string() + "' does not exist");
+    }
+    throw InputError(name + ": cannot write: '" + dir.string() + "': " + std::strerror(e));
+  }
+  if (!S_ISDIR(st.st_mode)) {
+    throw InputError(name + ": cannot write: '" + dir.string() + "' is a file, not a directory");
+  }
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    throw InputError(name + ": cannot write: directory '" + dir.string() + "' is not writable (" +
+                     std::strerror(errno) + ")");
+  }
+}
 
 void write_png_rgb8(const fs::path& path, uint32_t width, uint32_t height,
                     const std::vector<uint8_t>& rgb) {
@@ -354,34 +242,6 @@ void write_image(const fs::path& path, const ImageRGB& image, const ImageWriteOp
     throw InputError(path.string() + ": unsupported output format '" + ext +
                      "' (use .png, .exr or .pfm)");
   }
-}
-
-ImageRGB read_image(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw InputError(path.string() + ": file not found");
-  const std::string ext = lower_extension(path);
-  const std::vector<uint8_t> bytes = read_file_bytes(path);
-  if (bytes.empty()) throw InputError(path.string() + ": file is empty");
-  if (ext == ".exr") return decode_exr(bytes, path);
-  if (ext == ".pfm") return decode_pfm(bytes, path);
-  int w = 0, h = 0, comp = 0;
-  if (bytes.size() > size_t(INT32_MAX)) throw InputError(path.string() + ": file too large");
-  if (ext == ".hdr") {
-    float* data = stbi_loadf_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
-    if (!data)
-      throw InputError(path.string() + ": cannot decode HDR image: " + stbi_failure_reason());
-    ImageRGB img{uint32_t(w), uint32_t(h)};
-    std::memcpy(img.rgb.data(), data, img.rgb.size() * sizeof(float));
-    stbi_image_free(data);
-    return img;
-  }
-  unsigned char* data = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
-  if (!data) throw InputError(path.string() + ": cannot decode image: " + stbi_failure_reason());
-  ImageRGB img{uint32_t(w), uint32_t(h)};
-  for (size_t i = 0; i < img.rgb.size(); ++i)
-    img.rgb[i] = srgb8_to_linear(data[i]);
-  stbi_image_free(data);
-  return img;
 }
 
 }  // namespace tandem

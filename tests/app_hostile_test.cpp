@@ -1,0 +1,206 @@
+// The `tandem` executable on hostile or mistaken input: answers that used
+// to be silently wrong, work that used to be lost, messages that used to
+// mislead, and Ctrl-C during a render.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include "core/image/image.h"
+#include "tests/test_temp_dir.h"
+
+namespace fs = std::filesystem;
+using tandem::TempDir;
+
+namespace {
+
+struct Result {
+  int exit_code;
+  std::string output;  // stdout + stderr
+};
+
+std::string quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s)
+    out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+Result tandem_cli(const std::string& args) {
+  const std::string cmd = quote(TANDEM_BINARY) + " " + args + " 2>&1";
+  Result r{-1, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
+    r.output.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+size_t count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1))
+    ++n;
+  return n;
+}
+
+const std::string kQuick = "render builtin:cornell --width 8 --height 8 --spp 1 --quiet ";
+
+TEST(CliHostile, MalformedListsAreUsageErrors) {
+  for (const char* backend : {"cpu+", "+cpu", "cpu++host", "''"}) {
+    const Result r = tandem_cli(kQuick + "--backend " + backend + " --output /tmp/x.png");
+    EXPECT_EQ(r.exit_code, 2) << backend << "\n" << r.output;
+  }
+  for (const char* color : {"1,2,3,", ",1", "1,,2", "1,2"}) {
+    const Result r = tandem_cli(kQuick + "--env-color " + color + " --output /tmp/x.png");
+    EXPECT_EQ(r.exit_code, 2) << color << "\n" << r.output;
+  }
+  // bench --hetero "" must not blame --backend.
+  const Result r = tandem_cli("bench --hetero ''");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_EQ(r.output.find("--backend"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("backend list is empty"), std::string::npos) << r.output;
+}
+
+TEST(CliHostile, EnvironmentRadianceThatOverflowsIsRefused) {
+  const Result r =
+      tandem_cli(kQuick + "--env-color 1e30 --env-intensity 1e9 --output /tmp/never.png");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("beyond the largest radiance"), std::string::npos) << r.output;
+  // An environment map whose brightest texel overflows likewise (exit 1: the file's fault).
+  TempDir dir("tandem_hostile_cli");
+  tandem::ImageRGB env(4, 2);
+  env.rgb[0] = 1e30f;
+  tandem::write_image(dir.path() / "env.pfm", env);
+  const Result m =
+      tandem_cli(kQuick + "--env " + quote((dir.path() / "env.pfm").string()) +
+                 " --env-intensity 1e9 --output " + quote((dir.path() / "o.png").string()));
+  EXPECT_EQ(m.exit_code, 1) << m.output;
+  EXPECT_NE(m.output.find("env.pfm: the brightest texel"), std::string::npos) << m.output;
+}
+
+TEST(CliHostile, NumbersInMessagesAndRangesAreReadable) {
+  TempDir dir("tandem_hostile_cli");
+  const std::string out = " --output " + quote((dir.path() / "o.png").string());
+  // A tiny exposure underflows float, but it is inside [-50, 50].
+  EXPECT_EQ(tandem_cli(kQuick + "--exposure 1e-50" + out).exit_code, 0);
+  const Result r = tandem_cli(kQuick + "--clamp abc" + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("[0, 1e+30]"), std::string::npos) << r.output;
+}
+
+TEST(CliHostile, OutputProblemsAreFoundBeforeRendering) {
+  TempDir dir("tandem_hostile_cli");
+  std::ofstream(dir.path() / "file") << "x";
+  fs::create_directory(dir.path() / "d.png");
+  const std::string big = "render builtin:cornell --width 2000 --height 2000 --spp 100000 ";
+  const std::pair<std::string, std::string> cases[] = {
+      {(dir.path() / "d.png").string(), "is a directory"},
+      {(dir.path() / "missing" / "o.png").string(), "does not exist"},
+      {(dir.path() / "file" / "o.png").string(), "is a file, not a directory"},
+  };
+  for (const auto& [output, reason] : cases) {
+    const auto start = std::chrono::steady_clock::now();
+    const Result r = tandem_cli(big + "--output " + quote(output));
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(reason), std::string::npos) << r.output;
+    EXPECT_LT(seconds, 20.0);  // the hours-long render never started
+  }
+}
+
+TEST(CliHostile, NonFileEnvironmentMapsSayWhatTheyAre) {
+  TempDir dir("tandem_hostile_cli");
+  const std::string out = " --output " + quote((dir.path() / "o.png").string());
+  Result r = tandem_cli(kQuick + "--env /dev/null" + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("/dev/null: not a regular file"), std::string::npos) << r.output;
+  r = tandem_cli(kQuick + "--env " + quote(dir.path().string()) + out);
+  EXPECT_NE(r.output.find("is a directory"), std::string::npos) << r.output;
+}
+
+TEST(CliHostile, EmptySceneIsReportedOnce) {
+  TempDir dir("tandem_hostile_cli");
+  std::ofstream(dir.path() / "empty.gltf") << R"({"asset":{"version":"2.0"}})";
+  const Result r = tandem_cli("render " + quote((dir.path() / "empty.gltf").string()) +
+                              " --width 4 --height 4 --spp 1 --quiet --output " +
+                              quote((dir.path() / "o.png").string()));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(count(r.output, "no triangles"), 1u) << r.output;
+}
+
+TEST(CliHostile, CompareRefusesToJudgeWhatItCannotTest) {
+  TempDir dir("tandem_hostile_cli");
+  const fs::path a = dir.path() / "a.pfm", b = dir.path() / "b.pfm";
+  tandem::write_image(a, tandem::ImageRGB(1, 1));
+  tandem::write_image(b, tandem::ImageRGB(1, 1));
+  Result r = tandem_cli("compare " + quote(a.string()) + " " + quote(b.string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.output.find("AGREE"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("too small"), std::string::npos) << r.output;
+  // PNGs are compared, with a warning that they are not linear.
+  const fs::path pa = dir.path() / "a.png", pb = dir.path() / "b.png";
+  tandem::write_image(pa, tandem::ImageRGB(16, 16));
+  tandem::write_image(pb, tandem::ImageRGB(16, 16));
+  r = tandem_cli("compare " + quote(pa.string()) + " " + quote(pb.string()));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("a.png is an 8-bit (tone-mapped) image"), std::string::npos) << r.output;
+}
+
+// Starts a long render, sends `sig` once it runs, and returns its exit
+// status and stderr.
+Result interrupt_render(const std::string& extra, const fs::path& log, int sig) {
+  const pid_t child = ::fork();
+  if (child == 0) {
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, 2);
+    ::dup2(fd, 1);
+    const std::string cmd = quote(TANDEM_BINARY) +
+                            " render builtin:cornell --width 8 --height 8 --spp 1048576 "
+                            "--backend cpu --threads 1 " +
+                            extra;
+    ::execl("/bin/sh", "sh", "-c", ("exec " + cmd).c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Wait until the render has begun (the scene is tiny, loading is quick).
+  std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+  ::kill(child, sig);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  std::ifstream in(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status),
+          std::string(std::istreambuf_iterator<char>(in), {})};
+}
+
+TEST(CliHostile, InterruptedRenderStopsCleanlyAndCanKeepTheImage) {
+  TempDir dir("tandem_hostile_cli");
+  const fs::path out = dir.path() / "o.pfm";
+  Result r = interrupt_render("--output " + quote(out.string()), dir.path() / "log1", SIGINT);
+  EXPECT_EQ(r.exit_code, 130) << r.output;
+  EXPECT_NE(r.output.find("interrupted by SIGINT"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no image written"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+
+  r = interrupt_render("--save-on-interrupt --output " + quote(out.string()), dir.path() / "log2",
+                       SIGTERM);
+  EXPECT_EQ(r.exit_code, 128 + SIGTERM) << r.output;
+  EXPECT_NE(r.output.find("wrote the image so far"), std::string::npos) << r.output;
+  ASSERT_TRUE(fs::exists(out));
+  EXPECT_EQ(tandem::read_image(out).width, 8u);
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+}  // namespace
