@@ -109,14 +109,18 @@ class CpuFallbackBackend final : public Backend {
 
  private:
   // Replaces the device backend by a CPU backend that has seen nothing yet.
+  // The device backend is kept, not destroyed: the other thread may still be
+  // inside its sync().
   void fall_back_locked(const std::string& failure) {
     log_warning("the GPU failed (" + failure + "); rendering on the CPU from now on");
     deferred_failure_.clear();
     fell_back_ = true;
+    retired_ = std::move(active_);
     active_ = std::make_unique<EmbreeBackend>();
   }
 
   mutable std::mutex mutex_;
+  std::unique_ptr<Backend> retired_;  // the failed device backend (see fall_back_locked)
   std::unique_ptr<Backend> active_;
   const KernelScene* scene_ = nullptr;
   std::atomic<bool> fell_back_{false};
