@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "app_run_tandem.h"
 #include "core/image/image.h"
 #include "tests/test_temp_dir.h"
 
@@ -23,29 +24,15 @@ using tandem::TempDir;
 
 namespace {
 
-struct Result {
-  int exit_code;
-  std::string output;  // stdout + stderr
-};
-
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s)
-    out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
+using tandem::app_test::RunResult;
+using Result = RunResult;
 
 Result tandem_cli(const std::string& args) {
-  const std::string cmd = quote(TANDEM_BINARY) + " " + args + " 2>&1";
-  Result r{-1, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
-    r.output.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
+  return tandem::app_test::run_tandem(args);
+}
+
+std::string quote(const std::string& s) {
+  return tandem::app_test::shell_quote(s);
 }
 
 size_t count(const std::string& text, const std::string& what) {
