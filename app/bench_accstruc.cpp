@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -133,6 +134,49 @@ Throughput trace_kind(const Tracer& tracer, const std::vector<Ray>& rays, bool s
   return t;
 }
 
+// Traversal work per ray of one layout over the rays of one kind: one
+// counted pass (the counting instantiation of the traversal, never the one
+// that is timed).
+struct PerRayCounts {
+  double nodes = 0.0, boxes = 0.0, triangles = 0.0, instances = 0.0, blas_nodes = 0.0;
+};
+
+PerRayCounts count_kind(const KernelData& kd, const std::vector<Ray>& rays, bool shadow) {
+  BvhCounters total;
+  std::mutex merge;
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        BvhCounters c;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          bvh_trace_counted<true>(kd, rays[i], 0, kd.constants.bvh_layout, shadow, &c);
+        }
+        const std::lock_guard<std::mutex> lock(merge);
+        total.nodes += c.nodes;
+        total.boxes += c.boxes;
+        total.triangles += c.triangles;
+        total.instances += c.instances;
+        total.blas_nodes += c.blas_nodes;
+      });
+  PerRayCounts p;
+  if (rays.empty()) return p;
+  const double n = double(rays.size());
+  p.nodes = double(total.nodes) / n;
+  p.boxes = double(total.boxes) / n;
+  p.triangles = double(total.triangles) / n;
+  p.instances = double(total.instances) / n;
+  p.blas_nodes = double(total.blas_nodes) / n;
+  return p;
+}
+
+JsonValue counts_json(const PerRayCounts& c) {
+  return JsonValue::object()
+      .set("nodes_per_ray", c.nodes)
+      .set("tlas_nodes_per_ray", c.nodes - c.blas_nodes)
+      .set("box_tests_per_ray", c.boxes)
+      .set("triangle_tests_per_ray", c.triangles)
+      .set("blas_entered_per_ray", c.instances);
+}
+
 }  // namespace
 
 BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
@@ -252,6 +296,7 @@ JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const
   // extended context), the exact query the CPU backend renders with.
   const EmbreeTracer emb{embree.top_level(), &embree.kernel_data()};
   const char* kinds[3] = {"primary", "diffuse", "shadow"};
+  double embree_mrays[3] = {0.0, 0.0, 0.0};  // of the last (widest) thread count
   for (const int t : {1, threads}) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(t));
     std::printf("traversal, %d thread%s (Mrays/s; ratio ours/embree):\n", t, t == 1 ? "" : "s");
@@ -259,6 +304,7 @@ JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const
     for (int k = 0; k < 3; ++k) {
       const bool shadow = k == 2;
       const Throughput e = trace_kind(emb, by_kind[k], shadow);
+      embree_mrays[k] = e.mrays;
       const Throughput b = trace_kind(ours_binary, by_kind[k], shadow);
       const Throughput w = trace_kind(ours_wide, by_kind[k], shadow);
       std::printf(
@@ -283,6 +329,32 @@ JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const
     if (threads == 1) break;
   }
   json.set("traversal", std::move(traversal));
+
+  // --- Traversal work per ray (Embree's throughput beside it for reference;
+  // Embree does not expose its own counts).
+  std::printf(
+      "traversal work per ray (nodes visited (TLAS part) / box tests / triangle tests / BLAS "
+      "entered), "
+      "beside embree's Mrays/s on %d threads:\n",
+      threads);
+  JsonValue work = JsonValue::array();
+  for (int k = 0; k < 3; ++k) {
+    const bool shadow = k == 2;
+    const PerRayCounts b = count_kind(binary, by_kind[k], shadow);
+    const PerRayCounts w = count_kind(wide, by_kind[k], shadow);
+    std::printf(
+        "  %-7s embree %6.2f | binary %6.1f (%5.1f) / %6.1f / %6.1f / %4.1f | wide %6.1f (%5.1f) / "
+        "%6.1f / %6.1f / %4.1f\n",
+        kinds[k], embree_mrays[k], b.nodes, b.nodes - b.blas_nodes, b.boxes, b.triangles,
+        b.instances, w.nodes, w.nodes - w.blas_nodes, w.boxes, w.triangles, w.instances);
+    work.push(JsonValue::object()
+                  .set("kind", kinds[k])
+                  .set("rays", uint64_t(by_kind[k].size()))
+                  .set("embree_mrays_per_second", embree_mrays[k])
+                  .set("binary", counts_json(b))
+                  .set("wide", counts_json(w)));
+  }
+  json.set("traversal_work", std::move(work));
   return json;
 }
 

@@ -17,21 +17,104 @@
 
 namespace tandem {
 
+// Most entries a binary leaf can have (the builder caps leaves at 16).
+constexpr uint32_t kBvhMaxLeafEntries = 16;
+
+// Traversal work of the queries it is passed to, summed over rays: for
+// measurement only (tandem bench --accstruc, tests). The traversal takes it
+// as a template parameter, so the renderer's instantiation (kCount = false)
+// contains no counting code at all.
+struct BvhCounters {
+  uint64_t nodes = 0;       // nodes visited, TLAS and BLAS
+  uint64_t boxes = 0;       // child boxes tested
+  uint64_t triangles = 0;   // ray/triangle tests
+  uint64_t instances = 0;   // BLAS entered (instance leaves whose mesh has a BVH)
+  uint64_t blas_nodes = 0;  // of `nodes`, those visited inside a BLAS
+};
+
+// ---------------------------------------------------------------------------
+// Loads of the scene arrays. Every array the traversal reads is read-only
+// for the whole launch, so on the device the loads go through the read-only
+// (non-coherent) path in 16-byte pieces: a wide node is five vector loads
+// instead of one load per byte field. On the host a plain copy is the same
+// thing.
+
+template <class T>
+TANDEM_HD T load_readonly_16(const T* p) {
+  static_assert(sizeof(T) % 16 == 0 && alignof(T) >= 16, "16-byte pieces");
+#if defined(__CUDA_ARCH__)
+  uint4 words[sizeof(T) / 16];
+  const uint4* src = reinterpret_cast<const uint4*>(p);
+#pragma unroll
+  for (uint32_t i = 0; i < sizeof(T) / 16; ++i)
+    words[i] = __ldg(src + i);
+  T out;
+  memcpy(&out, words, sizeof(T));
+  return out;
+#else
+  return *p;
+#endif
+}
+
+TANDEM_HD uint32_t load_readonly(const uint32_t* p) {
+#if defined(__CUDA_ARCH__)
+  return __ldg(p);
+#else
+  return *p;
+#endif
+}
+
+TANDEM_HD Vec3 load_readonly(const Vec3* p) {
+#if defined(__CUDA_ARCH__)
+  const float* f = reinterpret_cast<const float*>(p);
+  return make_vec3(__ldg(f), __ldg(f + 1), __ldg(f + 2));
+#else
+  return *p;
+#endif
+}
+
+TANDEM_HD KTriangle load_readonly(const KTriangle* p) {
+#if defined(__CUDA_ARCH__)
+  const uint4 w = __ldg(reinterpret_cast<const uint4*>(p));
+  return KTriangle{w.x, w.y, w.z, w.w};
+#else
+  return *p;
+#endif
+}
+
+// Host only: starts fetching a cache line the traversal will read soon. The
+// large scenes are bound by memory latency (a triangle test is a chain of
+// dependent loads: leaf entry, triangle, vertices), and prefetching a
+// whole leaf first lets those chains overlap. A no-op on the device, whose
+// latency hiding is other warps.
+TANDEM_HD void prefetch_readonly(const void* p) {
+#if !defined(__CUDA_ARCH__)
+  __builtin_prefetch(p, 0, 3);
+#else
+  (void)p;
+#endif
+}
+
 // ---------------------------------------------------------------------------
 // Generic traversal loops. A Leaf functor is called once per primitive entry
 // of a leaf (an index into the layout's primitive array):
 //   bool leaf(uint32_t entry, float* tmax);
+//   void leaf.prefetch(const uint32_t* entries, uint32_t count);  // hint only
 // It may shrink *tmax (closest hit) and returns true to stop the traversal
-// (any hit found).
+// (any hit found). With kCount, visits and box tests are added to *counters.
 
-template <class Leaf>
+template <bool kCount, class Leaf>
 TANDEM_HD bool traverse_binary(const KBvhNode* nodes, uint32_t root, const BoxRay& ray, float tmin,
-                               float* tmax, Leaf& leaf) {
+                               float* tmax, Leaf& leaf, BvhCounters* counters) {
   uint32_t stack[kBvhStackSize];
   uint32_t sp = 0;
   uint32_t node_index = root;
   for (;;) {
-    const KBvhNode n = nodes[node_index];
+    const KBvhNode n = load_readonly_16(nodes + node_index);
+    if constexpr (kCount) {
+      counters->nodes += 1;
+      counters->boxes += 2;
+    }
     float t0, t1;
     bool hit0 = intersect_box(ray, make_vec3(n.c0_xy.x, n.c0_xy.z, n.c01_z.x),
                               make_vec3(n.c0_xy.y, n.c0_xy.w, n.c01_z.y), tmin, *tmax, &t0);
@@ -42,6 +125,13 @@ TANDEM_HD bool traverse_binary(const KBvhNode* nodes, uint32_t root, const BoxRa
       const bool hit = c == 0 ? hit0 : hit1;
       if (!hit || !(n.child[c] & kBvhLeafFlag)) continue;
       const uint32_t first = n.child[c] & ~kBvhLeafFlag;
+#if !defined(__CUDA_ARCH__)
+      uint32_t entries[kBvhMaxLeafEntries];
+      const uint32_t count = min_u(n.count[c], kBvhMaxLeafEntries);
+      for (uint32_t i = 0; i < count; ++i)
+        entries[i] = first + i;
+      leaf.prefetch(entries, count);
+#endif
       for (uint32_t i = 0; i < n.count[c]; ++i) {
         if (leaf(first + i, tmax)) return true;
       }
@@ -54,7 +144,9 @@ TANDEM_HD bool traverse_binary(const KBvhNode* nodes, uint32_t root, const BoxRa
       // Nearer child first; the other waits on the stack.
       const bool swap = t1 < t0;
       node_index = swap ? n.child[1] : n.child[0];
-      if (sp < kBvhStackSize) stack[sp++] = swap ? n.child[0] : n.child[1];
+      const uint32_t far_child = swap ? n.child[0] : n.child[1];
+      prefetch_readonly(nodes + far_child);
+      if (sp < kBvhStackSize) stack[sp++] = far_child;
     } else if (hit0) {
       node_index = n.child[0];
     } else if (hit1) {
@@ -82,20 +174,22 @@ TANDEM_HD void wide_child_box(const KWideBvhNode& n, Vec3 scale, uint32_t slot, 
 // still to visit, at position (slot ^ octant) so the lowest bit is the
 // (approximately) nearest child; bits 0..7 repeat the node's imask to find
 // the child's index. Leaf primitives are tested as soon as their node is.
-template <class Leaf>
+template <bool kCount, class Leaf>
 TANDEM_HD bool traverse_wide(const KWideBvhNode* nodes, uint32_t root, const BoxRay& ray,
-                             float tmin, float* tmax, Leaf& leaf) {
+                             float tmin, float* tmax, Leaf& leaf, BvhCounters* counters) {
   uint32_t stack_base[kBvhStackSize];
   uint32_t stack_bits[kBvhStackSize];
   uint32_t sp = 0;
   uint32_t node_index = root;
   for (;;) {
-    const KWideBvhNode& n = nodes[node_index];
+    const KWideBvhNode n = load_readonly_16(nodes + node_index);
+    if constexpr (kCount) counters->nodes += 1;
     const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
     uint32_t node_hits = 0, prim_hits = 0;
     for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
       const uint32_t meta = n.meta[s];
       if (meta == 0) continue;
+      if constexpr (kCount) counters->boxes += 1;
       Vec3 lo, hi;
       wide_child_box(n, scale, s, &lo, &hi);
       float t_entry;
@@ -111,6 +205,15 @@ TANDEM_HD bool traverse_wide(const KWideBvhNode* nodes, uint32_t root, const Box
       ++sp;
     }
     const uint32_t prim_base = n.prim_base;
+#if !defined(__CUDA_ARCH__)
+    if (prim_hits != 0) {
+      uint32_t entries[32];
+      uint32_t count = 0;
+      for (uint32_t bits = prim_hits; bits != 0; bits &= bits - 1u)
+        entries[count++] = prim_base + count_trailing_zeros(bits);
+      leaf.prefetch(entries, count);
+    }
+#endif
     while (prim_hits != 0) {
       const uint32_t p = count_trailing_zeros(prim_hits);
       prim_hits &= prim_hits - 1u;
@@ -132,6 +235,7 @@ TANDEM_HD bool traverse_wide(const KWideBvhNode* nodes, uint32_t root, const Box
 // Leaf functors.
 
 // Triangles of one instance's mesh, ray in object space.
+template <bool kCount>
 struct BvhTriangleLeaf {
   const KernelData* kd;
   const uint32_t* prim_indices;
@@ -143,14 +247,36 @@ struct BvhTriangleLeaf {
   ShearRay ray;
   float tmin;
   Hit* hit;
+  BvhCounters* counters;
+
+  // The triangles first, then (once they arrive) their vertices.
+  TANDEM_HD void prefetch(const uint32_t* entries, uint32_t count) const {
+#if !defined(__CUDA_ARCH__)
+    const KTriangle* tris = kd->triangles + mesh->triangle_offset;
+    const Vec3* pos = kd->positions + mesh->vertex_offset;
+    for (uint32_t i = 0; i < count; ++i)
+      prefetch_readonly(tris + prim_indices[entries[i]]);
+    for (uint32_t i = 0; i < count; ++i) {
+      const KTriangle& t = tris[prim_indices[entries[i]]];
+      prefetch_readonly(pos + t.v0);
+      prefetch_readonly(pos + t.v1);
+      prefetch_readonly(pos + t.v2);
+    }
+#else
+    (void)entries;
+    (void)count;
+#endif
+  }
 
   TANDEM_HD bool operator()(uint32_t entry, float* tmax) {
-    const uint32_t prim = prim_indices[entry];
-    const KTriangle tri = kd->triangles[mesh->triangle_offset + prim];
+    const uint32_t prim = load_readonly(prim_indices + entry);
+    const KTriangle tri = load_readonly(kd->triangles + mesh->triangle_offset + prim);
     const Vec3* pos = kd->positions + mesh->vertex_offset;
+    if constexpr (kCount) counters->triangles += 1;
     TriangleHit th;
-    if (!intersect_triangle_watertight(ray, pos[tri.v0], pos[tri.v1], pos[tri.v2], tmin, *tmax,
-                                       &th)) {
+    if (!intersect_triangle_watertight(ray, load_readonly(pos + tri.v0),
+                                       load_readonly(pos + tri.v1), load_readonly(pos + tri.v2),
+                                       tmin, *tmax, &th)) {
       return false;
     }
     if (alpha_test && !alpha_test_opaque(*kd, instance, prim, th.u, th.v, alpha_key)) return false;
@@ -165,6 +291,7 @@ struct BvhTriangleLeaf {
 };
 
 // Instances of the TLAS, ray in world space: descends into the BLAS.
+template <bool kCount>
 struct BvhInstanceLeaf {
   const KernelData* kd;
   const uint32_t* prim_indices;
@@ -173,13 +300,20 @@ struct BvhInstanceLeaf {
   bool any_hit;
   Ray world_ray;
   Hit* hit;
+  BvhCounters* counters;
+
+  TANDEM_HD void prefetch(const uint32_t* entries, uint32_t count) const {
+    (void)entries;
+    (void)count;
+  }
 
   TANDEM_HD bool operator()(uint32_t entry, float* tmax) {
-    const uint32_t instance = prim_indices[entry];
+    const uint32_t instance = load_readonly(prim_indices + entry);
     const KInstance& inst = kd->instances[instance];
     const KMesh& mesh = kd->meshes[inst.mesh];
     const uint32_t root = layout == kBvhLayoutWide ? mesh.wide_root : mesh.bvh_root;
     if (root == kInvalidIndex) return false;
+    if constexpr (kCount) counters->instances += 1;
     // Subtract the instance's translation first and then apply the inverse
     // linear part: far more accurate than world_to_object's own translation
     // column, which the inversion rounds relative to the (large) world
@@ -189,22 +323,31 @@ struct BvhInstanceLeaf {
     const Vec3 o = transform_vector(inst.world_to_object, world_ray.origin - translation);
     const Vec3 d = transform_vector(inst.world_to_object, world_ray.dir);
     const BoxRay box_ray = make_box_ray(o, d);
-    BvhTriangleLeaf tri_leaf{kd,
-                             nullptr,
-                             &mesh,
-                             instance,
-                             alpha_key,
-                             any_hit,
-                             (mesh.flags & kMeshHasAlphaTest) != 0u,
-                             make_shear_ray(o, d),
-                             world_ray.tmin,
-                             hit};
+    BvhTriangleLeaf<kCount> tri_leaf{kd,
+                                     nullptr,
+                                     &mesh,
+                                     instance,
+                                     alpha_key,
+                                     any_hit,
+                                     (mesh.flags & kMeshHasAlphaTest) != 0u,
+                                     make_shear_ray(o, d),
+                                     world_ray.tmin,
+                                     hit,
+                                     counters};
+    uint64_t nodes_before = 0;
+    if constexpr (kCount) nodes_before = counters->nodes;
+    bool stop;
     if (layout == kBvhLayoutWide) {
       tri_leaf.prim_indices = kd->bvh_wide_prim_indices;
-      return traverse_wide(kd->bvh_wide_nodes, root, box_ray, world_ray.tmin, tmax, tri_leaf);
+      stop = traverse_wide<kCount>(kd->bvh_wide_nodes, root, box_ray, world_ray.tmin, tmax,
+                                   tri_leaf, counters);
+    } else {
+      tri_leaf.prim_indices = kd->bvh_prim_indices;
+      stop = traverse_binary<kCount>(kd->bvh_nodes, root, box_ray, world_ray.tmin, tmax, tri_leaf,
+                                     counters);
     }
-    tri_leaf.prim_indices = kd->bvh_prim_indices;
-    return traverse_binary(kd->bvh_nodes, root, box_ray, world_ray.tmin, tmax, tri_leaf);
+    if constexpr (kCount) counters->blas_nodes += counters->nodes - nodes_before;
+    return stop;
   }
 };
 
@@ -212,23 +355,32 @@ struct BvhInstanceLeaf {
 // Queries.
 
 // Closest (any_hit = false) or any (any_hit = true) hit along the ray in the
-// given layout. Returns a miss when the scene has no BVH.
-TANDEM_HD Hit bvh_trace(const KernelData& kd, const Ray& ray, uint32_t alpha_key, uint32_t layout,
-                        bool any_hit) {
+// given layout. Returns a miss when the scene has no BVH. With kCount the
+// query's traversal work is added to *counters.
+template <bool kCount>
+TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t alpha_key,
+                                uint32_t layout, bool any_hit, BvhCounters* counters) {
   Hit hit = make_miss();
   const bool wide = layout == kBvhLayoutWide;
   const uint32_t root = wide ? kd.constants.tlas_wide_root : kd.constants.tlas_root;
   if (root >= (wide ? kd.bvh_wide_nodes_count : kd.bvh_nodes_count)) return hit;
   float tmax = ray.tmax;
-  BvhInstanceLeaf leaf{
-      &kd, wide ? kd.bvh_wide_prim_indices : kd.bvh_prim_indices, layout, alpha_key, any_hit, ray,
-      &hit};
+  BvhInstanceLeaf<kCount> leaf{&kd,     wide ? kd.bvh_wide_prim_indices : kd.bvh_prim_indices,
+                               layout,  alpha_key,
+                               any_hit, ray,
+                               &hit,    counters};
   const BoxRay box_ray = make_box_ray(ray.origin, ray.dir);
   if (wide)
-    traverse_wide(kd.bvh_wide_nodes, root, box_ray, ray.tmin, &tmax, leaf);
+    traverse_wide<kCount>(kd.bvh_wide_nodes, root, box_ray, ray.tmin, &tmax, leaf, counters);
   else
-    traverse_binary(kd.bvh_nodes, root, box_ray, ray.tmin, &tmax, leaf);
+    traverse_binary<kCount>(kd.bvh_nodes, root, box_ray, ray.tmin, &tmax, leaf, counters);
   return hit;
+}
+
+// The renderer's query: no counting.
+TANDEM_HD Hit bvh_trace(const KernelData& kd, const Ray& ray, uint32_t alpha_key, uint32_t layout,
+                        bool any_hit) {
+  return bvh_trace_counted<false>(kd, ray, alpha_key, layout, any_hit, nullptr);
 }
 
 TANDEM_HD Hit bvh_intersect(const KernelData& kd, const Ray& ray, uint32_t alpha_key,

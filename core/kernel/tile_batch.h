@@ -51,8 +51,29 @@ TANDEM_HD void batch_pixel(const TileBatch& batch, uint32_t p, uint32_t* x, uint
 // Work item -> (x, y, sample); see TileBatch.
 TANDEM_HD void batch_item(const TileBatch& batch, uint64_t item, uint32_t* x, uint32_t* y,
                           uint32_t* sample) {
-  const uint32_t p = uint32_t(item % batch.pixel_count);
-  *sample = batch.sample_begin + uint32_t(item / batch.pixel_count);
+  // Every thread does this once: no 64-bit integer division, which the GPU
+  // emulates in a long instruction sequence. A 32-bit division covers the
+  // usual batch; beyond 2^32 items the quotient (a sample index, so it fits
+  // in 32 bits) comes from a double division (exact below 2^53 up to the
+  // one-off correction).
+  const uint32_t n = batch.pixel_count;
+  uint32_t q, p;
+  if ((item >> 32) == 0) {
+    q = uint32_t(item) / n;
+    p = uint32_t(item) - q * n;
+  } else {
+    q = uint32_t(double(item) / double(n));
+    int64_t r = int64_t(item) - int64_t(uint64_t(q) * n);
+    if (r < 0) {
+      --q;
+      r += n;
+    } else if (r >= int64_t(n)) {
+      ++q;
+      r -= n;
+    }
+    p = uint32_t(r);
+  }
+  *sample = batch.sample_begin + q;
   batch_pixel(batch, p, x, y);
 }
 
