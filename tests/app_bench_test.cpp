@@ -168,8 +168,8 @@ TEST(KernelOption, RenderAcceptsItForCudaAndHostBackends) {
   for (const char* ok : {"--backend host --kernel mega", "--backend host --kernel megakernel",
                          "--backend cpu+host --kernel megakernel", "--kernel wave",
                          "--backend host --kernel wavefront", "--backend cpu+host --kernel wave",
-                         "--backend cpu --kernel wavefront",
-                         "--backend auto --kernel wavefront", "--backend hetero --kernel mega"}) {
+                         "--backend cpu --kernel wavefront", "--backend auto --kernel wavefront",
+                         "--backend hetero --kernel mega"}) {
     const RunResult r = run_tandem(tiny + " " + ok + out);
     EXPECT_EQ(r.exit_code, 0) << ok << "\n" << r.output;
   }
