@@ -21,6 +21,14 @@ struct TandemRayContext {
   const KernelData* kd;
 };
 
+// Embree's default flags (incoherent rays), which path-tracing rays are.
+TandemRayContext make_context(const KernelData* kd) {
+  TandemRayContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.kd = kd;
+  return ctx;
+}
+
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
   const auto* ctx = reinterpret_cast<const TandemRayContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
@@ -58,9 +66,7 @@ RTCRay make_rtc_ray(const Ray& r, uint32_t alpha_key) {
 }  // namespace
 
 Hit EmbreeTracer::intersect(const Ray& ray, uint32_t alpha_key) const {
-  TandemRayContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.kd = kd;
+  TandemRayContext ctx = make_context(kd);
   RTCRayHit rh;
   rh.ray = make_rtc_ray(ray, alpha_key);
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -71,9 +77,7 @@ Hit EmbreeTracer::intersect(const Ray& ray, uint32_t alpha_key) const {
 }
 
 bool EmbreeTracer::occluded(const Ray& ray, uint32_t alpha_key) const {
-  TandemRayContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.kd = kd;
+  TandemRayContext ctx = make_context(kd);
   RTCRay r = make_rtc_ray(ray, alpha_key);
   rtcOccluded1(scene, &ctx.rtc, &r);
   return r.tfar < 0.0f;  // Embree sets tfar = -inf on a hit
@@ -105,10 +109,7 @@ void fill_packet(RTCRay16& p, const Ray* rays, const uint32_t* keys, uint32_t n,
 
 void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
                                           Hit* hits) const {
-  TandemRayContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  ctx.kd = kd;
+  TandemRayContext ctx = make_context(kd);
   alignas(64) RTCRayHit16 rh;
   alignas(64) int valid[16];
   fill_packet(rh.ray, rays, alpha_keys, n, valid);
@@ -127,10 +128,7 @@ void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha
 
 void EmbreePacketTracer::occluded_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
                                          bool* occluded) const {
-  TandemRayContext ctx;
-  rtcInitIntersectContext(&ctx.rtc);
-  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  ctx.kd = kd;
+  TandemRayContext ctx = make_context(kd);
   alignas(64) RTCRay16 r;
   alignas(64) int valid[16];
   fill_packet(r, rays, alpha_keys, n, valid);
