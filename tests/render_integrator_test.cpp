@@ -145,6 +145,13 @@ struct Compiled {
   }
 };
 
+// builtin:NAME, or "procedural"; the sky-plane gets a sky to be lit by.
+Scene test_scene(const std::string& spec) {
+  Scene scene = spec == "procedural" ? make_procedural_scene(20000, 2) : load_scene(spec);
+  if (spec == "builtin:sky-plane") scene.edit_environment().color = glm::vec3(0.8f);
+  return scene;
+}
+
 TEST(RenderIntegrator, StagesGiveTheSingleLoopsImagesBitForBit) {
   const uint32_t width = 40, height = 30;
   for (const char* spec :
@@ -210,10 +217,7 @@ TEST(RenderIntegrator, HostBackendWavefrontMatchesItsMegakernel) {
   const uint32_t width = 48, height = 32;
   for (const char* spec : {"builtin:cornell", "builtin:sky-plane", "procedural"}) {
     SCOPED_TRACE(spec);
-    Scene scene =
-        std::string(spec) == "procedural" ? make_procedural_scene(20000, 2) : load_scene(spec);
-    if (std::string(spec) == "builtin:sky-plane") scene.edit_environment().color = glm::vec3(0.8f);
-    Compiled c(std::move(scene), width, height, 9);
+    Compiled c(test_scene(spec), width, height, 9);
     HostBackend mega, wave(CudaKernelVariant::kWavefront);
     mega.sync(c.ks, SceneDelta::everything());
     wave.sync(c.ks, SceneDelta::everything());
@@ -236,9 +240,7 @@ TEST(RenderIntegrator, EmbreePacketWavefrontMatchesItsRayLoop) {
   const uint32_t width = 48, height = 32;
   for (const char* spec : {"builtin:cornell", "procedural"}) {
     SCOPED_TRACE(spec);
-    Scene scene =
-        std::string(spec) == "procedural" ? make_procedural_scene(20000, 2) : load_scene(spec);
-    Compiled c(std::move(scene), width, height, 9);
+    Compiled c(test_scene(spec), width, height, 9);
     EmbreeBackend rays, packets(CudaKernelVariant::kWavefront);
     rays.sync(c.ks, SceneDelta::everything());
     packets.sync(c.ks, SceneDelta::everything());
