@@ -1,4 +1,4 @@
-// `tandem bench --accstruc`: Tandem's own BVH (accstruc/, issue 3) measured
+// `tandem bench --accstruc`: Tandem's own BVH (accstruc/) measured
 // against Embree on the same meshes and the same rays in the same run; and
 // the ray mix both benchmarks trace.
 #pragma once

@@ -50,7 +50,7 @@ JsonValue run_hetero_bench(Scene& scene, const RenderSettings& settings, uint32_
   make_backend_list(list, options, /*validate_only=*/true);
   const std::vector<std::string> names = split_backend_list(list);
 
-  std::printf("\nhetero (issue 5): %u frames of 1 spp at %ux%u through the core tracer\n", frames,
+  std::printf("\nhetero: %u frames of 1 spp at %ux%u through the core tracer\n", frames,
               settings.width, settings.height);
   JsonValue json = JsonValue::object();
   json.set("frames", frames).set("width", settings.width).set("height", settings.height);

@@ -1,6 +1,6 @@
 // `tandem bench --hetero LIST`: the core tracer's frame loop with every
 // backend of LIST alone and with all of them together, same scene, same
-// frames, in one run (issue 5's benchmark).
+// frames, in one run.
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-# All third-party dependencies come from Debian 12 packages (see tools/setup.sh);
+# All third-party dependencies come from Debian 12 packages (see setup.sh);
 # nothing is vendored or downloaded at build time.
 find_package(Threads REQUIRED)
 find_package(embree 3 REQUIRED)
@@ -14,7 +14,7 @@ add_library(tandem_stb INTERFACE)
 target_include_directories(tandem_stb SYSTEM INTERFACE ${STB_INCLUDE_DIR})
 target_link_libraries(tandem_stb INTERFACE ${STB_LIBRARY})
 
-# --- tandem-view (issue 6): SDL2 window, OpenGL 2, Dear ImGui ---------------
+# --- tandem-view: SDL2 window, OpenGL 2, Dear ImGui ---------------
 # Debian's libimgui-dev ships one static library with the SDL2 platform and
 # OpenGL 2/3 renderer backends (headers in /usr/include/imgui[/backends]);
 # its font rasteriser uses libstb. tandem-view is skipped, with a message,

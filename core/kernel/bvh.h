@@ -22,9 +22,9 @@ enum KBvhLayout : uint32_t { kBvhLayoutBinary = 0, kBvhLayoutWide = 1 };
 // Binary layout: a child reference with this bit set is a leaf; the low 31
 // bits are then the first entry of its primitive range in bvh_prim_indices.
 constexpr uint32_t kBvhLeafFlag = 0x80000000u;
-// Traversal stack entries (per level of the hierarchy). The builder limits
-// the depth of every tree so that this can never overflow (see
-// kBvhMaxDepth in accstruc/bvh_builder.h).
+// Traversal stack entries (per level of the hierarchy). The builder keeps
+// every tree shallow enough that this can never overflow: SAH splits down to
+// kSahMaxDepth levels, then median splits (accstruc/bvh_builder.h).
 constexpr uint32_t kBvhStackSize = 64;
 
 // Binary node. Child c's box is (lo.x, hi.x, lo.y, hi.y) in cC_xy and
