@@ -1,0 +1,66 @@
+# Tree-wide checks that no compiler makes (ctest runs them as
+# `project_format` and `project_no_tracker_numbers`):
+#   cmake -DROOT=<source dir> -DCHECK=format -DCLANG_FORMAT=<path> -P tools/check_tree.cmake
+#     every C++/CUDA source is formatted as the committed .clang-format says;
+#   cmake -DROOT=<source dir> -DCHECK=tracker -P tools/check_tree.cmake
+#     no source file, build file or doc names an issue-tracker number: they
+#     mean nothing to a reader of the code, a bench table or a log.
+cmake_minimum_required(VERSION 3.20)
+
+if(NOT ROOT OR NOT CHECK)
+  message(FATAL_ERROR "usage: cmake -DROOT=<dir> -DCHECK=format|tracker [-DCLANG_FORMAT=<path>] -P check_tree.cmake")
+endif()
+
+function(tree_files out)
+  file(GLOB_RECURSE found RELATIVE "${ROOT}" ${ARGN})
+  set(kept "")
+  foreach(f IN LISTS found)
+    if(NOT f MATCHES "^(build|\\.)" AND NOT f MATCHES "/build/")
+      list(APPEND kept "${f}")
+    endif()
+  endforeach()
+  set(${out} "${kept}" PARENT_SCOPE)
+endfunction()
+
+if(CHECK STREQUAL "format")
+  if(NOT CLANG_FORMAT)
+    message(FATAL_ERROR "CLANG_FORMAT not given")
+  endif()
+  tree_files(sources "${ROOT}/*.h" "${ROOT}/*.cpp" "${ROOT}/*.cu" "${ROOT}/*.cuh")
+  set(bad "")
+  foreach(f IN LISTS sources)
+    execute_process(COMMAND "${CLANG_FORMAT}" --style=file --dry-run --Werror "${f}"
+                    WORKING_DIRECTORY "${ROOT}" RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
+    if(NOT rc EQUAL 0)
+      list(APPEND bad "${f}")
+    endif()
+  endforeach()
+  list(LENGTH sources n)
+  if(bad)
+    list(LENGTH bad nbad)
+    string(REPLACE ";" "\n  " text "${bad}")
+    message(FATAL_ERROR "${nbad} of ${n} files are not clang-formatted (run clang-format -i on them):\n  ${text}")
+  endif()
+  message(STATUS "format: ${n} files as .clang-format says")
+elseif(CHECK STREQUAL "tracker")
+  tree_files(files "${ROOT}/*.h" "${ROOT}/*.cpp" "${ROOT}/*.cu" "${ROOT}/*.cuh" "${ROOT}/*.cmake"
+             "${ROOT}/*CMakeLists.txt" "${ROOT}/*.md" "${ROOT}/*.sh")
+  set(bad 0)
+  foreach(f IN LISTS files)
+    if(f STREQUAL "tools/check_tree.cmake")
+      continue()
+    endif()
+    file(STRINGS "${ROOT}/${f}" hits REGEX "[Ii]ssues? #?[0-9]+|[Tt]ask #?[0-9]+")
+    foreach(line IN LISTS hits)
+      message(SEND_ERROR "${f}: names a tracker number: ${line}")
+      math(EXPR bad "${bad} + 1")
+    endforeach()
+  endforeach()
+  if(bad GREATER 0)
+    message(FATAL_ERROR "${bad} line(s) name issue-tracker numbers")
+  endif()
+  list(LENGTH files n)
+  message(STATUS "tracker: ${n} files, no tracker numbers")
+else()
+  message(FATAL_ERROR "unknown CHECK=${CHECK}")
+endif()
