@@ -152,12 +152,14 @@ int run_render(const std::vector<std::string>& argv) {
   // ... and that it can be written at all: a render is too costly to throw away at the end.
   check_output_path(output);
   if (ext != ".png" && (args.has("exposure") || args.has("tonemap"))) {
+    const bool both = args.has("exposure") && args.has("tonemap");
     std::fprintf(stderr,
-                 "tandem: warning: %s%s%s apply only to PNG output; %s is written as linear "
-                 "radiance without them\n",
-                 args.has("exposure") ? "--exposure" : "",
-                 args.has("exposure") && args.has("tonemap") ? " and " : "",
-                 args.has("tonemap") ? "--tonemap" : "", output.c_str());
+                 "tandem: warning: %s %s only to PNG output; %s is written as linear radiance "
+                 "without %s\n",
+                 both                   ? "--exposure and --tonemap"
+                 : args.has("exposure") ? "--exposure"
+                                        : "--tonemap",
+                 both ? "apply" : "applies", output.c_str(), both ? "them" : "it");
   }
 
   Scene scene = load_requested_scene(scene_request, "tandem");

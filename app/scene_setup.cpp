@@ -17,10 +17,6 @@ extern const unsigned long kDefaultEnvironmentHdrSize;
 
 namespace {
 
-bool has_option(const ParsedArgs& args, const std::string& name) {
-  return args.has(name);
-}
-
 // Radiance is accumulated in float over many samples: a colour times an
 // intensity near float's range becomes infinity and renders black. 1e30
 // leaves room for the sums of any realistic number of samples.
@@ -70,9 +66,8 @@ SceneRequest parse_scene_request(const ParsedArgs& args, const std::string& spec
   SceneRequest r;
   r.spec = spec;
   const std::string& command = args.command();
-  if (has_option(args, "gltf-scene"))
-    r.load.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
-  r.load.allow_outside_uris = has_option(args, "allow-outside-uris");
+  if (args.has("gltf-scene")) r.load.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
+  r.load.allow_outside_uris = args.has("allow-outside-uris");
   EnvironmentRequest& e = r.environment;
   if (args.has("env") && args.has("env-color")) {
     throw UsageError(command + ": give either --env or --env-color, not both");

@@ -197,6 +197,16 @@ TEST(DefaultEnvironment, ReadmeExampleRunsFromAFreshClone) {
                                     shell_quote((dir.path() / "model.png").string()));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(count(r.output, kNotice), 0u) << r.output;
+  // The built-in example needs nothing outside the clone (smaller here).
+  const std::string builtin = "tandem render builtin:sky-plane --env data/env/sky.hdr";
+  ASSERT_NE(readme.find(builtin), std::string::npos);
+  const fs::path out = dir.path() / "sky-plane.png";
+  const RunResult b = run_in(TANDEM_SOURCE_DIR, builtin.substr(7) +
+                                                    " --width 16 --height 12 --spp 1 --backend "
+                                                    "cpu --output " +
+                                                    shell_quote(out.string()));
+  EXPECT_EQ(b.exit_code, 0) << b.output;
+  EXPECT_GT(mean(tandem::read_image(out)), 0.1);
 }
 
 }  // namespace

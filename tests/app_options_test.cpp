@@ -159,7 +159,8 @@ TEST(CliSurface, MissingOrBadOutputDirectoryIsReportedBeforeRendering) {
   const fs::path file = dir.path() / "a_file";
   { std::ofstream(file) << "x"; }
   // Hours of work if it started rendering: the check must come first.
-  for (const std::string out : {std::string("/nonexistent_dir/x.png"), (file / "x.exr").string()}) {
+  for (const std::string& out :
+       {std::string("/nonexistent_dir/x.png"), (file / "x.exr").string()}) {
     const auto start = std::chrono::steady_clock::now();
     const RunResult r = run_tandem(
         "render builtin:cornell --width 4096 --height 4096 --spp 100000 --backend cpu --output " +
@@ -182,7 +183,8 @@ TEST(CliSurface, ExposureAndTonemapWithLinearOutputWarn) {
             std::string::npos)
       << r.output;
   r = run_tandem(quick + "--tonemap aces --output " + shell_quote((dir.path() / "x.pfm").string()));
-  EXPECT_NE(r.output.find("warning: --tonemap apply only"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("warning: --tonemap applies only to PNG output"), std::string::npos)
+      << r.output;
   r = run_tandem(quick + "--exposure 1 --output " + shell_quote((dir.path() / "x.png").string()));
   EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
 }
@@ -225,6 +227,7 @@ TEST(ViewOptions, NoWindowWithoutFramesIsAUsageError) {
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
     EXPECT_NE(r.output.find("--no-window"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("--frames N"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("see 'tandem-view --help'"), std::string::npos) << r.output;
   }
 #endif
 }

@@ -140,7 +140,7 @@ int main(int argc, char** argv) {
   try {
     return tandem::run(args);
   } catch (const tandem::UsageError& e) {
-    std::fprintf(stderr, "tandem-view: error: %s\nRun 'tandem-view --help' for usage.\n", e.what());
+    std::fprintf(stderr, "tandem-view: error: %s\nsee 'tandem-view --help'\n", e.what());
     return 2;
   } catch (const tandem::InputError& e) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());

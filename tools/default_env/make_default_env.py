@@ -24,8 +24,12 @@ SUN_ELEVATION = math.radians(40.0)
 SUN_AZIMUTH = math.radians(35.0)  # from +z towards -x
 SUN = (-math.cos(SUN_ELEVATION) * math.sin(SUN_AZIMUTH), math.sin(SUN_ELEVATION),
        math.cos(SUN_ELEVATION) * math.cos(SUN_AZIMUTH))
-SUN_RADIUS = math.radians(3.0)  # a few texels wide at this resolution
-SUN_RADIANCE = (150.0, 142.0, 125.0)
+# The disc fades out over a few texels (1.4 degrees each): the renderer looks
+# the map up bilinearly but samples it texel by texel, and a hard edge next
+# to the dim sky is where the two disagree most (fireflies).
+SUN_CORE = math.radians(2.5)
+SUN_EDGE = math.radians(6.5)
+SUN_RADIANCE = (80.0, 76.0, 67.0)
 
 ZENITH = (0.50, 0.64, 0.95)
 HORIZON = (1.05, 1.02, 0.95)
@@ -50,8 +54,10 @@ def radiance(d):
     angle = math.acos(cos_sun)
     glow = 1.5 * math.exp(-angle / 0.12)  # a soft halo around the disc
     c = tuple(v + glow for v in c)
-    if angle < SUN_RADIUS:
-        c = SUN_RADIANCE
+    if angle < SUN_EDGE:
+        t = min(1.0, (SUN_EDGE - angle) / (SUN_EDGE - SUN_CORE))
+        fade = t * t * (3.0 - 2.0 * t)
+        c = tuple(v + (s - v) * fade for v, s in zip(c, SUN_RADIANCE))
     return c
 
 
