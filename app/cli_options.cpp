@@ -26,7 +26,9 @@ OptionGroup environment_options() {
        "lights",
        "FILE"},
       {"env-color", true,
-       "constant environment radiance, e.g. 0.5 or 0.2,0.3,0.4 (0: no environment light)", "RGB"},
+       "constant environment radiance, e.g. 0.5 or 0.2,0.3,0.4 (0: no environment light); "
+       "not with --env",
+       "RGB"},
       {"env-intensity", true, "multiplier of the environment", "X", "1"},
       {"env-rotation", true, "environment rotation about +y in degrees", "DEG", "0"},
   };

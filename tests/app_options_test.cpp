@@ -150,6 +150,13 @@ TEST(CliSurface, BenchHelpListsTheFrameLoopModeAndItTakesAPositionalScene) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("scene builtin:arena"), std::string::npos) << r.output;
   EXPECT_EQ(run_tandem("bench builtin:arena --scene builtin:cornell --frames 3").exit_code, 2);
+  const RunResult inline_value =
+      run_tandem("bench builtin:arena --frames=2 --width 16 --height 16 --backend cpu --threads 1");
+  EXPECT_EQ(inline_value.exit_code, 0) << inline_value.output;
+  const RunResult both = run_tandem(
+      "render builtin:cornell --env-color 1 --env x.hdr --output /tmp/never_written.png");
+  EXPECT_EQ(both.exit_code, 2) << both.output;
+  EXPECT_NE(both.output.find("either --env or --env-color"), std::string::npos) << both.output;
 }
 
 // --- checks before work --------------------------------------------------------

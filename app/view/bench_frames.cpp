@@ -54,7 +54,9 @@ const std::vector<OptionSpec>& frame_bench_options() {
 }
 
 bool is_frame_bench(const std::vector<std::string>& args) {
-  return std::find(args.begin(), args.end(), "--frames") != args.end();
+  return std::any_of(args.begin(), args.end(), [](const std::string& a) {
+    return a == "--frames" || a.rfind("--frames=", 0) == 0;
+  });
 }
 
 int run_frame_bench(const std::vector<std::string>& argv) {
