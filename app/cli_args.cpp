@@ -1,19 +1,43 @@
 #include "app/cli_args.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
 
 #include "core/util/errors.h"
 
 namespace tandem {
 
+std::vector<OptionSpec> compose_options(std::initializer_list<OptionGroup> groups) {
+  std::vector<OptionSpec> out;
+  for (const OptionGroup& group : groups) {
+    for (const OptionSpec& s : group) {
+      auto same = std::find_if(out.begin(), out.end(),
+                               [&](const OptionSpec& o) { return o.name == s.name; });
+      if (same != out.end()) {
+        *same = s;
+      } else {
+        out.push_back(s);
+      }
+    }
+  }
+  return out;
+}
+
 ParsedArgs::ParsedArgs(const std::string& command, const std::vector<OptionSpec>& specs,
                        const std::vector<std::string>& args)
-    : command_(command) {
+    : command_(command), specs_(specs) {
+  const bool has_help =
+      std::any_of(specs.begin(), specs.end(), [](const OptionSpec& s) { return s.name == "help"; });
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
+    if (a == "-h" && has_help) {
+      values_["help"] = "";
+      continue;
+    }
     if (a.size() < 2 || a.compare(0, 2, "--") != 0 || a == "--") {
       if (a == "--") {
         positionals_.insert(positionals_.end(), args.begin() + long(i) + 1, args.end());
@@ -55,13 +79,63 @@ std::optional<std::string> ParsedArgs::value(const std::string& name) const {
   return it->second;
 }
 
+const OptionSpec& ParsedArgs::spec(const std::string& name) const {
+  for (const OptionSpec& s : specs_) {
+    if (s.name == name) return s;
+  }
+  // A programming error, not the user's: every option read must be declared.
+  throw std::logic_error(command_ + ": option '--" + name + "' is not in the option table");
+}
+
+std::optional<std::string> ParsedArgs::value_or_default(const std::string& name) const {
+  if (auto v = value(name)) return v;
+  const OptionSpec& s = spec(name);
+  if (s.default_value.empty()) return std::nullopt;
+  return s.default_value;
+}
+
 std::string ParsedArgs::get_string(const std::string& name, const std::string& fallback) const {
   return value(name).value_or(fallback);
 }
 
+std::string ParsedArgs::get_string(const std::string& name) const {
+  return value_or_default(name).value_or("");
+}
+
 int ParsedArgs::get_int(const std::string& name, int fallback, int min, int max) const {
   const auto v = value(name);
-  if (!v) return fallback;
+  return v ? parse_int(name, *v, min, max) : fallback;
+}
+
+int ParsedArgs::get_int(const std::string& name, int min, int max) const {
+  const auto v = value_or_default(name);
+  return v ? parse_int(name, *v, min, max) : 0;
+}
+
+uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_t min,
+                             uint32_t max) const {
+  const auto v = value(name);
+  return v ? parse_u32(name, *v, min, max) : fallback;
+}
+
+uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t min, uint32_t max) const {
+  const auto v = value_or_default(name);
+  return v ? parse_u32(name, *v, min, max) : 0;
+}
+
+float ParsedArgs::get_float(const std::string& name, float fallback, float min, float max) const {
+  const auto v = value(name);
+  return v ? parse_float(name, *v, min, max) : fallback;
+}
+
+float ParsedArgs::get_float(const std::string& name, float min, float max) const {
+  const auto v = value_or_default(name);
+  return v ? parse_float(name, *v, min, max) : 0.0f;
+}
+
+int ParsedArgs::parse_int(const std::string& name, const std::string& text, int min,
+                          int max) const {
+  const std::string* v = &text;
   errno = 0;
   char* end = nullptr;
   const long n = std::strtol(v->c_str(), &end, 10);
@@ -72,10 +146,9 @@ int ParsedArgs::get_int(const std::string& name, int fallback, int min, int max)
   return int(n);
 }
 
-uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_t min,
-                             uint32_t max) const {
-  const auto v = value(name);
-  if (!v) return fallback;
+uint32_t ParsedArgs::parse_u32(const std::string& name, const std::string& text, uint32_t min,
+                               uint32_t max) const {
+  const std::string* v = &text;
   errno = 0;
   char* end = nullptr;
   const unsigned long long n = std::strtoull(v->c_str(), &end, 10);
@@ -86,9 +159,9 @@ uint32_t ParsedArgs::get_u32(const std::string& name, uint32_t fallback, uint32_
   return uint32_t(n);
 }
 
-float ParsedArgs::get_float(const std::string& name, float fallback, float min, float max) const {
-  const auto v = value(name);
-  if (!v) return fallback;
+float ParsedArgs::parse_float(const std::string& name, const std::string& text, float min,
+                              float max) const {
+  const std::string* v = &text;
   errno = 0;
   char* end = nullptr;
   // Parsed as double: a tiny value such as 1e-50 underflows float (ERANGE)
@@ -129,7 +202,9 @@ std::string format_options_help(const std::vector<OptionSpec>& specs) {
       left.resize(28, ' ');
     else
       left += "  ";
-    out += left + s.help + "\n";
+    out += left + s.help;
+    if (!s.default_value.empty()) out += " (default " + s.default_value + ")";
+    out += "\n";
   }
   return out;
 }

@@ -18,7 +18,9 @@
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
+#include "app/cli_options.h"
 #include "app/commands.h"
+#include "app/scene_setup.h"
 #include "app/view/bench_frames.h"
 #include "backends/backend_factory.h"
 #include "backends/cpu/embree_backend.h"
@@ -26,7 +28,6 @@
 #include "core/kernel/integrator.h"
 #include "core/render/renderer.h"
 #include "core/util/errors.h"
-#include "scenes/scene_loader.h"
 
 #include "app/bench_gpu.h"
 
@@ -35,36 +36,36 @@ namespace tandem {
 namespace {
 
 const std::vector<OptionSpec>& bench_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"width", true, "image width (default 512)", "W"},
-      {"height", true, "image height (default 512)", "H"},
-      {"spp", true, "samples per pixel of the path-tracing run (default 16)", "N"},
-      {"max-depth", true, "maximum scattering events (default 8)", "D"},
-      {"threads", true, "CPU worker threads (default: all cores)", "N"},
-      {"env-color", true, "constant environment radiance (default 0; 1 for glTF files)", "X"},
-      {"accstruc", false,
-       "also measure Tandem's BVH against Embree: build, SAH cost, traversal; and the host "
-       "backend"},
-      {"hetero", true,
-       "also run the core tracer with each backend of LIST (e.g. cpu+host, cuda+cpu) alone and all "
-       "together",
-       "LIST"},
-      {"hetero-frames", true, "frames of 1 spp for --hetero (default 16)", "N"},
-      {"gpu", false,
-       "measure the CUDA backend on the device instead: the same rays as the Embree loop "
-       "(camera, shadow, diffuse) with both BVH layouts, and path tracing at 1920x1080, 1 spp, "
-       "max depth 4 with both kernels and both layouts"},
-      {"gpu-frames", true, "timed path-tracing frames per kernel and layout for --gpu (default 10)",
-       "N"},
-      {"kernel", true,
-       "megakernel | wavefront (mega, wave): the kernel of the cuda and host backends for "
-       "--hetero and --accstruc (default megakernel); "
-       "with --gpu, measure only this kernel",
-       "K"},
-      {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",
-       "FILE"},
-      {"help", false, "show this help"},
-  };
+  static const std::vector<OptionSpec> specs = compose_options({
+      image_size_options("512", "512"),
+      {{"spp", true, "samples per pixel of the path-tracing run", "N", "16"}},
+      path_depth_options("8"),
+      thread_options(),
+      scene_options(),
+      environment_options(),
+      {
+          {"accstruc", false,
+           "also measure Tandem's BVH against Embree: build, SAH cost, traversal; and the host "
+           "backend"},
+          {"hetero", true,
+           "also run the core tracer with each backend of LIST (e.g. cpu+host, cuda+cpu) alone "
+           "and all together",
+           "LIST"},
+          {"hetero-frames", true, "frames of 1 spp for --hetero", "N", "16"},
+          {"gpu", false,
+           "measure the CUDA backend on the device instead: the same rays as the Embree loop "
+           "(camera, shadow, diffuse) with both BVH layouts, and path tracing at 1920x1080, 1 "
+           "spp, max depth 4 with both kernels and both layouts"},
+          {"gpu-frames", true, "timed path-tracing frames per kernel and layout for --gpu", "N",
+           "10"},
+          {"kernel", true,
+           "megakernel | wavefront (mega, wave): the kernel of the cuda and host backends for "
+           "--hetero and --accstruc (default megakernel); with --gpu, measure only this kernel",
+           "K"},
+      },
+      json_report_options(),
+      help_options(),
+  });
   return specs;
 }
 
@@ -98,18 +99,19 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
-  if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
+  if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
         "usage: tandem bench [SCENE] [options]\n"
         "       tandem bench --gpu [SCENE] [options]\n"
-        "       tandem bench --frames N [--scene SCENE] [options]  (see bench --frames 1 "
-        "--help)\n\n"
+        "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
         "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
-        "interactive\nframe loop.\n\n%s",
-        format_options_help(bench_options()).c_str());
+        "interactive\nframe loop of tandem-view along its scripted camera path (default scene "
+        "builtin:arena).\n\n%s\nFrame-loop mode (--frames N):\n%s",
+        format_options_help(bench_options()).c_str(),
+        format_options_help(frame_bench_options()).c_str());
     return 0;
   }
   if (args.positionals().size() > 1) throw UsageError("bench: expected at most one SCENE argument");
@@ -137,11 +139,12 @@ int run_bench(const std::vector<std::string>& argv) {
   std::optional<tbb::global_control> limit;
   if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   RenderSettings settings;
-  settings.width = args.get_u32("width", 512, 1, 16384);
-  settings.height = args.get_u32("height", 512, 1, 16384);
-  settings.max_depth = args.get_u32("max-depth", 8, 0, 1024);
-  const uint32_t spp = args.get_u32("spp", 16, 1, 1u << 16);
-  [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 10, 1, 100000);
+  settings.width = args.get_u32("width", 1, 16384);
+  settings.height = args.get_u32("height", 1, 16384);
+  settings.max_depth = args.get_u32("max-depth", 0, 1024);
+  const uint32_t spp = args.get_u32("spp", 1, 1u << 16);
+  [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 1, 100000);
+  const SceneRequest scene_request = parse_scene_request(args, spec);
   const std::optional<std::string> json_path = args.value("json");
   if (json_path) check_json_output_path(*json_path);
   if (gpu) {
@@ -149,11 +152,8 @@ int run_bench(const std::vector<std::string>& argv) {
     if (!cuda_device_available(&reason)) throw InputError("bench --gpu: " + reason);
   }
 
-  Scene scene = load_scene(spec);
+  Scene scene = load_requested_scene(scene_request, "tandem");
   [[maybe_unused]] const bool camera_from_bounds = !scene.has_camera();  // for --gpu
-  const bool is_file = spec.rfind("builtin:", 0) != 0;
-  const float env = args.get_float("env-color", is_file ? 1.0f : 0.0f, 0.0f, 1e9f);
-  if (env > 0.0f) scene.edit_environment().color = glm::vec3(env);
   if (!scene.has_camera()) {
     scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f,
                                          float(settings.width) / float(settings.height)));
@@ -237,8 +237,8 @@ int run_bench(const std::vector<std::string>& argv) {
   }
   if (auto list = args.value("hetero")) {
     report.set("hetero",
-               run_hetero_bench(scene, settings, args.get_u32("hetero-frames", 16, 1, 1u << 20),
-                                *list, backend_options));
+               run_hetero_bench(scene, settings, args.get_u32("hetero-frames", 1, 1u << 20), *list,
+                                backend_options));
   }
   write_json_report(json_path, report);
   return 0;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "app/cli_args.h"
+#include "app/cli_options.h"
 #include "app/commands.h"
 #include "core/image/image.h"
 #include "core/util/errors.h"
@@ -56,13 +57,15 @@ size_t allowed_outlier_blocks(size_t blocks) {
 }
 
 const std::vector<OptionSpec>& compare_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"block", true, "block edge in pixels (default 16; >= 8 keeps z near-normal)", "N"},
-      {"reference-noise", true, "second render by A's renderer, other seed: control test A vs C",
-       "C"},
-      {"json", false, "print the results as one JSON object"},
-      {"help", false, "show this help"},
-  };
+  static const std::vector<OptionSpec> specs = compose_options({
+      {
+          {"block", true, "block edge in pixels (default 16; >= 8 keeps z near-normal)", "N"},
+          {"reference-noise", true,
+           "second render by A's renderer, other seed: control test A vs C", "C"},
+          {"json", false, "print the results as one JSON object"},
+      },
+      help_options(),
+  });
   return specs;
 }
 

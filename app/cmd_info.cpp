@@ -2,21 +2,17 @@
 #include <cstdio>
 
 #include "app/cli_args.h"
+#include "app/cli_options.h"
 #include "app/commands.h"
+#include "app/scene_setup.h"
 #include "core/kernel/math.h"
 #include "core/util/errors.h"
-#include "scenes/scene_loader.h"
 
 namespace tandem {
 
 namespace {
 const std::vector<OptionSpec>& info_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"gltf-scene", true, "glTF scene index (default: the file's default scene)", "N"},
-      {"allow-outside-uris", false,
-       "let glTF buffer/image URIs name files outside the scene file's folder"},
-      {"help", false, "show this help"},
-  };
+  static const std::vector<OptionSpec> specs = compose_options({scene_options(), help_options()});
   return specs;
 }
 
@@ -34,10 +30,9 @@ int run_info(const std::vector<std::string>& argv) {
     return 0;
   }
   if (args.positionals().size() != 1) throw UsageError("info: expected exactly one SCENE argument");
-  SceneLoadOptions options;
-  options.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
-  options.allow_outside_uris = args.has("allow-outside-uris");
-  const Scene scene = load_scene(args.positionals()[0], options);
+  SceneRequest request = parse_scene_request(args, args.positionals()[0]);
+  request.default_environment = false;  // info renders nothing
+  const Scene scene = load_requested_scene(request, "tandem");
 
   size_t emissive_triangles = 0;
   for (const Instance& inst : scene.instances()) {

@@ -2,10 +2,11 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
-#include <cerrno>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -13,8 +14,10 @@
 
 #include "app/backend_list.h"
 #include "app/cli_args.h"
+#include "app/cli_options.h"
 #include "app/commands.h"
 #include "app/progress.h"
+#include "app/scene_setup.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/scene/kernel_scene.h"
@@ -29,87 +32,57 @@ namespace tandem {
 namespace {
 
 const std::vector<OptionSpec>& render_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"width", true, "image width in pixels (default: from the camera aspect, height 720)", "W"},
-      {"height", true, "image height in pixels", "H"},
-      {"spp", true, "samples per pixel (default 64)", "N"},
-      {"max-depth", true, "maximum scattering events per path; 1 = direct light only (default 8)",
-       "D"},
-      {"backend", true,
-       "cpu | host | cuda | hetero | auto (default auto), or a list such as cpu+host to split each "
-       "frame "
-       "between backends",
-       "B"},
-      {"kernel", true,
-       "megakernel | wavefront (mega, wave): how the cuda and host backends trace paths "
-       "(default megakernel; both give the same image)",
-       "K"},
-      {"split", true,
-       "fixed share of each frame for the first backend, 0..1 (default: balanced from measured "
-       "throughput)",
-       "F"},
-      {"no-stealing", false, "backends never take tiles planned for another"},
-      {"seed", true, "random seed; same seed, same image (default 0)", "S"},
-      {"exposure", true, "exposure in stops applied to PNG output (default 0)", "E"},
-      {"tonemap", true, "PNG tone curve: standard | aces | reinhard (default standard)", "T"},
-      {"output", true,
-       "output file: .png (tone mapped sRGB), .exr or .pfm (linear) (default render.png)", "FILE"},
-      {"gltf-scene", true, "glTF scene index to render (default: the file's default scene)", "N"},
-      {"env", true, "equirectangular environment map (.hdr, .exr, .pfm)", "FILE"},
-      {"env-color", true, "constant environment radiance, e.g. 0.5 or 0.2,0.3,0.4", "RGB"},
-      {"env-intensity", true, "multiplier of the environment (default 1)", "X"},
-      {"env-rotation", true, "environment rotation about +y in degrees (default 0)", "DEG"},
-      {"aperture", true,
-       "thin-lens aperture radius in scene units (default: the camera's, usually 0)", "R"},
-      {"focus-distance", true, "distance to the plane in focus, scene units", "F"},
-      {"threads", true, "CPU worker threads (default: all cores)", "N"},
-      {"tile-size", true, "tile edge in pixels (default 32)", "N"},
-      {"clamp", true, "clamp per-sample radiance to this value (biased; default off)", "X"},
-      {"quiet", false, "no progress bar or summary"},
-      {"save-on-interrupt", false,
-       "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
-      {"allow-outside-uris", false,
-       "let glTF buffer/image URIs name files outside the scene file's folder"},
-      {"help", false, "show this help"},
-  };
+  static const std::vector<OptionSpec> specs = compose_options({
+      image_size_options("", "720"),
+      {
+          {"width", true, "image width in pixels (default: from the camera aspect and the height)",
+           "W"},
+          {"spp", true, "samples per pixel", "N", "64"},
+      },
+      path_depth_options("8"),
+      backend_options(true),
+      {
+          {"split", true,
+           "share of each frame's pixels (so of its samples) planned for the first backend, "
+           "0..1, to the nearest tile (default: balanced from measured throughput); backends "
+           "that finish early still steal tiles unless --no-stealing",
+           "F"},
+          {"no-stealing", false,
+           "backends never take tiles planned for another (the split is then exactly the plan)"},
+          {"seed", true, "random seed; same seed, same image", "S", "0"},
+      },
+      display_options(true),
+      {
+          {"output", true,
+           "output file: .png (tone mapped sRGB), .exr or .pfm (linear radiance, without "
+           "--exposure and --tonemap)",
+           "FILE", "render.png"},
+      },
+      scene_options(),
+      environment_options(),
+      {
+          {"aperture", true,
+           "thin-lens aperture radius in scene units (default: the camera's, usually 0)", "R"},
+          {"focus-distance", true, "distance to the plane in focus, scene units", "F"},
+      },
+      thread_options(),
+      {
+          {"tile-size", true, "tile edge in pixels", "N", "32"},
+          {"clamp", true, "clamp per-sample radiance to this value (biased; 0 = off)", "X", "0"},
+          {"quiet", false, "no progress bar or summary"},
+          {"save-on-interrupt", false,
+           "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
+      },
+      help_options(),
+  });
   return specs;
 }
 
-glm::vec3 parse_color(const std::string& text) {
-  std::vector<float> values;
-  // split_list keeps empty items, so "1,2,3," and ",1" are errors too.
-  for (const std::string& item : split_list(text, ',')) {
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || !std::isfinite(v) || v < 0.0 ||
-        v > double(std::numeric_limits<float>::max())) {
-      throw UsageError("render: --env-color expects R,G,B or one value >= 0, got '" + text + "'");
-    }
-    values.push_back(float(v));
-  }
-  if (values.size() == 1) return glm::vec3(values[0]);
-  if (values.size() == 3) return {values[0], values[1], values[2]};
-  throw UsageError("render: --env-color expects R,G,B or one value, got '" + text + "'");
-}
-
-// Radiance is accumulated in float over many samples: a colour times an
-// intensity near float's range becomes infinity and renders black. 1e30
-// leaves room for the sums of any realistic number of samples.
-constexpr double kMaxEnvironmentRadiance = 1e30;
-
-void check_environment_radiance(const glm::vec3& color, float intensity) {
-  for (int k = 0; k < 3; ++k) {
-    const double radiance = double(color[k]) * double(intensity);
-    if (radiance > kMaxEnvironmentRadiance) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf,
-                    "render: --env-color %g times --env-intensity %g is %g, beyond the largest "
-                    "radiance that can be rendered (%g)",
-                    double(color[k]), double(intensity), radiance, kMaxEnvironmentRadiance);
-      throw UsageError(buf);
-    }
-  }
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext)
+    c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
 }
 
 // After SIGINT/SIGTERM during the render: say so, optionally keep the image,
@@ -151,55 +124,45 @@ int run_render(const std::vector<std::string>& argv) {
   }
   const std::string scene_spec = args.positionals()[0];
   const bool quiet = args.has("quiet");
-  const uint32_t spp = args.get_u32("spp", 64, 1, 1u << 20);
+  const uint32_t spp = args.get_u32("spp", 1, 1u << 20);
   RenderSettings settings;
-  settings.max_depth = args.get_u32("max-depth", 8, 0, 1024);
-  settings.seed = args.get_u32("seed", 0, 0, 0xffffffffu);
-  settings.radiance_clamp = args.get_float("clamp", 0.0f, 0.0f, 1e30f);
-  const std::string backend_spec = args.get_string("backend", "auto");
+  settings.max_depth = args.get_u32("max-depth", 0, 1024);
+  settings.seed = args.get_u32("seed", 0, 0xffffffffu);
+  settings.radiance_clamp = args.get_float("clamp", 0.0f, 1e30f);
+  const std::string backend_spec = args.get_string("backend");
   // Usage errors before loading.
   const BackendOptions backend_options =
       parse_kernel_option(args.value("kernel"), parse_backend_list(backend_spec));
-  const float split = args.has("split") ? args.get_float("split", 0.5f, 0.0f, 1.0f) : -1.0f;
+  const float split = args.has("split") ? args.get_float("split", 0.0f, 1.0f) : -1.0f;
   ImageWriteOptions write_options;
-  write_options.exposure = args.get_float("exposure", 0.0f, -50.0f, 50.0f);
-  write_options.tone_map = parse_tone_map(args.get_string("tonemap", "standard"));
-  const std::string output = args.get_string("output", "render.png");
+  write_options.exposure = args.get_float("exposure", -50.0f, 50.0f);
+  write_options.tone_map = parse_tone_map(args.get_string("tonemap"));
+  const std::string output = args.get_string("output");
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
-  const uint32_t tile_size = args.get_u32("tile-size", 32, 1, 4096);
-  SceneLoadOptions load_options;
-  load_options.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
-  load_options.allow_outside_uris = args.has("allow-outside-uris");
+  const uint32_t tile_size = args.get_u32("tile-size", 1, 4096);
+  const SceneRequest scene_request = parse_scene_request(args, scene_spec);
   std::optional<tbb::global_control> thread_limit;
   if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
 
   // Check the output extension before spending time on loading/rendering.
-  {
-    std::string ext = std::filesystem::path(output).extension().string();
-    for (char& c : ext)
-      c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (ext != ".png" && ext != ".exr" && ext != ".pfm") {
-      throw UsageError("render: --output must end in .png, .exr or .pfm, got '" + output + "'");
-    }
+  const std::string ext = lower_extension(output);
+  if (ext != ".png" && ext != ".exr" && ext != ".pfm") {
+    throw UsageError("render: --output must end in .png, .exr or .pfm, got '" + output + "'");
   }
   // ... and that it can be written at all: a render is too costly to throw away at the end.
   check_output_path(output);
+  if (ext != ".png" && (args.has("exposure") || args.has("tonemap"))) {
+    const bool both = args.has("exposure") && args.has("tonemap");
+    std::fprintf(stderr,
+                 "tandem: warning: %s %s only to PNG output; %s is written as linear radiance "
+                 "without %s\n",
+                 both                   ? "--exposure and --tonemap"
+                 : args.has("exposure") ? "--exposure"
+                                        : "--tonemap",
+                 both ? "apply" : "applies", output.c_str(), both ? "them" : "it");
+  }
 
-  Scene scene = load_scene(scene_spec, load_options);
-  if (auto env = args.value("env")) {
-    load_environment_map(scene, *env, args.get_float("env-intensity", 1.0f, 0.0f, 1e9f));
-  } else if (auto color = args.value("env-color")) {
-    Environment& e = scene.edit_environment();
-    e.color = parse_color(*color);
-    e.intensity = args.get_float("env-intensity", 1.0f, 0.0f, 1e9f);
-    check_environment_radiance(e.color, e.intensity);
-  } else if (args.has("env-intensity")) {
-    scene.edit_environment().intensity = args.get_float("env-intensity", 1.0f, 0.0f, 1e9f);
-  }
-  if (args.has("env-rotation")) {
-    scene.edit_environment().rotation =
-        args.get_float("env-rotation", 0.0f, -1e6f, 1e6f) * float(M_PI) / 180.0f;
-  }
+  Scene scene = load_requested_scene(scene_request, "tandem");
   // (An empty glTF scene has been reported by the loader already.)
 
   // Resolution: explicit, or from the camera's aspect ratio.
@@ -212,7 +175,7 @@ int run_render(const std::vector<std::string>& argv) {
     settings.width = args.get_u32("width", 0, 1, 32768);
     settings.height = std::max(1u, uint32_t(std::lround(float(settings.width) / aspect)));
   } else {
-    settings.height = args.get_u32("height", 720, 1, 32768);
+    settings.height = args.get_u32("height", 1, 32768);
     settings.width = std::max(1u, uint32_t(std::lround(float(settings.height) * aspect)));
   }
   if (uint64_t(settings.width) * settings.height > (1ull << 28)) {

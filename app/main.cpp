@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "app/cli_options.h"
 #include "app/commands.h"
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
@@ -20,10 +21,15 @@ void print_usage() {
       "  info SCENE     print what a scene contains\n"
       "  compare A B    check that two linear renders agree up to Monte Carlo noise\n"
       "  bench [SCENE]  measure throughput against a plain Embree loop in the same run\n\n"
-      "Run 'tandem <command> --help' for the options of a command.\n"
+      "Run 'tandem <command> --help' (or -h) for the options of a command; 'tandem --version'\n"
+      "prints the version.\n"
       "Built-in scenes: builtin:cornell, builtin:cornell-spheres, builtin:furnace, "
       "builtin:sky-plane,\n"
       "builtin:arena, builtin:procedural\n");
+}
+
+bool is_subcommand(const std::string& name) {
+  return name == "render" || name == "info" || name == "compare" || name == "bench";
 }
 
 }  // namespace
@@ -36,8 +42,8 @@ int main(int argc, char** argv) {
       print_usage();
       return args.empty() ? 2 : 0;
     }
-    if (args[0] == "--version") {
-      std::printf("tandem 0.1.0\n");
+    if (args[0] == "--version" || args[0] == "version") {
+      std::printf("tandem %s\n", tandem::tandem_version());
       return 0;
     }
     const std::vector<std::string> rest(args.begin() + 1, args.end());
@@ -47,7 +53,10 @@ int main(int argc, char** argv) {
     if (args[0] == "bench") return tandem::run_bench(rest);
     throw tandem::UsageError("unknown command '" + args[0] + "'");
   } catch (const tandem::UsageError& e) {
-    std::fprintf(stderr, "tandem: error: %s\nRun 'tandem --help' for usage.\n", e.what());
+    // A subcommand's mistake points at that subcommand's options.
+    const bool subcommand = !args.empty() && is_subcommand(args[0]);
+    std::fprintf(stderr, "tandem: error: %s\nsee 'tandem %s--help'\n", e.what(),
+                 subcommand ? (args[0] + " ").c_str() : "");
     return 2;
   } catch (const tandem::InputError& e) {
     std::fprintf(stderr, "tandem: error: %s\n", e.what());

@@ -27,11 +27,16 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
   GltfOptions gltf;
   gltf.scene_index = options.gltf_scene;
   gltf.allow_outside_uris = options.allow_outside_uris;
+  gltf.animations = options.animations;
   return load_gltf(path, gltf);
 }
 
 void load_environment_map(Scene& scene, const std::string& path, float intensity) {
-  ImageRGB img = read_image(path);
+  set_environment_map(scene, read_image(path), path, intensity);
+}
+
+void set_environment_map(Scene& scene, const ImageRGB& img, const std::string& path,
+                         float intensity) {
   if (img.width < 2 || img.height < 1) throw InputError(path + ": environment map is too small");
   Environment& env = scene.edit_environment();
   env.color = glm::vec3(1.0f);

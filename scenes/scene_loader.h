@@ -3,14 +3,20 @@
 
 #include <string>
 
+#include "core/image/image.h"
 #include "core/scene/scene.h"
 
 namespace tandem {
+
+struct GltfAnimations;
 
 struct SceneLoadOptions {
   int gltf_scene = -1;  // -1: the file's default scene
   // glTF URIs may name files outside the scene file's folder (see GltfOptions).
   bool allow_outside_uris = false;
+  // When set, a glTF file's node animations are loaded into it (tandem-view
+  // plays them); otherwise they are ignored with a warning.
+  GltfAnimations* animations = nullptr;
 };
 
 // Throws InputError naming the scene and the reason.
@@ -20,5 +26,9 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options = {});
 // Throws InputError when its brightest texel times `intensity` is beyond
 // what float radiance can accumulate (it would render black).
 void load_environment_map(Scene& scene, const std::string& path, float intensity);
+
+// The same for an image already decoded; `source` names it in messages.
+void set_environment_map(Scene& scene, const ImageRGB& image, const std::string& source,
+                         float intensity);
 
 }  // namespace tandem

@@ -22,10 +22,9 @@ inline std::string shell_quote(const std::string& s) {
   return out + "'";
 }
 
-// `env` ("NAME=value ..." or empty) is set for this run only.
-inline RunResult run_tandem_with_env(const std::string& env, const std::string& args) {
-  const std::string cmd =
-      (env.empty() ? "" : "env " + env + " ") + shell_quote(TANDEM_BINARY) + " " + args + " 2>&1";
+// Any shell command line; its stdout and stderr together.
+inline RunResult run_command(const std::string& cmd_line) {
+  const std::string cmd = cmd_line + " 2>&1";
   RunResult r{-1, ""};
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return r;
@@ -37,8 +36,21 @@ inline RunResult run_tandem_with_env(const std::string& env, const std::string& 
   return r;
 }
 
+// `env` ("NAME=value ..." or empty) is set for this run only; a non-empty
+// `cwd` is its working directory.
+inline RunResult run_tandem_with_env(const std::string& env, const std::string& args,
+                                     const std::string& cwd = "") {
+  return run_command((cwd.empty() ? "" : "cd " + shell_quote(cwd) + " && ") +
+                     (env.empty() ? "" : "env " + env + " ") + shell_quote(TANDEM_BINARY) + " " +
+                     args);
+}
+
 inline RunResult run_tandem(const std::string& args) {
   return run_tandem_with_env("", args);
+}
+
+inline RunResult run_tandem_in(const std::string& cwd, const std::string& args) {
+  return run_tandem_with_env("", args, cwd);
 }
 
 }  // namespace tandem::app_test

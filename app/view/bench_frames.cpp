@@ -15,6 +15,8 @@
 #include "app/backend_list.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
+#include "app/cli_options.h"
+#include "app/scene_setup.h"
 #include "app/view/scripted_path.h"
 #include "app/view/view_session.h"
 #include "core/util/errors.h"
@@ -22,27 +24,6 @@
 namespace tandem {
 
 namespace {
-
-const std::vector<OptionSpec>& frame_bench_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"scene", true, "scene to animate (default builtin:arena)", "SCENE"},
-      {"frames", true, "frames along the scripted path (default 300)", "N"},
-      {"width", true, "frame width (default 640)", "W"},
-      {"height", true, "frame height (default 360)", "H"},
-      {"spp", true, "samples per pixel per frame (default 1)", "N"},
-      {"max-depth", true, "scattering events per path (default 4)", "D"},
-      {"backend", true, "auto, cpu, host, cuda or hetero (default auto)", "B"},
-      {"kernel", true,
-       "megakernel | wavefront (mega, wave): how the cuda and host backends trace (default "
-       "megakernel)",
-       "K"},
-      {"threads", true, "CPU worker threads (default: all cores)", "N"},
-      {"json", true, "also write every figure, with the machine and run facts, to FILE as JSON",
-       "FILE"},
-      {"help", false, "show this help"},
-  };
-  return specs;
-}
 
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
@@ -53,32 +34,57 @@ double percentile(std::vector<double> v, double p) {
 
 }  // namespace
 
+const std::vector<OptionSpec>& frame_bench_options() {
+  static const std::vector<OptionSpec> specs = compose_options({
+      {
+          {"scene", true, "scene to animate (or give it as SCENE)", "SCENE", "builtin:arena"},
+          {"frames", true, "frames along the scripted path", "N", "300"},
+      },
+      image_size_options("640", "360"),
+      {{"spp", true, "samples per pixel per frame", "N", "1"}},
+      path_depth_options("4"),
+      backend_options(false),
+      thread_options(),
+      scene_options(),
+      environment_options(),
+      json_report_options(),
+      help_options(),
+  });
+  return specs;
+}
+
 bool is_frame_bench(const std::vector<std::string>& args) {
-  return std::find(args.begin(), args.end(), "--frames") != args.end();
+  return std::any_of(args.begin(), args.end(), [](const std::string& a) {
+    return a == "--frames" || a.rfind("--frames=", 0) == 0;
+  });
 }
 
 int run_frame_bench(const std::vector<std::string>& argv) {
   const ParsedArgs args("bench", frame_bench_options(), argv);
-  if (args.has("help") || !args.positionals().empty()) {
-    if (!args.has("help")) throw UsageError("bench --frames: give the scene with --scene");
-    std::printf("usage: tandem bench --frames N [--scene SCENE] [options]\n\n%s",
+  if (args.has("help")) {
+    std::printf("usage: tandem bench [SCENE] --frames N [options]\n\n%s",
                 format_options_help(frame_bench_options()).c_str());
     return 0;
   }
+  if (args.positionals().size() > 1 || (!args.positionals().empty() && args.has("scene")))
+    throw UsageError("bench --frames: give one scene, as SCENE or with --scene");
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
   std::optional<tbb::global_control> limit;
   if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   ViewOptions o;
-  o.scene = args.get_string("scene", "builtin:arena");
-  o.width = args.get_u32("width", 640, 8, 16384);
-  o.height = args.get_u32("height", 360, 8, 16384);
+  o.scene = args.positionals().empty() ? args.get_string("scene") : args.positionals()[0];
+  const SceneRequest request = parse_scene_request(args, o.scene);
+  o.scene_load = request.load;
+  o.environment = request.environment;
+  o.width = args.get_u32("width", 8, 16384);
+  o.height = args.get_u32("height", 8, 16384);
   o.fixed_scale = 1.0f;  // measure the loop itself, not the adaptation
-  o.max_depth = args.get_u32("max-depth", 4, 1, 1024);
-  o.backend = parse_backend_kind(args.get_string("backend", "auto"));
+  o.max_depth = args.get_u32("max-depth", 1, 1024);
+  o.backend = parse_backend_kind(args.get_string("backend"));
   o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
   o.denoise = false;
-  const uint32_t spp = args.get_u32("spp", 1, 1, 4096);
-  const uint32_t frames = args.get_u32("frames", 300, 1, 1u << 24);
+  const uint32_t spp = args.get_u32("spp", 1, 4096);
+  const uint32_t frames = args.get_u32("frames", 1, 1u << 24);
   const std::optional<std::string> json_path = args.value("json");
   if (json_path) check_json_output_path(*json_path);  // before measuring
 

@@ -2,14 +2,20 @@
 // (default: the dynamic builtin:arena), or a scripted headless run that
 // writes the last frame (`--frames N --screenshot out.png`, for tests under
 // Xvfb). Exit codes as `tandem`: 1 bad input, 2 bad usage.
+#include <tbb/global_control.h>
+
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <new>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "app/backend_list.h"
 #include "app/cli_args.h"
+#include "app/cli_options.h"
+#include "app/scene_setup.h"
 #include "app/view/view_session.h"
 #include "app/view/view_window.h"
 #include "core/image/image.h"
@@ -20,24 +26,30 @@ namespace tandem {
 namespace {
 
 const std::vector<OptionSpec>& view_options() {
-  static const std::vector<OptionSpec> specs = {
-      {"width", true, "window width (default 1280)", "W"},
-      {"height", true, "window height (default 720)", "H"},
-      {"backend", true, "auto, cpu, host, cuda or hetero (default auto)", "B"},
-      {"target-fps", true, "frame rate to hold while things move (default 30)", "F"},
-      {"scale", true, "fixed resolution scale in (0, 1]; disables adaptation", "S"},
-      {"max-depth", true, "scattering events per path (default 4)", "D"},
-      {"max-spp", true, "most samples per pixel per frame when still (default 16)", "N"},
-      {"exposure", true, "display exposure in stops (default 0)", "E"},
-      {"no-denoise", false, "do not filter low-sample motion frames"},
-      {"split-view", false, "tint tiles by the backend that rendered them"},
-      {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
-      {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
-      {"no-window", false, "scripted run without opening a window"},
-      {"allow-outside-uris", false,
-       "let glTF buffer/image URIs name files outside the scene file's folder"},
-      {"help", false, "show this help"},
-  };
+  static const std::vector<OptionSpec> specs = compose_options({
+      image_size_options("1280", "720"),
+      backend_options(false),
+      thread_options(),
+      {
+          {"target-fps", true, "frame rate to hold while things move", "F", "30"},
+          {"scale", true, "fixed resolution scale in (0, 1]; disables adaptation", "S"},
+      },
+      path_depth_options("4"),
+      {{"max-spp", true, "most samples per pixel per frame when still", "N", "16"}},
+      display_options(false),
+      {
+          {"exposure", true, "display exposure in stops", "E", "0"},
+          {"no-denoise", false, "do not filter low-sample motion frames"},
+          {"split-view", false, "tint tiles by the backend that rendered them"},
+          {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
+          {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
+          {"no-window", false, "scripted run without opening a window (needs --frames)"},
+      },
+      scene_options(),
+      environment_options(),
+      help_options(),
+      {{"version", false, "print the version"}},
+  });
   return specs;
 }
 
@@ -50,24 +62,36 @@ int run(const std::vector<std::string>& argv) {
         format_options_help(view_options()).c_str());
     return 0;
   }
+  if (args.has("version")) {
+    std::printf("tandem-view %s\n", tandem_version());
+    return 0;
+  }
   if (args.positionals().size() > 1) throw UsageError("expected at most one SCENE argument");
   ViewOptions o;
   if (!args.positionals().empty()) o.scene = args.positionals()[0];
-  o.width = args.get_u32("width", 1280, 16, 16384);
-  o.height = args.get_u32("height", 720, 16, 16384);
-  o.backend = parse_backend_kind(args.get_string("backend", "auto"));
-  o.target_fps = args.get_float("target-fps", 30.0f, 1.0f, 1000.0f);
+  o.width = args.get_u32("width", 16, 16384);
+  o.height = args.get_u32("height", 16, 16384);
+  o.backend = parse_backend_kind(args.get_string("backend"));
+  o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
+  o.target_fps = args.get_float("target-fps", 1.0f, 1000.0f);
   o.fixed_scale = args.get_float("scale", 0.0f, 0.01f, 1.0f);
-  o.max_depth = args.get_u32("max-depth", 4, 1, 1024);
-  o.max_spp_per_frame = args.get_u32("max-spp", 16, 1, 4096);
-  o.exposure = args.get_float("exposure", 0.0f, -20.0f, 20.0f);
+  o.max_depth = args.get_u32("max-depth", 1, 1024);
+  o.max_spp_per_frame = args.get_u32("max-spp", 1, 4096);
+  o.exposure = args.get_float("exposure", -20.0f, 20.0f);
   o.denoise = !args.has("no-denoise");
   o.split_view = args.has("split-view");
-  o.allow_outside_uris = args.has("allow-outside-uris");
+  const SceneRequest scene_request = parse_scene_request(args, o.scene);
+  o.scene_load = scene_request.load;
+  o.environment = scene_request.environment;
+  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   const uint32_t frames = args.get_u32("frames", 0, 1, 1u << 24);
   const std::string screenshot = args.get_string("screenshot", "");
-  if (!screenshot.empty() && frames == 0 && args.has("no-window")) {
-    throw UsageError("--no-window needs --frames");
+  if (args.has("no-window") && frames == 0) {
+    throw UsageError(
+        "--no-window runs a script and needs a frame count: add --frames N (and --screenshot "
+        "FILE.png to keep the last frame)");
   }
   if (!screenshot.empty()) {
     // Screenshots are what the window shows: tone-mapped 8-bit PNG. Check
@@ -116,7 +140,7 @@ int main(int argc, char** argv) {
   try {
     return tandem::run(args);
   } catch (const tandem::UsageError& e) {
-    std::fprintf(stderr, "tandem-view: error: %s\nRun 'tandem-view --help' for usage.\n", e.what());
+    std::fprintf(stderr, "tandem-view: error: %s\nsee 'tandem-view --help'\n", e.what());
     return 2;
   } catch (const tandem::InputError& e) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());

@@ -5,29 +5,10 @@
 
 #include "app/view/image_filters.h"
 #include "core/util/errors.h"
-#include "scenes/builtin_scenes.h"
-#include "scenes/gltf_loader.h"
 
 namespace tandem {
 
 namespace {
-
-Scene load_view_scene(const std::string& spec, GltfAnimations& animations,
-                      bool allow_outside_uris) {
-  const std::string prefix = "builtin:";
-  if (spec.rfind(prefix, 0) == 0) return make_builtin_scene(spec.substr(prefix.size()));
-  std::string ext = std::filesystem::path(spec).extension().string();
-  for (char& c : ext)
-    c = char(std::tolower(static_cast<unsigned char>(c)));
-  if (ext != ".gltf" && ext != ".glb") {
-    throw InputError(spec +
-                     ": unsupported scene format (expected a .gltf or .glb file, or builtin:NAME)");
-  }
-  GltfOptions gltf;
-  gltf.animations = &animations;  // tandem-view plays node animations
-  gltf.allow_outside_uris = allow_outside_uris;
-  return load_gltf(spec, gltf);
-}
 
 AdaptiveSettings adaptive_settings(const ViewOptions& o) {
   AdaptiveSettings a;
@@ -44,16 +25,13 @@ AdaptiveSettings adaptive_settings(const ViewOptions& o) {
 
 ViewSession::ViewSession(const ViewOptions& options)
     : options_(options), adaptive_(adaptive_settings(options)) {
-  scene_ = load_view_scene(options.scene, animations_, options.allow_outside_uris);
+  SceneRequest request{options.scene, options.scene_load, options.environment, true};
+  request.load.animations = &animations_;  // tandem-view plays node animations
+  scene_ = load_requested_scene(request, "tandem-view");
   if (scene_.source == "builtin:arena") arena_ = std::make_unique<ArenaSimulation>(scene_);
   if (!scene_.has_camera()) {
     scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,
                                           float(options.width) / float(options.height)));
-  }
-  // glTF files without lights or sky would be black: give them a sky.
-  if (scene_.source != "builtin:arena" && scene_.lights().empty() &&
-      scene_.environment().color == glm::vec3(0.0f) && scene_.environment().texels.empty()) {
-    scene_.edit_environment().color = glm::vec3(1.0f);
   }
   for (const Light& l : scene_.lights())
     light_intensity_.push_back(l.intensity);

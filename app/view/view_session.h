@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "app/scene_setup.h"
 #include "app/view/adaptive_quality.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
@@ -31,7 +32,10 @@ struct ViewOptions {
   float exposure = 0.0f;  // stops
   bool denoise = true;    // edge-aware filter on motion frames
   bool split_view = false;
-  bool allow_outside_uris = false;  // glTF URIs may leave the scene's folder
+  // How `scene` is loaded and lit (app/scene_setup.h: one rule for every
+  // command); parse_scene_request() fills both from the command line.
+  SceneLoadOptions scene_load;
+  EnvironmentRequest environment;
 };
 
 class ViewSession {

@@ -570,12 +570,7 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
     }
   }
 
-  const bool settings_changed = settings.width != last_settings_.width ||
-                                settings.height != last_settings_.height ||
-                                settings.max_depth != last_settings_.max_depth ||
-                                settings.rr_start_depth != last_settings_.rr_start_depth ||
-                                settings.seed != last_settings_.seed ||
-                                settings.radiance_clamp != last_settings_.radiance_clamp;
+  const bool settings_changed = settings != last_settings_;
   if (delta.any() || scene.camera_dirty() || settings_changed || !compiled_once_) {
     compile_constants(scene, settings, out);
     delta.constants = true;

@@ -77,6 +77,9 @@ struct RenderSettings {
   uint32_t rr_start_depth = 3;  // Russian roulette after this many bounces
   uint32_t seed = 0;
   float radiance_clamp = 0.0f;  // 0 = off
+  // Every field: one comparison for "did the settings change", so that a
+  // field added here is never forgotten by a hand-written one.
+  bool operator==(const RenderSettings&) const = default;
 };
 
 class SceneCompiler {

@@ -20,10 +20,7 @@ double seconds_since(Clock::time_point t) {
 
 // Settings that change what a pixel converges to (or which samples it gets).
 bool same_image(const TracerSettings& a, const TracerSettings& b) {
-  const RenderSettings &x = a.render, &y = b.render;
-  return x.width == y.width && x.height == y.height && x.max_depth == y.max_depth &&
-         x.rr_start_depth == y.rr_start_depth && x.seed == y.seed &&
-         x.radiance_clamp == y.radiance_clamp;
+  return a.render == b.render;
 }
 
 }  // namespace

@@ -99,8 +99,18 @@ std::vector<double> TileScheduler::target_shares() const {
 std::vector<TileSource*> TileScheduler::begin_frame() {
   std::lock_guard<std::mutex> lock(mutex_);
   planned_ = target_shares();
-  const double total = std::accumulate(cost_.begin(), cost_.end(), 0.0);
-  // Cut the row-major list where the running cost crosses each backend's
+  // A forced split is a share of the frame's pixels (hence of its samples),
+  // as asked, whatever the tiles cost; a balanced split is a share of the
+  // learned cost, so that the backends finish together.
+  std::vector<double> pixels;
+  if (settings_.forced_split >= 0.0f) {
+    pixels.reserve(tiles_.size());
+    for (const Tile& t : tiles_)
+      pixels.push_back(double(t.pixel_count()));
+  }
+  const std::vector<double>& weight = pixels.empty() ? cost_ : pixels;
+  const double total = std::accumulate(weight.begin(), weight.end(), 0.0);
+  // Cut the row-major list where the running weight crosses each backend's
   // cumulative share; a cut lands on the tile boundary nearest to it.
   size_t begin = 0;
   double cumulative_share = 0.0, running = 0.0;
@@ -111,8 +121,8 @@ std::vector<TileSource*> TileScheduler::begin_frame() {
       end = tiles_.size();
     } else {
       const double target = cumulative_share * total;
-      while (end < tiles_.size() && running + 0.5 * cost_[end] < target)
-        running += cost_[end++];
+      while (end < tiles_.size() && running + 0.5 * weight[end] < target)
+        running += weight[end++];
     }
     segments_[b] = Segment{begin, end, 0};
     begin = end;

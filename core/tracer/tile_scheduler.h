@@ -26,7 +26,9 @@ namespace tandem {
 
 struct SchedulerSettings {
   // < 0: balance by measured throughput. Otherwise the share of the frame's
-  // cost given to backend 0 (the GPU in a cuda+cpu run), the rest balanced.
+  // pixels (so of its samples) planned for backend 0 (the GPU in a cuda+cpu
+  // run), to the nearest tile boundary; the rest is balanced by cost.
+  // Stealing can still move tiles; without it the split is what was asked.
   float forced_split = -1.0f;
   bool stealing = true;
   // Weight of the newest frame in the running estimates (1: only the last).
