@@ -27,6 +27,7 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
   GltfOptions gltf;
   gltf.scene_index = options.gltf_scene;
   gltf.allow_outside_uris = options.allow_outside_uris;
+  gltf.animations = options.animations;
   return load_gltf(path, gltf);
 }
 

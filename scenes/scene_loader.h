@@ -7,10 +7,15 @@
 
 namespace tandem {
 
+struct GltfAnimations;
+
 struct SceneLoadOptions {
   int gltf_scene = -1;  // -1: the file's default scene
   // glTF URIs may name files outside the scene file's folder (see GltfOptions).
   bool allow_outside_uris = false;
+  // When set, a glTF file's node animations are loaded into it (see
+  // scene_animator.h to play them).
+  GltfAnimations* animations = nullptr;
 };
 
 // Throws InputError naming the scene and the reason.
