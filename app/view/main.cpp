@@ -28,6 +28,7 @@ const std::vector<OptionSpec>& view_options() {
       {"scale", true, "fixed resolution scale in (0, 1]; disables adaptation", "S"},
       {"max-depth", true, "scattering events per path (default 4)", "D"},
       {"max-spp", true, "most samples per pixel per frame when still (default 16)", "N"},
+      {"target-spp", true, "a still image is done at N samples per pixel (default 1024)", "N"},
       {"exposure", true, "display exposure in stops (default 0)", "E"},
       {"no-denoise", false, "do not filter low-sample motion frames"},
       {"split-view", false, "tint tiles by the backend that rendered them"},
@@ -60,6 +61,7 @@ int run(const std::vector<std::string>& argv) {
   o.fixed_scale = args.get_float("scale", 0.0f, 0.01f, 1.0f);
   o.max_depth = args.get_u32("max-depth", 4, 1, 1024);
   o.max_spp_per_frame = args.get_u32("max-spp", 16, 1, 4096);
+  o.target_spp = args.get_u32("target-spp", 1024, 1, 1u << 24);
   o.exposure = args.get_float("exposure", 0.0f, -20.0f, 20.0f);
   o.denoise = !args.has("no-denoise");
   o.split_view = args.has("split-view");

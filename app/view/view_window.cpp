@@ -101,10 +101,14 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
   ImGui::Separator();
   const TracerSettings& ts = s.tracer().settings();
   const double fps = ui.counter.fps(), ms = ui.counter.ms_per_rendered_frame();
+  // Presented frames also pay for the display; rendering is the part the
+  // resolution controls.
+  char rendering[48] = "not rendering";
+  if (ms > 0.0) std::snprintf(rendering, sizeof rendering, "%.1f ms rendering", ms);
   if (fps > 0.0)
-    ImGui::Text("%.1f fps presented  %.1f ms/rendered frame", fps, ms);
+    ImGui::Text("%.1f fps presented (%.1f ms apart)  %s", fps, 1e3 / fps, rendering);
   else
-    ImGui::Text("-- fps presented  %.1f ms/rendered frame", ms);
+    ImGui::Text("-- fps presented  %s", rendering);
   ImGui::Text("%ux%u (scale %.2f)  %u spp/frame", ts.render.width, ts.render.height,
               s.quality().scale, ts.samples_per_frame);
   if (s.last_frame_moving()) {
