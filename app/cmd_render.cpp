@@ -17,6 +17,7 @@
 #include "app/cli_options.h"
 #include "app/commands.h"
 #include "app/progress.h"
+#include "app/render_frames.h"
 #include "app/scene_setup.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
@@ -25,6 +26,7 @@
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
 #include "core/util/log.h"
+#include "scenes/scene_animator.h"
 #include "scenes/scene_loader.h"
 
 namespace tandem {
@@ -72,6 +74,14 @@ const std::vector<OptionSpec>& render_options() {
           {"quiet", false, "no progress bar or summary"},
           {"save-on-interrupt", false,
            "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
+      },
+      {
+          // Animation frames (see render_frames.h).
+          {"frame", true, "render the scene's animation at frame N (time N / fps)", "N"},
+          {"frames", true,
+           "render animation frames A..B; --output then needs a #### frame-number pattern",
+           "A..B"},
+          {"fps", true, "animation frames per second for --frame/--frames", "F", "24"},
       },
       help_options(),
   });
@@ -137,7 +147,12 @@ int run_render(const std::vector<std::string>& argv) {
   ImageWriteOptions write_options;
   write_options.exposure = args.get_float("exposure", -50.0f, 50.0f);
   write_options.tone_map = parse_tone_map(args.get_string("tonemap"));
-  const std::string output = args.get_string("output");
+  const std::string output_spec = args.get_string("output");
+  const std::optional<RenderFrames> frame_range = parse_render_frames(
+      args.value("frame"), args.value("frames"), args.value("fps"), output_spec);
+  // A still render writes `output_spec` as given (a '#' in it is only a pattern with frames).
+  const std::string output =
+      frame_range ? frame_output_name(output_spec, frame_range->first) : output_spec;
   const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
   const uint32_t tile_size = args.get_u32("tile-size", 1, 4096);
   const SceneRequest scene_request = parse_scene_request(args, scene_spec);
@@ -162,7 +177,11 @@ int run_render(const std::vector<std::string>& argv) {
                  both ? "apply" : "applies", output.c_str(), both ? "them" : "it");
   }
 
-  Scene scene = load_requested_scene(scene_request, "tandem");
+  GltfAnimations animations;
+  SceneRequest scene_load = scene_request;
+  if (frame_range) scene_load.load.animations = &animations;
+  Scene scene = load_requested_scene(scene_load, "tandem");
+  std::unique_ptr<SceneAnimator> animator = make_scene_animator(scene, std::move(animations));
   // (An empty glTF scene has been reported by the loader already.)
 
   // Resolution: explicit, or from the camera's aspect ratio.
@@ -205,46 +224,78 @@ int run_render(const std::vector<std::string>& argv) {
   tracer_settings.samples_per_frame = per_frame;
   CoreTracer tracer(make_backend_list(backend_spec, backend_options), tracer_settings);
 
+  // Animation frames: frame f is the scene posed at f / fps. The next
+  // frame is posed while the last samples of this one render, so from one
+  // frame to the next only the moved instances are committed.
+  const RenderFrames range = frame_range.value_or(RenderFrames{});
+  if (frame_range) {
+    if (!animator->animated() && !quiet)
+      std::fprintf(stderr, "tandem: %s has no animation; every frame is the same image\n",
+                   scene_spec.c_str());
+    animator->pose(range.time(range.first), scene);
+  }
   ProgressBar bar(!quiet && stderr_is_terminal());
   const auto start = std::chrono::steady_clock::now();
   std::vector<BackendFrameMetrics> totals;
   double render_seconds = 0.0;
   // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
   std::optional<GracefulStop> stop(std::in_place);
-  while (tracer.accumulated_spp() < spp && !stop->requested()) {
-    const uint32_t left = spp - tracer.accumulated_spp();
-    if (left < tracer_settings.samples_per_frame) {
-      tracer_settings.samples_per_frame = left;  // does not restart accumulation
-      tracer.set_settings(tracer_settings);
+  for (uint32_t frame = range.first; frame <= range.last; ++frame) {
+    const std::string frame_output = frame_range ? frame_output_name(output_spec, frame) : output;
+    tracer.reset_accumulation();  // even if nothing moved since the last frame
+    tracer_settings.samples_per_frame = per_frame;
+    tracer.set_settings(tracer_settings);
+    // The tracer's count restarts at this frame's first pass.
+    uint32_t done = 0;
+    while (done < spp && !stop->requested()) {
+      const uint32_t left = spp - done;
+      if (left < tracer_settings.samples_per_frame) {
+        tracer_settings.samples_per_frame = left;  // does not restart accumulation
+        tracer.set_settings(tracer_settings);
+      }
+      std::function<void(Scene&)> pose_next;
+      if (frame < range.last && left <= tracer_settings.samples_per_frame) {
+        const double next_time = range.time(frame + 1);
+        pose_next = [&animator, next_time](Scene& s) { animator->pose(next_time, s); };
+      }
+      const FrameMetrics& m = tracer.render_frame(scene, pose_next);
+      done = tracer.accumulated_spp();
+      render_seconds += m.render_seconds;
+      totals.resize(m.backends.size());
+      for (size_t b = 0; b < m.backends.size(); ++b) {
+        BackendFrameMetrics& t = totals[b];
+        const BackendFrameMetrics& f = m.backends[b];
+        t.name = f.name;
+        t.tiles += f.tiles;
+        t.stolen += f.stolen;
+        t.seconds += f.seconds;
+        t.idle_seconds += f.idle_seconds;
+        t.rays += f.rays;
+        t.samples += f.samples;
+        t.commit_bytes += f.commit_bytes;
+        t.planned_share = f.planned_share;  // the last frame's plan
+      }
+      if (bar.enabled())
+        bar.update((double(frame - range.first) + double(done) / double(spp)) /
+                   double(range.count()));
     }
-    const FrameMetrics& m = tracer.render_frame(scene);
-    render_seconds += m.render_seconds;
-    totals.resize(m.backends.size());
-    for (size_t b = 0; b < m.backends.size(); ++b) {
-      BackendFrameMetrics& t = totals[b];
-      const BackendFrameMetrics& f = m.backends[b];
-      t.name = f.name;
-      t.tiles += f.tiles;
-      t.stolen += f.stolen;
-      t.seconds += f.seconds;
-      t.idle_seconds += f.idle_seconds;
-      t.rays += f.rays;
-      t.samples += f.samples;
-      t.commit_bytes += f.commit_bytes;
-      t.planned_share = f.planned_share;  // the last frame's plan
+    if (stop->requested()) {
+      bar.finish();
+      const int stop_signal = stop->signal();
+      stop.reset();  // from here a signal ends the process (and removes a partial output)
+      // Before this frame's first pass the film still holds the previous frame.
+      return finish_interrupted(stop_signal, tracer, spp, frame_output, write_options,
+                                args.has("save-on-interrupt") && done > 0);
     }
-    if (bar.enabled()) bar.update(double(tracer.accumulated_spp()) / double(spp));
+    write_image(frame_output, tracer.image(), write_options);
+    if (frame_range && range.count() > 1 && !quiet && !bar.enabled())
+      std::fprintf(stderr, "tandem: frame %u (t = %.4f s) -> %s\n", frame, range.time(frame),
+                   frame_output.c_str());
   }
   bar.finish();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const int stop_signal = stop->signal();
-  stop.reset();  // from here a signal ends the process (and removes a partial output)
-  if (stop_signal != 0)
-    return finish_interrupted(stop_signal, tracer, spp, output, write_options,
-                              args.has("save-on-interrupt"));
-
-  write_image(output, tracer.image(), write_options);
+  stop.reset();
 
   if (!quiet) {
     uint64_t samples = 0, rays = 0;
@@ -271,7 +322,8 @@ int run_render(const std::vector<std::string>& argv) {
         "tandem: %ux%u, %u spp, max depth %u on %s (%d threads): %.2f s, %.2f M samples/s, "
         "%.1f Mrays/s -> %s\n",
         settings.width, settings.height, spp, settings.max_depth, names.c_str(), worker_threads,
-        seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6, output.c_str());
+        seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6,
+        frame_range && range.count() > 1 ? output_spec.c_str() : output.c_str());
   }
   return 0;
 }

@@ -14,8 +14,8 @@ struct SceneLoadOptions {
   int gltf_scene = -1;  // -1: the file's default scene
   // glTF URIs may name files outside the scene file's folder (see GltfOptions).
   bool allow_outside_uris = false;
-  // When set, a glTF file's node animations are loaded into it (tandem-view
-  // plays them); otherwise they are ignored with a warning.
+  // When set, a glTF file's node animations are loaded into it (see
+  // scene_animator.h to play them).
   GltfAnimations* animations = nullptr;
 };
 

@@ -6,6 +6,19 @@
 // everything is still, the full resolution comes back and the samples per
 // frame grow to fill the budget, so the image converges as fast as the
 // frame rate allows. Pure logic: fed measured frame times, testable.
+//
+// The controller measures what a frame costs per unit of work (seconds per
+// sample of the full-resolution frame; a frame at scale s with n samples is
+// s^2 * n units) and picks scales from that cost:
+// - a frame slower than kSlowFraction of the budget drops the scale at once
+//   to the level its own cost says fits kAimFraction of the budget;
+// - frames faster than kFastFraction of the budget, kFastFramesToRise in a
+//   row, raise it by up to kMaxRiseLevels levels (never past the level the
+//   smoothed cost says fits), so it climbs back in steps while motion goes on;
+// - in between nothing changes (hysteresis). Levels are a geometric ladder
+//   (kLevelRatio apart) so one level up costs at most kLevelRatio^2 = 1.21
+//   times the time, less than kAimFraction / kFastFraction: a rise from a
+//   fast frame can never land on a slow one, hence no oscillation.
 #pragma once
 
 #include <cstdint>
@@ -36,16 +49,31 @@ class AdaptiveQuality {
   const AdaptiveSettings& settings() const { return settings_; }
   void set_target_fps(double fps) { settings_.target_fps = fps; }
   double budget_seconds() const { return 1.0 / settings_.target_fps; }
+  // Smoothed seconds per sample of the full-resolution frame; 0 until a
+  // frame was measured.
+  double cost_per_unit() const { return cost_; }
 
-  // Scale steps are coarse so small timing jitter does not change the
-  // resolution (and resize the film) every frame.
-  static constexpr float kScaleStep = 0.05f;
+  static constexpr double kSlowFraction = 1.2;
+  static constexpr double kFastFraction = 0.7;
+  static constexpr double kAimFraction = 0.85;
+  static constexpr int kFastFramesToRise = 2;
+  static constexpr int kMaxRiseLevels = 2;
+  static constexpr float kLevelRatio = 1.1f;
 
  private:
+  int level_of(float scale) const;  // the highest level not above `scale`
+  float scale_of(int level) const;
+  int top_level() const;
+  // The highest level whose frame is predicted to take at most kAimFraction
+  // of the budget at `cost` seconds per unit.
+  int fitting_level(double cost) const;
+
   AdaptiveSettings settings_;
-  float motion_scale_;  // kept between motion periods: the next one starts there
+  int motion_level_;  // kept between motion periods
   uint32_t still_spp_ = 1;
   bool was_moving_ = false;
+  int fast_frames_ = 0;
+  double cost_ = 0.0;
   Quality last_;
 };
 

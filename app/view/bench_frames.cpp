@@ -84,6 +84,7 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
   o.denoise = false;
   const uint32_t spp = args.get_u32("spp", 1, 4096);
+  o.fixed_samples_per_frame = spp;
   const uint32_t frames = args.get_u32("frames", 1, 1u << 24);
   const std::optional<std::string> json_path = args.value("json");
   if (json_path) check_json_output_path(*json_path);  // before measuring
@@ -98,22 +99,16 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::vector<double> copy_s, hidden_s;
   uint32_t overlapped_commits = 0;
   double first_frame = 0.0;
-  TracerSettings ts = session.tracer().settings();
-  ts.samples_per_frame = spp;
-  session.tracer().set_settings(ts);
   session.advance_scene(0.0);
-  session.set_camera(scripted_camera(base, 0.0));
   for (uint32_t f = 0; f < frames; ++f) {
-    // Brigade's overlap: while the backends render frame f, the simulation
-    // and camera advance the Scene to frame f + 1 (the renderers only read
-    // the compiled KernelScene).
-    session.tracer().begin_frame(session.scene());
-    const double next_t = double(f + 1) * kScriptedFrameStep;
-    session.advance_scene(next_t);
-    session.set_camera(scripted_camera(base, next_t));
-    // GPU-only: also compile frame f + 1 and update its BVH now.
-    if (f + 1 < frames) session.tracer().prepare_next_frame(session.scene());
-    const FrameMetrics& m = session.tracer().end_frame();
+    // The viewer's frame loop (Brigade's overlap): while the backends
+    // render frame f, the simulation advances the Scene to frame f + 1 (the
+    // renderers only read the compiled KernelScene) and, GPU-only, the next
+    // frame is compiled and its BVH updated.
+    session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
+    std::optional<double> next_t;
+    if (f + 1 < frames) next_t = double(f + 1) * kScriptedFrameStep;
+    const FrameMetrics& m = session.render_frame(true, next_t);
     if (f == 0) {
       first_frame = m.total_seconds;  // full compile + build: reported apart
       names.clear();

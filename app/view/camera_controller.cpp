@@ -51,9 +51,10 @@ bool FlyCamera::update(const CameraInput& in, Camera& camera) {
   if (in.left) dir -= right;
   if (in.up) dir.y += 1.0f;
   if (in.down) dir.y -= 1.0f;
-  if (dir != glm::vec3(0.0f) && in.dt > 0.0) {
+  const double dt = clamp_frame_delta(in.dt);
+  if (dir != glm::vec3(0.0f) && dt > 0.0) {
     const float speed = speed_ * (in.fast ? 4.0f : 1.0f);
-    position_ += glm::normalize(dir) * speed * float(in.dt);
+    position_ += glm::normalize(dir) * speed * float(dt);
     moved = true;
   }
   if (moved || camera.position != position_) set_camera_basis(camera, position_, fwd);

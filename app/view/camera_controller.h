@@ -11,9 +11,17 @@
 
 namespace tandem {
 
+// The longest step a controller takes from one frame's input. After a long
+// frame (a still frame converging, a stall) the next frame's dt is large:
+// moving by speed * dt would throw the camera out of the scene.
+inline constexpr double kMaxFrameDeltaSeconds = 0.1;
+inline double clamp_frame_delta(double dt) {
+  return dt > kMaxFrameDeltaSeconds ? kMaxFrameDeltaSeconds : (dt > 0.0 ? dt : 0.0);
+}
+
 // One frame of input, already decoded from the window system.
 struct CameraInput {
-  double dt = 0.0;  // seconds since the previous frame
+  double dt = 0.0;  // seconds since the previous frame (clamp_frame_delta() applies)
   // Fly camera: held keys (W/S, A/D, E/Q, shift).
   bool forward = false, back = false, left = false, right = false, up = false, down = false;
   bool fast = false;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "app/view/image_filters.h"
 #include "core/util/errors.h"
@@ -25,14 +26,16 @@ AdaptiveSettings adaptive_settings(const ViewOptions& o) {
 
 ViewSession::ViewSession(const ViewOptions& options)
     : options_(options), adaptive_(adaptive_settings(options)) {
+  GltfAnimations animations;
   SceneRequest request{options.scene, options.scene_load, options.environment, true};
-  request.load.animations = &animations_;  // tandem-view plays node animations
+  request.load.animations = &animations;  // tandem-view plays node animations
   scene_ = load_requested_scene(request, "tandem-view");
-  if (scene_.source == "builtin:arena") arena_ = std::make_unique<ArenaSimulation>(scene_);
+  animator_ = make_scene_animator(scene_, std::move(animations));
   if (!scene_.has_camera()) {
     scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,
                                           float(options.width) / float(options.height)));
   }
+  initial_camera_ = scene_.camera();
   for (const Light& l : scene_.lights())
     light_intensity_.push_back(l.intensity);
   for (const Material& m : scene_.materials())
@@ -47,15 +50,18 @@ TracerSettings ViewSession::tracer_settings() const {
   s.render.width = std::max(8u, uint32_t(std::lround(float(options_.width) * scale)));
   s.render.height = std::max(8u, uint32_t(std::lround(float(options_.height) * scale)));
   s.render.max_depth = options_.max_depth;
-  s.samples_per_frame = quality_.samples_per_frame;
+  s.samples_per_frame = options_.fixed_samples_per_frame > 0 && options_.fixed_scale > 0.0f
+                            ? options_.fixed_samples_per_frame
+                            : quality_.samples_per_frame;
   s.tile_size = 32;
   return s;
 }
 
 bool ViewSession::advance_scene(double t) {
   if (paused || !has_motion()) return false;
-  if (arena_) arena_->advance_to(t, scene_);
-  if (!animations_.empty()) apply_gltf_animations(animations_, t, scene_);
+  animator_->pose(t, scene_);
+  scene_time_ = t;
+  scene_posed_ = true;
   return true;
 }
 
@@ -63,33 +69,71 @@ void ViewSession::set_camera(const Camera& camera) {
   scene_.edit_camera() = camera;
 }
 
-const FrameMetrics& ViewSession::render(bool moving) {
+bool ViewSession::converged() const {
+  return !last_moving_ && !restart_pending_ && !scene_.any_dirty() &&
+         tracer_->accumulated_spp() >= options_.target_spp;
+}
+
+const FrameMetrics& ViewSession::render_frame(bool camera_moved,
+                                              std::optional<double> next_scene_time) {
+  const bool moving = camera_moved || scene_posed_;
   quality_ = adaptive_.next(moving, last_seconds_);
+  TracerSettings settings = tracer_settings();
+  if (!moving && !(options_.fixed_scale > 0.0f)) {
+    // Land on the target exactly instead of overshooting it.
+    const uint32_t have = tracer_->accumulated_spp();
+    const uint32_t left = options_.target_spp > have ? options_.target_spp - have : 1u;
+    settings.samples_per_frame = std::clamp(settings.samples_per_frame, 1u, left);
+  }
   // Only a change of resolution or depth restarts accumulation; samples per
   // frame just add more samples to the same pixels.
-  tracer_->set_settings(tracer_settings());
-  const FrameMetrics& m = tracer_->render_frame(scene_);
+  tracer_->set_settings(settings);
+  scene_posed_ = false;
+  restart_pending_ = false;
+  std::function<void(Scene&)> advance;
+  if (next_scene_time && has_motion() && !paused) {
+    const double t = *next_scene_time;
+    advance = [this, t](Scene&) { advance_scene(t); };
+  }
+  const FrameMetrics& m = tracer_->render_frame(scene_, advance);
   last_seconds_ = m.total_seconds;
+  last_moving_ = moving;
   ++frames_;
-  make_display(moving);
+  display_stale_ = true;
   return m;
 }
 
-void ViewSession::make_display(bool moving) {
+const std::vector<uint8_t>& ViewSession::display() const {
+  if (display_stale_) make_display();
+  return display_;
+}
+uint32_t ViewSession::display_width() const {
+  if (display_stale_) make_display();
+  return display_w_;
+}
+uint32_t ViewSession::display_height() const {
+  if (display_stale_) make_display();
+  return display_h_;
+}
+
+void ViewSession::make_display() const {
   ImageRGB img = tracer_->image();
-  if (options_.denoise && moving && tracer_->accumulated_spp() <= 2) img = denoise_edge_aware(img);
+  if (options_.denoise && last_moving_ && tracer_->accumulated_spp() <= 2)
+    img = denoise_edge_aware(img);
   display_ = tone_map_to_srgb8(img, options_.exposure, ToneMap::kAces);
   display_w_ = img.width;
   display_h_ = img.height;
   if (options_.split_view) {
     tint_tile_owners(display_, display_w_, display_h_, tracer_->tiles(), tracer_->tile_owners());
   }
+  display_stale_ = false;
 }
 
 void ViewSession::screenshot(const std::filesystem::path& path) const {
-  if (display_.empty()) throw InputError(path.string() + ": no frame has been rendered yet");
-  write_png_rgb8(path, options_.width, options_.height,
-                 resize_rgb8(display_, display_w_, display_h_, options_.width, options_.height));
+  if (frames_ == 0) throw InputError(path.string() + ": no frame has been rendered yet");
+  write_png_rgb8(
+      path, options_.width, options_.height,
+      resize_rgb8(display(), display_width(), display_height(), options_.width, options_.height));
 }
 
 void ViewSession::set_backend(BackendKind kind) {
@@ -104,10 +148,12 @@ void ViewSession::set_backend(BackendKind kind) {
 void ViewSession::set_output_size(uint32_t width, uint32_t height) {
   options_.width = std::max(width, 8u);
   options_.height = std::max(height, 8u);
+  restart_pending_ = true;
 }
 
 void ViewSession::set_max_depth(uint32_t depth) {
   options_.max_depth = depth;
+  restart_pending_ = true;
 }
 
 void ViewSession::set_max_spp_per_frame(uint32_t spp) {
@@ -123,6 +169,7 @@ void ViewSession::set_target_fps(double fps) {
 
 void ViewSession::set_exposure(float stops) {
   options_.exposure = stops;
+  display_stale_ = frames_ > 0;
 }
 
 void ViewSession::set_light_scale(float scale) {

@@ -8,10 +8,12 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <optional>
 
 #include "app/view/camera_controller.h"
+#include "app/view/frame_counter.h"
 #include "app/view/image_filters.h"
 #include "app/view/scripted_path.h"
 #include "core/util/errors.h"
@@ -25,8 +27,9 @@ using Clock = std::chrono::steady_clock;
 const char* const kHelp =
     "Fly (default):  W/A/S/D move, Q/E down/up, Shift faster, left-drag look\n"
     "Orbit (Tab):    left-drag orbit, right-drag pan, wheel zoom\n"
-    "P pause scene motion    F1 this help    F12 screenshot (PNG)    Esc quit\n"
-    "Nothing moving: samples accumulate. Motion: resolution adapts to the target fps.";
+    "Home/R reset the camera    P pause scene motion    F1 this help    F12 screenshot (PNG)\n"
+    "Esc quit. Nothing moving: samples accumulate up to the target spp, then rendering stops.\n"
+    "Motion: resolution adapts to the target fps.";
 
 struct UiState {
   bool show_help = false;
@@ -34,9 +37,10 @@ struct UiState {
   int backend = 0;  // index into kBackendNames
   int max_depth = 4;
   int max_spp = 16;
+  int target_spp = 1024;
   float exposure = 0.0f, light_scale = 1.0f, aperture = 0.0f, focus = 1.0f, target_fps = 30.0f;
   bool denoise = true, split = false;
-  double fps = 0.0;
+  FrameCounter counter;
   std::string message;
 };
 
@@ -58,6 +62,7 @@ std::string default_screenshot_name() {
 
 // The panel; returns nothing, applies changes to the session directly.
 void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
+  const bool converged = s.converged();
   ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
   ImGui::SetNextWindowBgAlpha(0.75f);
   ImGui::Begin("tandem-view", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
@@ -77,6 +82,8 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
   ImGui::Checkbox("pause scene", &s.paused);
   if (ImGui::SliderInt("max spp/frame", &ui.max_spp, 1, 64))
     s.set_max_spp_per_frame(uint32_t(ui.max_spp));
+  if (ImGui::SliderInt("target spp", &ui.target_spp, 1, 65536, "%d", ImGuiSliderFlags_Logarithmic))
+    s.set_target_spp(uint32_t(ui.target_spp));
   if (ImGui::SliderInt("max depth", &ui.max_depth, 1, 16)) s.set_max_depth(uint32_t(ui.max_depth));
   if (ImGui::SliderFloat("exposure", &ui.exposure, -5.0f, 5.0f, "%.1f stops"))
     s.set_exposure(ui.exposure);
@@ -93,10 +100,26 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
   if (ImGui::RadioButton("orbit camera", ui.orbit_mode)) ui.orbit_mode = true;
   ImGui::Separator();
   const TracerSettings& ts = s.tracer().settings();
-  ImGui::Text("%.1f fps  %.1f ms/frame  %ux%u (scale %.2f)  %u spp/frame", ui.fps,
-              m.total_seconds * 1e3, ts.render.width, ts.render.height, s.quality().scale,
-              ts.samples_per_frame);
-  ImGui::Text("accumulated: %u spp", s.tracer().accumulated_spp());
+  const double fps = ui.counter.fps(), ms = ui.counter.ms_per_rendered_frame();
+  // Presented frames also pay for the display; rendering is the part the
+  // resolution controls.
+  char rendering[48] = "not rendering";
+  if (ms > 0.0) std::snprintf(rendering, sizeof rendering, "%.1f ms rendering", ms);
+  if (fps > 0.0)
+    ImGui::Text("%.1f fps presented (%.1f ms apart)  %s", fps, 1e3 / fps, rendering);
+  else
+    ImGui::Text("-- fps presented  %s", rendering);
+  ImGui::Text("%ux%u (scale %.2f)  %u spp/frame", ts.render.width, ts.render.height,
+              s.quality().scale, ts.samples_per_frame);
+  if (s.last_frame_moving()) {
+    ImGui::Text("accumulated: %u spp (moving: every frame starts over)", s.accumulated_spp());
+  } else if (converged) {
+    ImGui::TextColored(ImVec4(0.4f, 1.0f, 0.4f, 1.0f),
+                       "accumulated: %u / %u spp  converged (rendering stopped)",
+                       s.accumulated_spp(), s.target_spp());
+  } else {
+    ImGui::Text("accumulated: %u / %u spp  converging", s.accumulated_spp(), s.target_spp());
+  }
   ImGui::Text("commit: %.1f KiB/frame (delta)", double(m.delta_bytes) / 1024.0);
   for (size_t i = 0; i < m.backends.size(); ++i) {
     const BackendFrameMetrics& b = m.backends[i];
@@ -114,18 +137,32 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
 
 void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot) {
   const Camera base = session.camera();
+  session.advance_scene(0.0);
   for (uint32_t f = 0; f < frames; ++f) {
-    const double t = double(f) * kScriptedFrameStep;
-    session.advance_scene(t);
-    session.set_camera(scripted_camera(base, t));
-    session.render(true);
+    // Frame f + 1's scene is posed while frame f renders.
+    session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
+    session.render_frame(true, double(f + 1) * kScriptedFrameStep);
   }
   if (!screenshot.empty()) session.screenshot(screenshot);
 }
 
 bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::string* error) {
+  const char* requested = SDL_getenv("SDL_VIDEODRIVER");
   if (SDL_Init(SDL_INIT_VIDEO) != 0) {
     *error = std::string("cannot initialise SDL video: ") + SDL_GetError();
+    return false;
+  }
+  // Without a display SDL falls back to drivers that "open" windows nobody
+  // can see (offscreen, dummy): the viewer would then render invisibly
+  // forever. Only take them when asked for by name.
+  const char* driver = SDL_GetCurrentVideoDriver();
+  if (!(requested && *requested) && driver &&
+      (std::strcmp(driver, "offscreen") == 0 || std::strcmp(driver, "dummy") == 0)) {
+    *error = std::string(
+                 "no display to open a window on (DISPLAY/WAYLAND_DISPLAY unset or "
+                 "unusable; SDL found only its '") +
+             driver + "' video driver); for a run without a window use --no-window --frames N";
+    SDL_Quit();
     return false;
   }
   SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
@@ -158,6 +195,7 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   UiState ui;
   ui.max_depth = int(vo.max_depth);
   ui.max_spp = int(vo.max_spp_per_frame);
+  ui.target_spp = int(std::min(vo.target_spp, 65536u));
   ui.exposure = vo.exposure;
   ui.denoise = vo.denoise;
   ui.split = vo.split_view;
@@ -172,16 +210,23 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   OrbitCamera orbit(base, camera_target(base));
   bool was_orbit = false;
   Camera camera = base;
+  session.advance_scene(0.0);
   double scene_time = 0.0;
-  auto last = Clock::now();
+  const auto start = Clock::now();
+  auto seconds_now = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  double last = seconds_now();
   uint32_t frame = 0;
-  bool running = true;
+  bool running = true, idle = false;
+  FrameMetrics metrics;  // of the last rendered frame
   while (running) {
-    const auto now = Clock::now();
-    const double dt = std::chrono::duration<double>(now - last).count();
+    // A converged still image is not rendered again: sleep until input.
+    if (idle) SDL_WaitEventTimeout(nullptr, 100);
+    const double now = seconds_now();
+    const double dt = now - last;
     last = now;
     CameraInput in;
-    in.dt = dt;
+    in.dt = clamp_frame_delta(dt);
+    bool reset_camera = false;
     SDL_Event ev;
     ImGuiIO& io = ImGui::GetIO();
     while (SDL_PollEvent(&ev)) {
@@ -203,6 +248,10 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
             break;
           case SDLK_p:
             session.paused = !session.paused;
+            break;
+          case SDLK_HOME:
+          case SDLK_r:
+            reset_camera = true;
             break;
           case SDLK_F12: {
             const std::string path =
@@ -236,11 +285,19 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     }
 
     bool moved = false;
+    std::optional<double> next_time;  // the next frame's scene time
     if (opt.scripted_frames > 0) {
-      scene_time = double(frame) * kScriptedFrameStep;
-      session.set_camera(scripted_camera(base, scene_time));
+      session.set_camera(scripted_camera(base, double(frame) * kScriptedFrameStep));
+      next_time = double(frame + 1) * kScriptedFrameStep;
       moved = true;
     } else {
+      if (reset_camera) {
+        session.reset_camera();
+        camera = session.camera();
+        fly = FlyCamera(camera, fly_speed(session));
+        orbit = OrbitCamera(camera, camera_target(camera));
+        moved = true;
+      }
       // Switching controllers continues from the current view.
       if (ui.orbit_mode != was_orbit) {
         if (ui.orbit_mode)
@@ -250,13 +307,24 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
         was_orbit = ui.orbit_mode;
       }
       camera = session.camera();
-      moved = ui.orbit_mode ? orbit.update(in, camera) : fly.update(in, camera);
-      if (moved) session.set_camera(camera);
-      if (!session.paused) scene_time += std::min(dt, 0.1);  // no jumps after a stall
+      const bool stepped = ui.orbit_mode ? orbit.update(in, camera) : fly.update(in, camera);
+      if (stepped) session.set_camera(camera);
+      moved |= stepped;
+      // The scene advances by real time, but no more than a frame's step
+      // after a stall.
+      if (!session.paused && session.has_motion()) {
+        scene_time += clamp_frame_delta(dt);
+        next_time = scene_time;
+      }
     }
-    moved |= session.advance_scene(scene_time);
-    const FrameMetrics& m = session.render(moved);
-    ui.fps = ui.fps == 0.0 ? 1.0 / std::max(dt, 1e-6) : 0.9 * ui.fps + 0.1 / std::max(dt, 1e-6);
+    // Nothing changes and the image has its samples: present it as it is.
+    idle = !moved && !next_time && session.converged();
+    double render_seconds = 0.0;
+    if (!idle) {
+      const double t0 = seconds_now();
+      metrics = session.render_frame(moved, next_time);
+      render_seconds = seconds_now() - t0;
+    }
 
     glBindTexture(GL_TEXTURE_2D, texture);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, GLsizei(session.display_width()),
@@ -267,7 +335,7 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     ImGui::NewFrame();
     ImGui::GetBackgroundDrawList()->AddImage(reinterpret_cast<ImTextureID>(uintptr_t(texture)),
                                              ImVec2(0, 0), io.DisplaySize);
-    draw_panel(session, ui, m);
+    draw_panel(session, ui, metrics);
     if (ui.show_help) {
       ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x * 0.5f, io.DisplaySize.y - 8.0f),
                               ImGuiCond_Always, ImVec2(0.5f, 1.0f));
@@ -282,6 +350,7 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     glClear(GL_COLOR_BUFFER_BIT);
     ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
     SDL_GL_SwapWindow(window);
+    ui.counter.presented(seconds_now(), render_seconds);
 
     ++frame;
     if (opt.scripted_frames > 0 && frame >= opt.scripted_frames) {

@@ -103,6 +103,21 @@ const FrameMetrics& CoreTracer::render_frame(Scene& scene) {
   return end_frame();
 }
 
+const FrameMetrics& CoreTracer::render_frame(Scene& scene,
+                                             const std::function<void(Scene&)>& advance_to_next) {
+  begin_frame(scene);
+  if (advance_to_next) {
+    try {
+      advance_to_next(scene);
+      prepare_next_frame(scene);
+    } catch (...) {
+      end_frame();  // the render threads must be joined before anything else
+      throw;
+    }
+  }
+  return end_frame();
+}
+
 void CoreTracer::begin_frame(Scene& scene) {
   if (in_flight_)
     throw std::logic_error("CoreTracer::begin_frame: the previous frame was not ended");

@@ -20,6 +20,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -110,6 +111,13 @@ class CoreTracer {
   // nothing) otherwise; the next begin_frame() then does it. Scene edits
   // made after this call still reach the next frame.
   bool prepare_next_frame(Scene& scene);
+  // The whole loop for callers whose scene moves from frame to frame (the
+  // viewer, `bench --frames`, `render --frames`): begin_frame(scene), then
+  // `advance_to_next(scene)` poses the Scene for the next frame while this
+  // one renders, prepare_next_frame(scene), end_frame(). An empty
+  // `advance_to_next` (no next frame) makes it render_frame(scene).
+  const FrameMetrics& render_frame(Scene& scene,
+                                   const std::function<void(Scene&)>& advance_to_next);
 
   // Changing anything that alters the image restarts accumulation; a new
   // resolution or tile size also restarts the scheduler's estimates. While a

@@ -1,0 +1,33 @@
+// `tandem render --frame N | --frames A..B [--fps F]`: which animation
+// frames to render and where each one goes, as Blender Cycles does it. Frame
+// f is the scene at time f / fps; a run of '#' in the output name is
+// replaced by the zero-padded frame number (out_####.png -> out_0001.png).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace tandem {
+
+struct RenderFrames {
+  uint32_t first = 0, last = 0;
+  double fps = 24.0;
+  uint32_t count() const { return last - first + 1; }
+  double time(uint32_t frame) const { return double(frame) / fps; }
+};
+
+// From the option values (each unset when not given): nullopt when neither
+// --frame nor --frames is given (a still render of the scene as loaded).
+// Throws UsageError for malformed values, both options at once, or several
+// frames with an output name that has no '#' pattern.
+std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>& frame,
+                                                const std::optional<std::string>& frames,
+                                                const std::optional<std::string>& fps,
+                                                const std::string& output);
+
+// `output` with its last run of '#' replaced by `frame`, zero-padded to the
+// run's length (longer numbers are written in full); unchanged without '#'.
+std::string frame_output_name(const std::string& output, uint32_t frame);
+
+}  // namespace tandem

@@ -1,0 +1,61 @@
+#include "scenes/scene_animator.h"
+
+#include <algorithm>
+
+#include "scenes/arena_scene.h"
+
+namespace tandem {
+
+namespace {
+
+class StaticAnimator final : public SceneAnimator {
+ public:
+  bool animated() const override { return false; }
+  void pose(double, Scene&) override {}
+  double duration() const override { return 0.0; }
+};
+
+class ArenaAnimator final : public SceneAnimator {
+ public:
+  explicit ArenaAnimator(const Scene& scene) : simulation_(scene) {}
+  bool animated() const override { return true; }
+  void pose(double t, Scene& scene) override { simulation_.advance_to(std::max(t, 0.0), scene); }
+  double duration() const override { return 0.0; }
+
+ private:
+  ArenaSimulation simulation_;
+};
+
+class GltfNodeAnimator final : public SceneAnimator {
+ public:
+  explicit GltfNodeAnimator(GltfAnimations animations) : animations_(std::move(animations)) {}
+  bool animated() const override { return true; }
+  void pose(double t, Scene& scene) override {
+    apply_gltf_animations(animations_, std::max(t, 0.0), scene);
+  }
+  double duration() const override { return animations_.duration(); }
+
+ private:
+  GltfAnimations animations_;
+};
+
+// The arena's moving bodies are the instances named "arena.body.<i>"; a
+// scene holds the arena when all of them are there.
+bool holds_arena_bodies(const Scene& scene) {
+  const size_t bodies = arena_bodies().size();
+  size_t found = 0;
+  for (const Instance& inst : scene.instances()) {
+    if (inst.name.rfind("arena.body.", 0) == 0) ++found;
+  }
+  return bodies > 0 && found >= bodies;
+}
+
+}  // namespace
+
+std::unique_ptr<SceneAnimator> make_scene_animator(const Scene& scene, GltfAnimations animations) {
+  if (holds_arena_bodies(scene)) return std::make_unique<ArenaAnimator>(scene);
+  if (!animations.empty()) return std::make_unique<GltfNodeAnimator>(std::move(animations));
+  return std::make_unique<StaticAnimator>();
+}
+
+}  // namespace tandem
