@@ -2,14 +2,19 @@
 //
 //   #include <tandem/tandem.h>
 //
-//   tandem::Renderer r({.width = 640, .height = 360});
-//   tandem::MaterialId grey = r.add_material({});
-//   tandem::MeshId box = r.add_mesh(box_data, grey);         // your vertices
-//   tandem::InstanceId id = r.add_instance(box, tandem::Transform::translation(0, 0.5f, 0));
-//   r.add_light({.position = {0, 4, 0}, .intensity = 20});
-//   r.set_camera({.position = {0, 2, 6}, .target = {0, 0.5f, 0}});
-//   for (int f = 0; f < 8; ++f) r.render_frame();
-//   std::vector<uint8_t> rgb = r.image_srgb8();              // width * height * 3 bytes
+//   tandem::RendererOptions options;                     // backend, size, samples, depth
+//   options.width = 640, options.height = 360;
+//   tandem::Renderer r(options);
+//   tandem::MeshId mesh = r.add_mesh(box_data, r.add_material({}));  // your arrays, copied
+//   tandem::InstanceId box = r.add_instance(mesh, tandem::Transform::translation(0, 0.5f, 0));
+//   r.add_light(tandem::LightDesc{});                    // or an emissive material
+//   r.set_camera(tandem::CameraDesc{});                  // position, target, up, fov
+//   for (int f = 0; f < 60; ++f) {
+//     r.begin_frame();                                   // renders on Tandem's threads...
+//     r.set_instance_transform(box, tandem::Transform::translation(0.01f * f, 0.5f, 0));
+//     r.end_frame();                                     // ...while the game moved the box
+//   }
+//   std::vector<uint8_t> rgb = r.image_srgb8();          // width * height * 3 bytes
 //
 // Everything here is plain C++17 (structs of floats, pointers with counts,
 // std::vector and std::string): no Embree, TBB, glm or CUDA type appears,
@@ -20,8 +25,8 @@
 //
 // Errors: every function that can fail throws tandem::Error (and nothing
 // else, bar std::bad_alloc), whose what() is one sentence naming the
-// argument or file and the reason. A failed call leaves the renderer as it
-// was. Identifiers (MeshId, ...) are indices into the renderer that made
+// argument or file and the reason. A failed call leaves the scene and the
+// options as they were. Identifiers (MeshId, ...) are indices into the renderer that made
 // them, valid until the scene is replaced (load_gltf, clear_scene).
 //
 // Threads: one Renderer is used from one thread at a time. It renders on
@@ -181,6 +186,7 @@ class Renderer {
   // bad options and Error::kDevice when BackendChoice::kCuda has no GPU.
   explicit Renderer(const RendererOptions& options = {});
   ~Renderer();  // waits for a frame in flight
+  // A moved-from Renderer may only be destroyed or assigned to.
   Renderer(Renderer&&) noexcept;
   Renderer& operator=(Renderer&&) noexcept;
   Renderer(const Renderer&) = delete;
@@ -271,7 +277,8 @@ class Renderer {
   bool prepare_next_frame();
   // Waits for the backends, adds the frame's samples to the image and
   // returns what the frame did. Errors: kInvalidState without begin_frame();
-  // kDevice when the GPU failed.
+  // kDevice when the GPU failed (the frame's samples are dropped, the next
+  // frame starts over).
   FrameInfo end_frame();
   // begin_frame() then end_frame().
   FrameInfo render_frame();
