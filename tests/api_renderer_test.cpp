@@ -442,6 +442,37 @@ TEST(ApiRenderer, CudaWithoutAGpuIsADeviceError) {
   tandem::RendererOptions o = small_options();
   o.backend = tandem::BackendChoice::kCuda;
   EXPECT_EQ(thrown_kind([&] { tandem::Renderer bad(o); }), Error::Kind::kDevice);
+  // Switching to it fails the same way and keeps the working CPU renderer.
+  tandem::Renderer r(small_options());
+  build_scene(r);
+  r.render_frame();
+  EXPECT_EQ(thrown_kind([&] { r.set_options(o); }), Error::Kind::kDevice);
+  EXPECT_EQ(r.options().backend, tandem::BackendChoice::kCpu);
+  EXPECT_EQ(r.render_frame().accumulated_spp, 4u);
+  EXPECT_EQ(r.backend_names(), "cpu");
+}
+
+}  // namespace
+
+namespace {
+
+TEST(ApiRenderer, DegenerateAndFarAwayGeometryRendersWithoutCrashing) {
+  tandem::Renderer r(small_options());
+  build_scene(r);
+  // A triangle collapsed to a point, one to a line, and vertices far out.
+  const float positions[] = {0, 0, 0, 1, 0, 0, 2, 0, 0, 1e30f, -1e30f, 1e30f, -1e30f, 1e30f, 0};
+  const uint32_t indices[] = {0, 0, 0, 0, 1, 2, 3, 4, 0};
+  tandem::MeshData d;
+  d.positions = positions;
+  d.vertex_count = 5;
+  d.indices = indices;
+  d.triangle_count = 3;
+  const tandem::MeshId odd = r.add_mesh(d, tandem::MaterialId{0});
+  r.add_instance(odd, tandem::Transform::identity());
+  r.add_instance(odd, tandem::Transform::scale(1e8f, 1e8f, 1e8f));
+  r.render_frame();
+  for (float v : r.image_linear())
+    ASSERT_TRUE(std::isfinite(v));
 }
 
 }  // namespace

@@ -225,7 +225,8 @@ glm::mat4 to_matrix(const Transform& t, const char* what) {
   const glm::mat4 m = glm::make_mat4(t.m);
   const float det = glm::determinant(glm::mat3(m));
   if (!std::isfinite(det) || std::fabs(det) < 1e-12f)
-    invalid(std::string(what) + ": transform is singular (it flattens the mesh)");
+    invalid(std::string(what) +
+            ": transform is singular (it flattens the mesh) or scales beyond the float range");
   return m;
 }
 

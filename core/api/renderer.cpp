@@ -2,6 +2,7 @@
 // a CoreTracer running the Brigade loop, and every engine exception turned
 // into tandem::Error at this boundary.
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <new>
 #include <optional>
@@ -190,8 +191,13 @@ struct Renderer::Impl {
   // scene as it is at the first frame (and stays, so that motion in the
   // scene does not move it).
   void place_camera() {
-    if (!scene.has_camera())
-      scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f, aspect(options)));
+    if (scene.has_camera()) return;
+    Camera c = frame_bounds_camera(scene.bounds(), 0.6911112f, aspect(options));
+    // Bounds near the float range (legal vertices, huge scales) can put the
+    // framing camera at infinity: the default camera is better than NaNs.
+    const bool finite = std::isfinite(c.position.x) && std::isfinite(c.position.y) &&
+                        std::isfinite(c.position.z) && std::isfinite(c.focus_distance);
+    scene.set_camera(finite ? c : Camera{});
   }
 };
 
