@@ -34,8 +34,9 @@ using api_detail::invalid;
 namespace {
 
 // Runs `body`, translating what the engine throws into the API's one
-// exception type. `file_errors` says how an InputError reads: a bad file
-// (kFile) or, when creating backends, an unusable device (kDevice).
+// exception type. `input_error_kind` says what an InputError means there:
+// a bad file (loading, writing) or an unusable device (creating backends,
+// rendering).
 template <class F>
 auto guarded(F&& body, Error::Kind input_error_kind = Error::Kind::kFile) -> decltype(body()) {
   try {
@@ -49,6 +50,8 @@ auto guarded(F&& body, Error::Kind input_error_kind = Error::Kind::kFile) -> dec
   } catch (const InputError& e) {
     throw Error(input_error_kind, e.what());
   } catch (const UsageError& e) {
+    throw Error(Error::Kind::kInvalidArgument, e.what());
+  } catch (const std::length_error& e) {  // e.g. a scene too large for the BVH
     throw Error(Error::Kind::kInvalidArgument, e.what());
   } catch (const std::logic_error& e) {
     throw Error(Error::Kind::kInvalidState, e.what());
@@ -162,9 +165,12 @@ struct Renderer::Impl {
 
   // A new tracer compiles the whole scene on its first frame.
   void create_tracer() {
-    std::vector<std::unique_ptr<Backend>> backends = guarded(
-        [&] { return create_backends(to_backend_kind(options.backend)); }, Error::Kind::kDevice);
-    tracer = std::make_unique<CoreTracer>(std::move(backends), tracer_settings());
+    tracer = guarded(
+        [&] {
+          return std::make_unique<CoreTracer>(create_backends(to_backend_kind(options.backend)),
+                                              tracer_settings());
+        },
+        Error::Kind::kDevice);
     image_valid = false;
     last_backend_names.clear();
   }
