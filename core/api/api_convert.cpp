@@ -1,0 +1,254 @@
+#include "core/api/api_convert.h"
+
+#include <cmath>
+#include <limits>
+
+#include <glm/gtc/type_ptr.hpp>
+
+namespace tandem::api_detail {
+
+namespace {
+
+constexpr uint32_t kMaxResolution = 16384;
+constexpr uint32_t kMaxSamplesPerFrame = 4096;
+constexpr uint32_t kMaxDepth = 1024;
+
+std::string field(const char* what, const char* name) {
+  return std::string(what) + ": " + name;
+}
+
+void check_finite(float v, const char* what, const char* name) {
+  if (!std::isfinite(v)) invalid(field(what, name) + " is not a finite number");
+}
+
+void check_range(float v, float lo, float hi, const char* what, const char* name) {
+  check_finite(v, what, name);
+  if (v < lo || v > hi) {
+    invalid(field(what, name) + " is " + std::to_string(v) + ", outside [" + std::to_string(lo) +
+            ", " + std::to_string(hi) + "]");
+  }
+}
+
+void check_non_negative(const float* v, int n, const char* what, const char* name) {
+  for (int i = 0; i < n; ++i) {
+    check_finite(v[i], what, name);
+    if (v[i] < 0.0f) invalid(field(what, name) + " has a negative component");
+  }
+}
+
+glm::vec3 vec3(const float v[3], const char* what, const char* name) {
+  for (int i = 0; i < 3; ++i)
+    check_finite(v[i], what, name);
+  return {v[0], v[1], v[2]};
+}
+
+// The vertex arrays of `data` after their presence and values are checked.
+void check_vertices(const MeshData& data, const char* what) {
+  if (data.vertex_count == 0) invalid(std::string(what) + ": the mesh has no vertices");
+  if (data.vertex_count > std::numeric_limits<uint32_t>::max())
+    invalid(std::string(what) + ": more than 2^32 - 1 vertices");
+  if (!data.positions) invalid(std::string(what) + ": positions is null");
+  const size_t n = data.vertex_count;
+  for (size_t i = 0; i < n * 3; ++i) {
+    if (!std::isfinite(data.positions[i]))
+      invalid(std::string(what) + ": position of vertex " + std::to_string(i / 3) +
+              " is not finite");
+    if (data.normals && !std::isfinite(data.normals[i]))
+      invalid(std::string(what) + ": normal of vertex " + std::to_string(i / 3) + " is not finite");
+  }
+  if (data.uvs) {
+    for (size_t i = 0; i < n * 2; ++i) {
+      if (!std::isfinite(data.uvs[i]))
+        invalid(std::string(what) + ": uv of vertex " + std::to_string(i / 2) + " is not finite");
+    }
+  }
+}
+
+void copy_vertices(const MeshData& data, Mesh& mesh) {
+  const size_t n = data.vertex_count;
+  mesh.positions.resize(n);
+  for (size_t i = 0; i < n; ++i)
+    mesh.positions[i] = glm::make_vec3(data.positions + 3 * i);
+  if (data.normals) {
+    mesh.normals.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      const glm::vec3 nrm = glm::make_vec3(data.normals + 3 * i);
+      const float len = glm::length(nrm);
+      // A zero normal would make shading NaN: fall back to +z rather than fail
+      // on the odd degenerate vertex an exporter writes.
+      mesh.normals[i] = len > 0.0f ? nrm / len : glm::vec3(0.0f, 0.0f, 1.0f);
+    }
+  }
+  if (data.uvs) {
+    mesh.uv0.resize(n);
+    for (size_t i = 0; i < n; ++i)
+      mesh.uv0[i] = glm::make_vec2(data.uvs + 2 * i);
+  }
+}
+
+}  // namespace
+
+void invalid(const std::string& message) {
+  throw Error(Error::Kind::kInvalidArgument, message);
+}
+
+Mesh to_mesh(const MeshData& data, uint32_t material, const char* what) {
+  check_vertices(data, what);
+  if (data.triangle_count == 0) invalid(std::string(what) + ": the mesh has no triangles");
+  if (data.triangle_count > std::numeric_limits<uint32_t>::max())
+    invalid(std::string(what) + ": more than 2^32 - 1 triangles");
+  if (!data.indices) invalid(std::string(what) + ": indices is null");
+  for (size_t i = 0; i < data.triangle_count * 3; ++i) {
+    if (data.indices[i] >= data.vertex_count) {
+      invalid(std::string(what) + ": index " + std::to_string(i) + " (triangle " +
+              std::to_string(i / 3) + ") is " + std::to_string(data.indices[i]) +
+              ", out of range for " + std::to_string(data.vertex_count) + " vertices");
+    }
+  }
+  Mesh mesh;
+  copy_vertices(data, mesh);
+  mesh.triangles.resize(data.triangle_count);
+  for (size_t t = 0; t < data.triangle_count; ++t) {
+    mesh.triangles[t] = {data.indices[3 * t], data.indices[3 * t + 1], data.indices[3 * t + 2]};
+  }
+  mesh.triangle_materials.assign(data.triangle_count, material);
+  return mesh;
+}
+
+void overwrite_vertices(const MeshData& vertices, Mesh& mesh, const char* what) {
+  check_vertices(vertices, what);
+  if (vertices.vertex_count != mesh.positions.size()) {
+    invalid(std::string(what) + ": " + std::to_string(vertices.vertex_count) +
+            " vertices given, the mesh has " + std::to_string(mesh.positions.size()));
+  }
+  // Attributes not given keep their old values.
+  Mesh fresh;
+  copy_vertices(vertices, fresh);
+  mesh.positions = std::move(fresh.positions);
+  if (vertices.normals) mesh.normals = std::move(fresh.normals);
+  if (vertices.uvs) mesh.uv0 = std::move(fresh.uv0);
+}
+
+Material to_material(const MaterialDesc& d, const char* what) {
+  Material m;
+  for (int i = 0; i < 3; ++i)
+    check_range(d.base_color[i], 0.0f, 1.0f, what, "base_color");
+  check_range(d.roughness, 0.0f, 1.0f, what, "roughness");
+  check_range(d.metallic, 0.0f, 1.0f, what, "metallic");
+  check_non_negative(d.emission, 3, what, "emission");
+  check_range(d.emission_strength, 0.0f, std::numeric_limits<float>::max(), what,
+              "emission_strength");
+  check_range(d.transmission, 0.0f, 1.0f, what, "transmission");
+  check_range(d.ior, 1.0f, 5.0f, what, "ior");
+  m.base_color = glm::vec4(d.base_color[0], d.base_color[1], d.base_color[2], 1.0f);
+  m.roughness = d.roughness;
+  m.metallic = d.metallic;
+  m.emissive = glm::vec3(d.emission[0], d.emission[1], d.emission[2]);
+  m.emissive_strength = d.emission_strength;
+  m.transmission = d.transmission;
+  m.ior = d.ior;
+  m.double_sided = d.double_sided;
+  return m;
+}
+
+Light to_light(const LightDesc& d, const char* what) {
+  Light l;
+  switch (d.kind) {
+    case LightKind::kPoint:
+      l.type = LightType::kPoint;
+      break;
+    case LightKind::kSpot:
+      l.type = LightType::kSpot;
+      break;
+    case LightKind::kDirectional:
+      l.type = LightType::kDirectional;
+      break;
+    default:
+      invalid(std::string(what) + ": unknown light kind");
+  }
+  l.position = vec3(d.position, what, "position");
+  const glm::vec3 dir = vec3(d.direction, what, "direction");
+  if (l.type != LightType::kPoint) {
+    if (!(glm::length(dir) > 0.0f)) invalid(std::string(what) + ": direction is zero");
+    l.direction = glm::normalize(dir);
+  }
+  check_non_negative(d.color, 3, what, "color");
+  l.color = glm::vec3(d.color[0], d.color[1], d.color[2]);
+  check_range(d.intensity, 0.0f, std::numeric_limits<float>::max(), what, "intensity");
+  l.intensity = d.intensity;
+  if (l.type == LightType::kSpot) {
+    check_range(d.outer_cone_angle, 0.0f, 1.5707963268f, what, "outer_cone_angle");
+    check_range(d.inner_cone_angle, 0.0f, d.outer_cone_angle, what, "inner_cone_angle");
+    if (!(d.outer_cone_angle > 0.0f)) invalid(std::string(what) + ": outer_cone_angle is zero");
+    l.inner_cone_angle = d.inner_cone_angle;
+    l.outer_cone_angle = d.outer_cone_angle;
+  }
+  return l;
+}
+
+Camera to_camera(const CameraDesc& d, const char* what) {
+  const glm::vec3 position = vec3(d.position, what, "position");
+  const glm::vec3 target = vec3(d.target, what, "target");
+  const glm::vec3 up = vec3(d.up, what, "up");
+  const glm::vec3 view = target - position;
+  if (!(glm::length(view) > 0.0f)) invalid(std::string(what) + ": target equals position");
+  const glm::vec3 forward = glm::normalize(view);
+  const glm::vec3 right = glm::cross(forward, up);
+  // Relative test: a tiny but well-formed up vector is fine.
+  if (!(glm::length(right) > 1e-6f * glm::length(up)) || !(glm::length(up) > 0.0f))
+    invalid(std::string(what) + ": up is zero or parallel to the view direction");
+  check_finite(d.vertical_fov, what, "vertical_fov");
+  if (!(d.vertical_fov > 0.0f && d.vertical_fov < 3.14159265f))
+    invalid(std::string(what) + ": vertical_fov is outside (0, pi) radians");
+  check_range(d.aperture_radius, 0.0f, std::numeric_limits<float>::max(), what, "aperture_radius");
+  check_finite(d.focus_distance, what, "focus_distance");
+  if (!(d.focus_distance > 0.0f)) invalid(std::string(what) + ": focus_distance is not positive");
+  Camera c;
+  c.type = CameraType::kPerspective;
+  c.position = position;
+  c.forward = forward;
+  c.up = glm::normalize(glm::cross(glm::normalize(right), forward));
+  c.yfov = d.vertical_fov;
+  c.aperture_radius = d.aperture_radius;
+  c.focus_distance = d.focus_distance;
+  return c;
+}
+
+glm::mat4 to_matrix(const Transform& t, const char* what) {
+  for (int i = 0; i < 16; ++i) {
+    if (!std::isfinite(t.m[i]))
+      invalid(std::string(what) + ": transform entry " + std::to_string(i) + " is not finite");
+  }
+  // Column-major: the last row is m[3], m[7], m[11], m[15].
+  if (t.m[3] != 0.0f || t.m[7] != 0.0f || t.m[11] != 0.0f || t.m[15] != 1.0f)
+    invalid(std::string(what) + ": transform is not affine (last row must be 0 0 0 1)");
+  const glm::mat4 m = glm::make_mat4(t.m);
+  const float det = glm::determinant(glm::mat3(m));
+  if (!std::isfinite(det) || std::fabs(det) < 1e-12f)
+    invalid(std::string(what) +
+            ": transform is singular (it flattens the mesh) or scales beyond the float range");
+  return m;
+}
+
+void check_options(const RendererOptions& o, const char* what) {
+  if (o.width == 0 || o.height == 0) {
+    invalid(std::string(what) + ": image size " + std::to_string(o.width) + "x" +
+            std::to_string(o.height) + " is empty");
+  }
+  if (o.width > kMaxResolution || o.height > kMaxResolution)
+    invalid(std::string(what) + ": width and height must be at most 16384");
+  if (o.samples_per_frame == 0 || o.samples_per_frame > kMaxSamplesPerFrame)
+    invalid(std::string(what) + ": samples_per_frame must be in [1, 4096]");
+  if (o.max_depth > kMaxDepth) invalid(std::string(what) + ": max_depth must be at most 1024");
+  switch (o.backend) {
+    case BackendChoice::kAuto:
+    case BackendChoice::kCpu:
+    case BackendChoice::kCuda:
+    case BackendChoice::kHetero:
+      break;
+    default:
+      invalid(std::string(what) + ": unknown backend");
+  }
+}
+
+}  // namespace tandem::api_detail

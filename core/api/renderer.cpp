@@ -1,0 +1,431 @@
+// tandem::Renderer over the engine: a Scene edited through the API's checks,
+// a CoreTracer running the Brigade loop, and every engine exception turned
+// into tandem::Error at this boundary.
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <new>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "backends/backend_factory.h"
+#include "backends/cuda/device_ops.h"
+#include "core/api/api_convert.h"
+#include "core/api/tandem/tandem.h"
+#include "core/image/image.h"
+#include "core/tracer/core_tracer.h"
+#include "core/util/errors.h"
+#include "core/util/log.h"
+#include "scenes/gltf_loader.h"
+
+#ifndef TANDEM_VERSION_STRING
+#define TANDEM_VERSION_STRING "0.0.0"
+#endif
+
+namespace tandem {
+inline namespace embed_v0 {
+
+using api_detail::invalid;
+
+namespace {
+
+// Runs `body`, translating what the engine throws into the API's one
+// exception type. `input_error_kind` says what an InputError means there:
+// a bad file (loading, writing) or an unusable device (creating backends,
+// rendering).
+template <class F>
+auto guarded(F&& body, Error::Kind input_error_kind = Error::Kind::kFile) -> decltype(body()) {
+  try {
+    return body();
+  } catch (const Error&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const DeviceError& e) {
+    throw Error(Error::Kind::kDevice, e.what());
+  } catch (const InputError& e) {
+    throw Error(input_error_kind, e.what());
+  } catch (const UsageError& e) {
+    throw Error(Error::Kind::kInvalidArgument, e.what());
+  } catch (const std::length_error& e) {  // e.g. a scene too large for the BVH
+    throw Error(Error::Kind::kInvalidArgument, e.what());
+  } catch (const std::logic_error& e) {
+    throw Error(Error::Kind::kInvalidState, e.what());
+  } catch (const std::exception& e) {
+    throw Error(Error::Kind::kInternal, e.what());
+  }
+}
+
+BackendKind to_backend_kind(BackendChoice choice) {
+  switch (choice) {
+    case BackendChoice::kCpu:
+      return BackendKind::kCpu;
+    case BackendChoice::kCuda:
+      return BackendKind::kCuda;
+    case BackendChoice::kHetero:
+      return BackendKind::kHetero;
+    case BackendChoice::kAuto:
+      break;
+  }
+  return BackendKind::kAuto;
+}
+
+ToneMap to_tone_map(ToneCurve curve) {
+  switch (curve) {
+    case ToneCurve::kAces:
+      return ToneMap::kAces;
+    case ToneCurve::kReinhard:
+      return ToneMap::kReinhard;
+    case ToneCurve::kStandard:
+      break;
+  }
+  return ToneMap::kStandard;
+}
+
+float aspect(const RendererOptions& o) {
+  return float(o.width) / float(o.height);
+}
+
+template <class Id>
+uint32_t checked(Id id, size_t count, const char* what, const char* kind) {
+  if (id.index >= count) {
+    invalid(std::string(what) + ": " + kind + " " + std::to_string(id.index) +
+            " does not exist (there are " + std::to_string(count) + ")");
+  }
+  return id.index;
+}
+
+}  // namespace
+
+const char* version() {
+  return TANDEM_VERSION_STRING;
+}
+
+void set_warnings_to_stderr(bool enabled) {
+  set_log_level(enabled ? LogLevel::kWarning : LogLevel::kQuiet);
+}
+
+bool cuda_available(std::string* reason) {
+  std::string why;
+  const bool ok = cuda_device_available(&why);
+  if (!ok && reason) *reason = why;
+  return ok;
+}
+
+Transform Transform::translation(float x, float y, float z) {
+  Transform t;
+  t.m[12] = x, t.m[13] = y, t.m[14] = z;
+  return t;
+}
+
+Transform Transform::scale(float x, float y, float z) {
+  Transform t;
+  t.m[0] = x, t.m[5] = y, t.m[10] = z;
+  return t;
+}
+
+Transform Transform::rotation(float radians, float x, float y, float z) {
+  const glm::vec3 axis(x, y, z);
+  if (!(glm::length(axis) > 0.0f)) return {};
+  const glm::mat4 r = glm::rotate(glm::mat4(1.0f), radians, glm::normalize(axis));
+  Transform t;
+  std::copy(glm::value_ptr(r), glm::value_ptr(r) + 16, t.m);
+  return t;
+}
+
+Transform operator*(const Transform& a, const Transform& b) {
+  const glm::mat4 p = glm::make_mat4(a.m) * glm::make_mat4(b.m);
+  Transform t;
+  std::copy(glm::value_ptr(p), glm::value_ptr(p) + 16, t.m);
+  return t;
+}
+
+struct Renderer::Impl {
+  RendererOptions options;
+  Scene scene;
+  std::unique_ptr<CoreTracer> tracer;
+  std::vector<std::string> last_backend_names;  // of the last completed frame
+  bool in_flight = false;
+  bool image_valid = false;
+  uint64_t frames = 0;
+
+  TracerSettings tracer_settings() const {
+    TracerSettings s;
+    s.render.width = options.width;
+    s.render.height = options.height;
+    s.render.max_depth = options.max_depth;
+    s.render.seed = options.seed;
+    s.samples_per_frame = options.samples_per_frame;
+    return s;
+  }
+
+  // A new tracer compiles the whole scene on its first frame.
+  void create_tracer() {
+    tracer = guarded(
+        [&] {
+          return std::make_unique<CoreTracer>(create_backends(to_backend_kind(options.backend)),
+                                              tracer_settings());
+        },
+        Error::Kind::kDevice);
+    image_valid = false;
+    last_backend_names.clear();
+  }
+
+  void require_idle(const char* what) const {
+    if (in_flight) {
+      throw Error(Error::Kind::kInvalidState,
+                  std::string(what) + ": not allowed while a frame is in flight");
+    }
+  }
+
+  void require_image(const char* what) const {
+    if (in_flight) {
+      throw Error(Error::Kind::kInvalidState,
+                  std::string(what) + ": the image is not ready while a frame is in flight");
+    }
+    if (!image_valid) {
+      throw Error(Error::Kind::kInvalidState,
+                  std::string(what) + ": no frame has been rendered yet");
+    }
+  }
+
+  // Without a camera from the caller or the file, one that frames the
+  // scene as it is at the first frame (and stays, so that motion in the
+  // scene does not move it).
+  void place_camera() {
+    if (scene.has_camera()) return;
+    Camera c = frame_bounds_camera(scene.bounds(), 0.6911112f, aspect(options));
+    // Bounds near the float range (legal vertices, huge scales) can put the
+    // framing camera at infinity: the default camera is better than NaNs.
+    const bool finite = std::isfinite(c.position.x) && std::isfinite(c.position.y) &&
+                        std::isfinite(c.position.z) && std::isfinite(c.focus_distance);
+    scene.set_camera(finite ? c : Camera{});
+  }
+};
+
+Renderer::Renderer(const RendererOptions& options) : impl_(std::make_unique<Impl>()) {
+  api_detail::check_options(options, "Renderer");
+  impl_->options = options;
+  impl_->create_tracer();
+}
+
+Renderer::~Renderer() = default;  // CoreTracer's destructor joins a frame in flight
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+
+MaterialId Renderer::add_material(const MaterialDesc& material) {
+  Material m = api_detail::to_material(material, "add_material");
+  return {impl_->scene.add_material(std::move(m))};
+}
+
+void Renderer::set_material(MaterialId id, const MaterialDesc& material) {
+  const uint32_t i = checked(id, impl_->scene.materials().size(), "set_material", "material");
+  Material m = api_detail::to_material(material, "set_material");
+  impl_->scene.edit_material(i) = std::move(m);
+}
+
+MeshId Renderer::add_mesh(const MeshData& mesh, MaterialId material) {
+  const uint32_t mat = checked(material, impl_->scene.materials().size(), "add_mesh", "material");
+  Mesh m = api_detail::to_mesh(mesh, mat, "add_mesh");
+  return {impl_->scene.add_mesh(std::move(m))};
+}
+
+void Renderer::set_mesh_vertices(MeshId id, const MeshData& vertices) {
+  const uint32_t i = checked(id, impl_->scene.meshes().size(), "set_mesh_vertices", "mesh");
+  // Check everything on a copy first: a failed call changes nothing.
+  Mesh updated = impl_->scene.meshes()[i];
+  api_detail::overwrite_vertices(vertices, updated, "set_mesh_vertices");
+  Mesh& target = impl_->scene.edit_mesh_vertices(i);
+  target.positions = std::move(updated.positions);
+  target.normals = std::move(updated.normals);
+  target.uv0 = std::move(updated.uv0);
+}
+
+InstanceId Renderer::add_instance(MeshId mesh, const Transform& transform) {
+  const uint32_t m = checked(mesh, impl_->scene.meshes().size(), "add_instance", "mesh");
+  Instance inst;
+  inst.mesh = m;
+  inst.transform = api_detail::to_matrix(transform, "add_instance");
+  return {impl_->scene.add_instance(std::move(inst))};
+}
+
+void Renderer::set_instance_transform(InstanceId id, const Transform& transform) {
+  const uint32_t i =
+      checked(id, impl_->scene.instances().size(), "set_instance_transform", "instance");
+  impl_->scene.set_instance_transform(i,
+                                      api_detail::to_matrix(transform, "set_instance_transform"));
+}
+
+LightId Renderer::add_light(const LightDesc& light) {
+  Light l = api_detail::to_light(light, "add_light");
+  return {impl_->scene.add_light(std::move(l))};
+}
+
+void Renderer::set_light(LightId id, const LightDesc& light) {
+  const uint32_t i = checked(id, impl_->scene.lights().size(), "set_light", "light");
+  Light l = api_detail::to_light(light, "set_light");
+  impl_->scene.edit_light(i) = std::move(l);
+}
+
+void Renderer::set_camera(const CameraDesc& camera) {
+  impl_->scene.set_camera(api_detail::to_camera(camera, "set_camera"));
+}
+
+void Renderer::set_environment_color(float r, float g, float b) {
+  const float c[3] = {r, g, b};
+  for (float v : c) {
+    if (!std::isfinite(v) || v < 0.0f)
+      invalid("set_environment_color: each component must be a finite number >= 0");
+  }
+  Environment& env = impl_->scene.edit_environment();
+  env = Environment{};
+  env.color = glm::vec3(r, g, b);
+}
+
+void Renderer::load_gltf(const std::string& path) {
+  impl_->require_idle("load_gltf");
+  Scene loaded = guarded([&] { return tandem::load_gltf(path); });
+  // A new tracer compiles the new scene from scratch (its compiler's
+  // bookkeeping describes the old one).
+  impl_->scene = std::move(loaded);
+  impl_->create_tracer();
+}
+
+void Renderer::clear_scene() {
+  impl_->require_idle("clear_scene");
+  impl_->scene = Scene{};
+  impl_->create_tracer();
+}
+
+uint32_t Renderer::material_count() const {
+  return uint32_t(impl_->scene.materials().size());
+}
+uint32_t Renderer::mesh_count() const {
+  return uint32_t(impl_->scene.meshes().size());
+}
+uint32_t Renderer::instance_count() const {
+  return uint32_t(impl_->scene.instances().size());
+}
+uint32_t Renderer::light_count() const {
+  return uint32_t(impl_->scene.lights().size());
+}
+
+void Renderer::set_options(const RendererOptions& options) {
+  api_detail::check_options(options, "set_options");
+  Impl& im = *impl_;
+  if (options.backend != im.options.backend) {
+    im.require_idle("set_options (a new backend)");
+    const RendererOptions old = im.options;
+    im.options = options;
+    try {
+      im.create_tracer();
+    } catch (...) {
+      im.options = old;  // the old tracer is still there
+      throw;
+    }
+    return;
+  }
+  im.options = options;
+  // A frame in flight keeps its settings; these apply from the next one.
+  im.tracer->set_settings(im.tracer_settings());
+}
+
+const RendererOptions& Renderer::options() const {
+  return impl_->options;
+}
+
+std::string Renderer::backend_names() const {
+  std::string names;
+  for (const std::string& n : impl_->last_backend_names)
+    names += (names.empty() ? "" : "+") + n;
+  return names;
+}
+
+void Renderer::reset_accumulation() {
+  impl_->tracer->reset_accumulation();
+}
+
+void Renderer::begin_frame() {
+  Impl& im = *impl_;
+  if (im.in_flight)
+    throw Error(Error::Kind::kInvalidState, "begin_frame: the previous frame was not ended");
+  if (im.scene.instances().empty())
+    throw Error(Error::Kind::kInvalidState, "begin_frame: the scene has no instance to render");
+  im.place_camera();
+  guarded([&] { im.tracer->begin_frame(im.scene); }, Error::Kind::kDevice);
+  im.in_flight = true;
+}
+
+bool Renderer::prepare_next_frame() {
+  Impl& im = *impl_;
+  if (!im.in_flight)
+    throw Error(Error::Kind::kInvalidState, "prepare_next_frame: no frame in flight");
+  im.place_camera();
+  return guarded([&] { return im.tracer->prepare_next_frame(im.scene); }, Error::Kind::kDevice);
+}
+
+FrameInfo Renderer::end_frame() {
+  Impl& im = *impl_;
+  if (!im.in_flight) throw Error(Error::Kind::kInvalidState, "end_frame: no frame in flight");
+  im.in_flight = false;
+  im.image_valid = false;
+  const FrameMetrics& m = guarded([&]() -> const FrameMetrics& { return im.tracer->end_frame(); },
+                                  Error::Kind::kDevice);
+  im.image_valid = true;
+  im.last_backend_names.clear();
+  for (const BackendFrameMetrics& b : m.backends)
+    im.last_backend_names.push_back(b.name);
+  FrameInfo info;
+  info.frame = im.frames++;
+  info.accumulated_spp = m.accumulated_spp;
+  info.accumulation_reset = m.accumulation_reset;
+  info.seconds = m.total_seconds;
+  info.rays = m.rays();
+  return info;
+}
+
+FrameInfo Renderer::render_frame() {
+  begin_frame();
+  return end_frame();
+}
+
+bool Renderer::frame_in_flight() const {
+  return impl_->in_flight;
+}
+
+uint32_t Renderer::width() const {
+  impl_->require_image("width");
+  return impl_->tracer->film().width();
+}
+
+uint32_t Renderer::height() const {
+  impl_->require_image("height");
+  return impl_->tracer->film().height();
+}
+
+std::vector<float> Renderer::image_linear() const {
+  impl_->require_image("image_linear");
+  return impl_->tracer->image().rgb;
+}
+
+std::vector<uint8_t> Renderer::image_srgb8(float exposure_stops, ToneCurve curve) const {
+  impl_->require_image("image_srgb8");
+  if (!std::isfinite(exposure_stops)) invalid("image_srgb8: exposure_stops is not finite");
+  return tone_map_to_srgb8(impl_->tracer->image(), exposure_stops, to_tone_map(curve));
+}
+
+void Renderer::write_image(const std::string& path, float exposure_stops, ToneCurve curve) const {
+  impl_->require_image("write_image");
+  if (!std::isfinite(exposure_stops)) invalid("write_image: exposure_stops is not finite");
+  ImageWriteOptions o;
+  o.exposure = exposure_stops;
+  o.tone_map = to_tone_map(curve);
+  guarded([&] { tandem::write_image(path, impl_->tracer->image(), o); });
+}
+
+}  // namespace embed_v0
+}  // namespace tandem

@@ -1,0 +1,312 @@
+// Tandem's public API: the path tracer as a library for games and tools.
+//
+//   #include <tandem/tandem.h>
+//
+//   tandem::RendererOptions options;                     // backend, size, samples, depth
+//   options.width = 640, options.height = 360;
+//   tandem::Renderer r(options);
+//   tandem::MeshId mesh = r.add_mesh(box_data, r.add_material({}));  // your arrays, copied
+//   tandem::InstanceId box = r.add_instance(mesh, tandem::Transform::translation(0, 0.5f, 0));
+//   r.add_light(tandem::LightDesc{});                    // or an emissive material
+//   r.set_camera(tandem::CameraDesc{});                  // position, target, up, fov
+//   for (int f = 0; f < 60; ++f) {
+//     r.begin_frame();                                   // renders on Tandem's threads...
+//     r.set_instance_transform(box, tandem::Transform::translation(0.01f * f, 0.5f, 0));
+//     r.end_frame();                                     // ...while the game moved the box
+//   }
+//   std::vector<uint8_t> rgb = r.image_srgb8();          // width * height * 3 bytes
+//
+// Everything here is plain C++17 (structs of floats, pointers with counts,
+// std::vector and std::string): no Embree, TBB, glm or CUDA type appears,
+// so an application needs only this header and the `Tandem::tandem` CMake
+// target. Units follow docs/scene-units.md: linear Rec. 709 RGB, radiance
+// in W/(m^2 sr), angles in radians, lengths in scene units (metres by
+// convention); transforms are column-major 4x4 matrices as in glTF.
+//
+// Errors: every function that can fail throws tandem::Error (and nothing
+// else, bar std::bad_alloc), whose what() is one sentence naming the
+// argument or file and the reason. A failed call leaves the scene and the
+// options as they were. Identifiers (MeshId, ...) are indices into the renderer that made
+// them, valid until the scene is replaced (load_gltf, clear_scene).
+//
+// Threads: one Renderer is used from one thread at a time. It renders on
+// its own worker threads (the CPU backend uses every core through TBB).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tandem {
+// The public names live in an inline namespace: users write tandem::Renderer,
+// while the linker sees tandem::embed_v0::Renderer, so no public type can
+// ever collide with one of the engine's internal tandem:: types.
+inline namespace embed_v0 {
+
+// The one exception type of the API.
+class Error : public std::runtime_error {
+ public:
+  enum class Kind {
+    kInvalidArgument,  // a value passed to a function is out of range, NaN, ...
+    kInvalidState,     // the call is not allowed now (e.g. end_frame() without begin_frame())
+    kFile,             // a file could not be read or written, or is not a valid scene/image
+    kDevice,           // the requested backend cannot run (no GPU, GPU failure)
+    kInternal,         // an unexpected failure inside the engine (please report it)
+  };
+  Error(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
+  Kind kind() const noexcept { return kind_; }
+
+ private:
+  Kind kind_;
+};
+
+// The library's version, "MAJOR.MINOR.PATCH" (the CMake package's version).
+const char* version();
+
+// Warnings (a glTF texture that is missing, a GPU fallback) go to stderr by
+// default; false silences them for the whole process.
+void set_warnings_to_stderr(bool enabled);
+
+// Whether a CUDA device can be used by BackendChoice::kCuda; when not and
+// `reason` is given, it is set to why (not built with CUDA, no GPU, ...).
+bool cuda_available(std::string* reason = nullptr);
+
+// Strongly typed indices (0, 1, 2, ... in order of creation).
+struct MaterialId {
+  uint32_t index = 0;
+};
+struct MeshId {
+  uint32_t index = 0;
+};
+struct InstanceId {
+  uint32_t index = 0;
+};
+struct LightId {
+  uint32_t index = 0;
+};
+
+// Object-to-world transform: a column-major 4x4 matrix (m[12..14] is the
+// translation), affine (last row 0 0 0 1) and invertible.
+struct Transform {
+  float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+  static Transform identity() { return {}; }
+  static Transform translation(float x, float y, float z);
+  static Transform scale(float x, float y, float z);
+  // Rotation by `radians` (counter-clockwise looking down the axis towards
+  // the origin) about the axis (x, y, z), which need not be unit length;
+  // a zero axis gives the identity.
+  static Transform rotation(float radians, float x, float y, float z);
+};
+// a * b: applies b first, then a.
+Transform operator*(const Transform& a, const Transform& b);
+
+// A triangle mesh. The arrays are the caller's and are only read during the
+// call that takes the MeshData (add_mesh, set_mesh_vertices): Tandem copies
+// them. Triangles are counter-clockwise seen from their front.
+struct MeshData {
+  const float* positions = nullptr;  // vertex_count * 3 floats: x, y, z (object space)
+  const float* normals = nullptr;    // vertex_count * 3 floats, or null: flat triangle normals
+  const float* uvs = nullptr;        // vertex_count * 2 floats (u, v), or null
+  size_t vertex_count = 0;
+  const uint32_t* indices = nullptr;  // triangle_count * 3 vertex indices
+  size_t triangle_count = 0;
+};
+
+// The glTF metallic-roughness material (defaults: a matt light grey).
+struct MaterialDesc {
+  float base_color[3] = {0.8f, 0.8f, 0.8f};  // linear RGB reflectance, each in [0, 1]
+  float roughness = 0.5f;                    // [0, 1]; GGX alpha = roughness^2
+  float metallic = 0.0f;                     // [0, 1]
+  float emission[3] = {0.0f, 0.0f, 0.0f};    // emitted radiance, W/(m^2 sr), linear RGB, >= 0
+  float emission_strength = 1.0f;            // multiplies emission, >= 0
+  float transmission = 0.0f;                 // [0, 1]: 1 = clear glass-like dielectric
+  float ior = 1.5f;                          // index of refraction, [1, 5]
+  bool double_sided = false;                 // emission and shading on both faces
+};
+
+enum class LightKind { kPoint, kSpot, kDirectional };
+
+// A punctual light in world space (KHR_lights_punctual, radiometric units).
+struct LightDesc {
+  LightKind kind = LightKind::kPoint;
+  float position[3] = {0.0f, 0.0f, 0.0f};    // point and spot
+  float direction[3] = {0.0f, -1.0f, 0.0f};  // where the light travels (spot, directional)
+  float color[3] = {1.0f, 1.0f, 1.0f};       // linear RGB, >= 0
+  // W/sr for point and spot lights, W/m^2 for directional lights; >= 0.
+  float intensity = 1.0f;
+  float inner_cone_angle = 0.0f;           // spot: radians, full intensity inside
+  float outer_cone_angle = 0.7853981634f;  // spot: radians, in (inner, pi/2]
+};
+
+// A pinhole or thin-lens perspective camera looking from `position` at
+// `target`, with `up` giving the roll (it need not be orthogonal).
+struct CameraDesc {
+  float position[3] = {0.0f, 0.0f, 5.0f};
+  float target[3] = {0.0f, 0.0f, 0.0f};
+  float up[3] = {0.0f, 1.0f, 0.0f};
+  float vertical_fov = 0.6911112f;  // radians, in (0, pi); 39.6 degrees
+  float aperture_radius = 0.0f;     // scene units; 0 = pinhole (everything sharp)
+  float focus_distance = 1.0f;      // scene units along the view direction, > 0
+};
+
+enum class BackendChoice {
+  kAuto,    // the GPU when one is usable, otherwise the CPU (with a warning)
+  kCpu,     // Embree + TBB on the CPU
+  kCuda,    // the GPU only; Error::kDevice when there is none
+  kHetero,  // the GPU and the CPU together, each frame split between them
+};
+
+struct RendererOptions {
+  BackendChoice backend = BackendChoice::kAuto;
+  uint32_t width = 1280, height = 720;  // pixels, each in [1, 16384]
+  uint32_t samples_per_frame = 1;       // per pixel and frame, [1, 4096]
+  uint32_t max_depth = 8;               // scattering events per path; 1 = direct light only
+  uint32_t seed = 0;                    // same seed and scene: same image, bit for bit
+};
+
+// What one frame did.
+struct FrameInfo {
+  uint64_t frame = 0;               // counts every frame rendered by this renderer
+  uint32_t accumulated_spp = 0;     // samples per pixel in the image now
+  bool accumulation_reset = false;  // a scene or settings change restarted accumulation
+  double seconds = 0.0;             // wall time of the frame, begin to end
+  uint64_t rays = 0;                // rays traced by all backends
+};
+
+enum class ToneCurve { kStandard, kAces, kReinhard };
+
+class Renderer {
+ public:
+  // Creates the backends (see BackendChoice) with an empty scene; until
+  // set_camera() is called, the camera frames the whole scene. Throws Error::kInvalidArgument for
+  // bad options and Error::kDevice when BackendChoice::kCuda has no GPU.
+  explicit Renderer(const RendererOptions& options = {});
+  ~Renderer();  // waits for a frame in flight
+  // A moved-from Renderer may only be destroyed or assigned to.
+  Renderer(Renderer&&) noexcept;
+  Renderer& operator=(Renderer&&) noexcept;
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // --- scene ---------------------------------------------------------------
+  // Every edit below may be made at any time, also between begin_frame()
+  // and end_frame(): it reaches the next frame and restarts accumulation.
+
+  // Adds a material. Errors: kInvalidArgument for NaN or out-of-range fields.
+  MaterialId add_material(const MaterialDesc& material);
+  // Changes a material. Errors: kInvalidArgument for an unknown id or bad fields.
+  void set_material(MaterialId id, const MaterialDesc& material);
+
+  // Copies a mesh whose triangles all use `material`. Errors:
+  // kInvalidArgument for null arrays, no vertices or triangles, an index >=
+  // vertex_count, non-finite values, or an unknown material.
+  MeshId add_mesh(const MeshData& mesh, MaterialId material);
+  // Replaces a mesh's vertex positions (and normals/uvs where given) with
+  // the same vertex count; its triangles stay (indices are ignored here).
+  // Errors: kInvalidArgument for an unknown id, another vertex count, null
+  // positions, or non-finite values.
+  void set_mesh_vertices(MeshId id, const MeshData& vertices);
+
+  // Places a mesh in the world. Errors: kInvalidArgument for an unknown
+  // mesh, or a transform with NaN/infinite entries, not affine, or singular.
+  InstanceId add_instance(MeshId mesh, const Transform& transform);
+  // Moves an instance (the acceleration structure is refitted, not rebuilt).
+  // Errors: as add_instance, and for an unknown instance.
+  void set_instance_transform(InstanceId id, const Transform& transform);
+
+  // Adds or changes a light. Errors: kInvalidArgument for NaN, negative
+  // intensity or colour, a zero direction, or bad cone angles.
+  LightId add_light(const LightDesc& light);
+  void set_light(LightId id, const LightDesc& light);
+
+  // Sets the camera (until then, the first frame places one that frames the
+  // whole scene). The image's aspect ratio is width/height of the options,
+  // the field of view is vertical. Errors: kInvalidArgument for NaN, target == position, up
+  // parallel to the view direction, or a field of view outside (0, pi).
+  void set_camera(const CameraDesc& camera);
+
+  // A constant sky: radiance (linear RGB, W/(m^2 sr), >= 0) arriving from
+  // every direction that hits no surface; (0, 0, 0), the default, is black.
+  void set_environment_color(float r, float g, float b);
+
+  // Replaces the whole scene by the default scene of a .gltf/.glb file
+  // (meshes, instances in glTF node order, materials, lights, camera when
+  // the file has one, otherwise one that frames the scene). Previous ids
+  // become invalid. Errors: kFile naming the file and the reason (missing,
+  // malformed, over the loader's memory budgets); kInvalidState during a frame.
+  void load_gltf(const std::string& path);
+  // Empties the scene (ids become invalid). Errors: kInvalidState during a frame.
+  void clear_scene();
+
+  uint32_t material_count() const;
+  uint32_t mesh_count() const;
+  uint32_t instance_count() const;
+  uint32_t light_count() const;
+
+  // --- settings ------------------------------------------------------------
+  // Changes the options; a new resolution, depth or seed restarts
+  // accumulation, a new backend recreates the backends (and recompiles the
+  // scene on the next frame). Errors: as the constructor; kInvalidState for
+  // a backend change during a frame.
+  void set_options(const RendererOptions& options);
+  const RendererOptions& options() const;
+  // Names of the backends that rendered the last frame, e.g. "cpu" or
+  // "cuda+cpu"; empty before the first frame (and after a backend change).
+  std::string backend_names() const;
+  // Drops the accumulated samples; the next frame starts over.
+  void reset_accumulation();
+
+  // --- frames (the Brigade loop of tandem-view) ----------------------------
+  // begin_frame() applies the scene edits since the last frame (scene
+  // compile, BVH update, upload to the GPU) and starts every backend
+  // rendering on its own threads, then returns: the caller may edit the
+  // scene for the next frame (simulation, animation, input) while this one
+  // renders. Errors: kInvalidState when a frame is already in flight or the
+  // scene has no instance; kDevice when the GPU fails (under kAuto/kHetero
+  // the CPU takes over instead, with a warning).
+  void begin_frame();
+  // Optional, between begin_frame() and end_frame(): compiles the edits
+  // made so far for the next frame and updates its BVH now, overlapped with
+  // this frame's render, when only the GPU renders. Returns false (and does
+  // nothing) when that cannot overlap; the next begin_frame() does it then.
+  // Errors: kInvalidState outside a frame.
+  bool prepare_next_frame();
+  // Waits for the backends, adds the frame's samples to the image and
+  // returns what the frame did. Errors: kInvalidState without begin_frame();
+  // kDevice when the GPU failed (the frame's samples are dropped, the next
+  // frame starts over).
+  FrameInfo end_frame();
+  // begin_frame() then end_frame().
+  FrameInfo render_frame();
+  // Whether a frame is between begin_frame() and end_frame().
+  bool frame_in_flight() const;
+
+  // --- image ---------------------------------------------------------------
+  // The image of the frames since the last accumulation reset, row 0 at the
+  // top, at the resolution of the last rendered frame (width() x height()).
+  // Errors: kInvalidState before the first end_frame() or during a frame.
+  uint32_t width() const;
+  uint32_t height() const;
+  // Linear RGB radiance, width() * height() * 3 floats.
+  std::vector<float> image_linear() const;
+  // Exposure (stops), tone curve and sRGB encoding: width() * height() * 3 bytes.
+  std::vector<uint8_t> image_srgb8(float exposure_stops = 0.0f,
+                                   ToneCurve curve = ToneCurve::kStandard) const;
+  // Writes the image: .png (tone mapped as image_srgb8), .exr or .pfm
+  // (linear), atomically (a failed write leaves no partial file). Errors:
+  // kFile naming the path (unknown extension, missing directory, write
+  // failure), kInvalidState as above.
+  void write_image(const std::string& path, float exposure_stops = 0.0f,
+                   ToneCurve curve = ToneCurve::kStandard) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace embed_v0
+}  // namespace tandem

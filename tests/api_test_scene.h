@@ -1,0 +1,75 @@
+// The small scene the API tests render, built through <tandem/tandem.h> only.
+#pragma once
+
+#include <tandem/tandem.h>
+
+#include <cmath>
+#include <vector>
+
+namespace tandem_api_test {
+
+// A unit quad in the xz-plane facing +y, `half` wide each way, at height y.
+struct Quad {
+  float positions[12];
+  float normals[12];
+  float uvs[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+  uint32_t indices[6] = {0, 2, 1, 0, 3, 2};
+  explicit Quad(float half, float y = 0.0f, float ny = 1.0f)
+      : positions{-half, y, -half, half, y, -half, half, y, half, -half, y, half},
+        normals{0, ny, 0, 0, ny, 0, 0, ny, 0, 0, ny, 0} {}
+  tandem::MeshData data() const {
+    tandem::MeshData d;
+    d.positions = positions;
+    d.normals = normals;
+    d.uvs = uvs;
+    d.vertex_count = 4;
+    d.indices = indices;
+    d.triangle_count = 2;
+    return d;
+  }
+};
+
+inline tandem::RendererOptions small_options() {
+  tandem::RendererOptions o;
+  o.backend = tandem::BackendChoice::kCpu;
+  o.width = 48;
+  o.height = 32;
+  o.samples_per_frame = 2;
+  o.max_depth = 3;
+  o.seed = 7;
+  return o;
+}
+
+// A floor, a small red square above it and a light: the square's instance is
+// returned so tests can move it.
+inline tandem::InstanceId build_scene(tandem::Renderer& r) {
+  const Quad floor(4.0f);
+  const Quad block(0.5f);
+  tandem::MaterialDesc grey;
+  tandem::MaterialDesc red;
+  red.base_color[0] = 0.9f, red.base_color[1] = 0.1f, red.base_color[2] = 0.1f;
+  const tandem::MaterialId g = r.add_material(grey);
+  const tandem::MaterialId rd = r.add_material(red);
+  const tandem::MeshId floor_mesh = r.add_mesh(floor.data(), g);
+  const tandem::MeshId block_mesh = r.add_mesh(block.data(), rd);
+  r.add_instance(floor_mesh, tandem::Transform::identity());
+  const tandem::InstanceId moving =
+      r.add_instance(block_mesh, tandem::Transform::translation(-1.0f, 0.5f, 0.0f));
+  tandem::LightDesc light;
+  light.position[1] = 4.0f;
+  light.intensity = 30.0f;
+  r.add_light(light);
+  tandem::CameraDesc cam;
+  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
+  r.set_camera(cam);
+  return moving;
+}
+
+inline double mean(const std::vector<float>& v) {
+  double s = 0.0;
+  for (float x : v)
+    s += x;
+  return v.empty() ? 0.0 : s / double(v.size());
+}
+
+}  // namespace tandem_api_test
