@@ -21,6 +21,7 @@ set(TANDEM_LAYER_RULES
   "backends/cuda:backends,core/render,core/scene,core/kernel,core/image,core/util"
   "backends:backends/cpu,backends/host,backends/cuda,core/render,core/scene,core/kernel,core/image,core/util"
   "core/tracer:accstruc,core/render,core/scene,core/kernel,core/image,core/util"
+  "core/api:core/tracer,backends,backends/cuda,scenes,accstruc,core/render,core/scene,core/kernel,core/image,core/util"
   "app/view:app,core/tracer,backends,scenes,accstruc,core/render,core/scene,core/kernel,core/image,core/util"
   "app:app/view,core/tracer,backends,backends/cpu,backends/host,backends/cuda,scenes,accstruc,core/render,core/scene,core/kernel,core/image,core/util"
 )
