@@ -12,6 +12,7 @@
 #include <string_view>
 #include <thread>
 #include <tuple>
+#include <utility>
 
 #include <stb_image.h>
 
@@ -159,10 +160,18 @@ class MaterialConverter {
       out.push_back(mat.pbrMetallicRoughness.metallicRoughnessTexture.index);
       out.push_back(mat.normalTexture.index);
       out.push_back(mat.emissiveTexture.index);
-      const Value* tt =
-          member(extension(mat.extensions, "KHR_materials_transmission"), "transmissionTexture");
-      if (const Value* idx = member(tt, "index"); idx != nullptr && idx->IsInt()) {
-        out.push_back(idx->Get<int>());
+      static const std::pair<const char*, const char*> kExtensionTextures[] = {
+          {"KHR_materials_transmission", "transmissionTexture"},
+          {"KHR_materials_clearcoat", "clearcoatTexture"},
+          {"KHR_materials_clearcoat", "clearcoatRoughnessTexture"},
+          {"KHR_materials_sheen", "sheenColorTexture"},
+          {"KHR_materials_sheen", "sheenRoughnessTexture"},
+      };
+      for (const auto& [ext, slot] : kExtensionTextures) {
+        const Value* t = member(extension(mat.extensions, ext), slot);
+        if (const Value* idx = member(t, "index"); idx != nullptr && idx->IsInt()) {
+          out.push_back(idx->Get<int>());
+        }
       }
     }
     return out;
@@ -489,7 +498,41 @@ class MaterialConverter {
                        ewho + " (and possibly others) has specular textures, which are ignored");
       }
     }
+    convert_layers(gm, who, out);
     return out;
+  }
+
+  // KHR_materials_clearcoat and KHR_materials_sheen (defaults: no layer).
+  void convert_layers(const tinygltf::Material& gm, const std::string& who, Material& out) {
+    if (const Value* e = extension(gm.extensions, "KHR_materials_clearcoat")) {
+      const std::string ewho = who + " KHR_materials_clearcoat";
+      out.clearcoat =
+          unit(number(ctx_, e, "clearcoatFactor", 0.0, ewho), ewho + " clearcoatFactor");
+      out.clearcoat_roughness = unit(number(ctx_, e, "clearcoatRoughnessFactor", 0.0, ewho),
+                                     ewho + " clearcoatRoughnessFactor");
+      out.clearcoat_texture = reference(member(e, "clearcoatTexture"), ewho + " clearcoatTexture");
+      out.clearcoat_roughness_texture =
+          reference(member(e, "clearcoatRoughnessTexture"), ewho + " clearcoatRoughnessTexture");
+      if (member(e, "clearcoatNormalTexture") != nullptr) {
+        ctx_.warn_once("coatnormal", ewho +
+                                         " (and possibly others) has a clearcoatNormalTexture, "
+                                         "which is ignored: the coat uses the base's normal");
+      }
+    }
+    if (const Value* e = extension(gm.extensions, "KHR_materials_sheen")) {
+      const std::string ewho = who + " KHR_materials_sheen";
+      double c[3];
+      if (numbers(ctx_, e, "sheenColorFactor", 3, c, ewho)) {
+        for (int k = 0; k < 3; ++k)
+          out.sheen_color[k] = unit(c[k], ewho + " sheenColorFactor");
+      }
+      out.sheen_roughness =
+          unit(number(ctx_, e, "sheenRoughnessFactor", 0.0, ewho), ewho + " sheenRoughnessFactor");
+      out.sheen_color_texture =
+          reference(member(e, "sheenColorTexture"), ewho + " sheenColorTexture");
+      out.sheen_roughness_texture =
+          reference(member(e, "sheenRoughnessTexture"), ewho + " sheenRoughnessTexture");
+    }
   }
 
   Context& ctx_;

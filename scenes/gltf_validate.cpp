@@ -621,9 +621,9 @@ void validate_asset_and_extensions(const Context& ctx) {
 
 bool extension_supported(const std::string& name) {
   static const char* const kSupported[] = {
-      "KHR_lights_punctual",     "KHR_materials_emissive_strength", "KHR_materials_transmission",
-      "KHR_materials_ior",       "KHR_materials_specular",          "KHR_texture_transform",
-      "EXT_mesh_gpu_instancing",
+      "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
+      "KHR_materials_ior",   "KHR_materials_specular",          "KHR_materials_clearcoat",
+      "KHR_materials_sheen", "KHR_texture_transform",           "EXT_mesh_gpu_instancing",
   };
   return std::find(std::begin(kSupported), std::end(kSupported), name) != std::end(kSupported);
 }
@@ -633,8 +633,6 @@ bool extension_ignorable(const std::string& name) {
   // metadata, and animation-only data.
   static const char* const kIgnorable[] = {
       "KHR_materials_volume",
-      "KHR_materials_clearcoat",
-      "KHR_materials_sheen",
       "KHR_materials_iridescence",
       "KHR_materials_anisotropy",
       "KHR_materials_dispersion",

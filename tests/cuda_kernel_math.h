@@ -4,6 +4,7 @@
 
 #include <vector>
 
+#include "core/kernel/math.h"
 #include "core/kernel/trig.h"
 
 namespace tandem {
@@ -12,5 +13,11 @@ namespace tandem {
 // CudaError when a runtime call fails.
 void device_sincos_pi(const std::vector<float>& x, std::vector<SinCos>* out);
 void device_srgb8_to_linear(std::vector<float>* out);
+// The sheen lobe (sheen_brdf(wo[i], wi[i], alpha[i])) and its tabulated
+// albedo (sheen_albedo(wo[i].z, alpha[i])) on the device: they rest on the
+// plain-float exp2/log2 of core/kernel/exp_log.h.
+void device_sheen(const std::vector<Vec3>& wo, const std::vector<Vec3>& wi,
+                  const std::vector<float>& alpha, std::vector<float>* brdf,
+                  std::vector<float>* albedo);
 
 }  // namespace tandem

@@ -3,12 +3,14 @@
 // (core/kernel/srgb_table.h), which the CPU-side tests check for accuracy.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
 #include <vector>
 
 #include "backends/backend_factory.h"
+#include "core/kernel/sheen_albedo.h"
 #include "core/kernel/srgb_table.h"
 #include "cuda_test_util.h"
 #include "tests/cuda_kernel_math.h"
@@ -61,6 +63,37 @@ TEST(CudaGpu, SrgbDecodeTableMatchesHostBitForBit) {
   ASSERT_EQ(device.size(), 256u);
   for (uint32_t i = 0; i < 256; ++i)
     EXPECT_EQ(bits(device[i]), bits(kSrgb8ToLinear[i])) << i;
+}
+
+TEST(CudaGpu, SheenLobeMatchesHostBitForBit) {
+  TANDEM_REQUIRE_REAL_GPU();
+  // A grid of view and light directions and roughness values; the lobe's
+  // powers and exponentials are plain-float code (core/kernel/exp_log.h).
+  std::vector<Vec3> wo, wi;
+  std::vector<float> alpha;
+  for (int a = 0; a < 8; ++a) {
+    for (int i = 1; i < 40; ++i) {
+      for (int j = 1; j < 40; ++j) {
+        const float ti = 1.5707f * float(i) / 40.0f, tj = 1.5707f * float(j) / 40.0f;
+        wo.push_back(make_vec3(std::sin(ti), 0.0f, std::cos(ti)));
+        wi.push_back(make_vec3(-std::sin(tj) * 0.6f, std::sin(tj) * 0.8f, std::cos(tj)));
+        alpha.push_back(0.07f + 0.93f * float(a) / 7.0f);
+      }
+    }
+  }
+  std::vector<float> brdf, albedo;
+  device_sheen(wo, wi, alpha, &brdf, &albedo);
+  ASSERT_EQ(brdf.size(), wo.size());
+  size_t differ = 0;
+  for (size_t i = 0; i < wo.size(); ++i) {
+    const float h_brdf = sheen_brdf(wo[i], wi[i], alpha[i]);
+    const float h_albedo = sheen_albedo(wo[i].z, alpha[i]);
+    if ((bits(h_brdf) != bits(brdf[i]) || bits(h_albedo) != bits(albedo[i])) && ++differ <= 5) {
+      ADD_FAILURE() << std::hexfloat << "case " << i << ": host " << h_brdf << ", " << h_albedo
+                    << " device " << brdf[i] << ", " << albedo[i];
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "of " << wo.size() << " cases";
 }
 
 }  // namespace

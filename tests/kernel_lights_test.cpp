@@ -208,7 +208,8 @@ KMaterial emissive_material(Vec3 emission, bool double_sided) {
   m.normal_scale = 1.0f;
   m.emission_luminance_scale = 1.0f;
   m.base_color_tex = m.metallic_roughness_tex = m.normal_tex = m.emissive_tex = m.transmission_tex =
-      no_texture();
+      m.clearcoat_tex = m.clearcoat_roughness_tex = m.sheen_color_tex = m.sheen_roughness_tex =
+          no_texture();
   return m;
 }
 

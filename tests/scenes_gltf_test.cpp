@@ -70,8 +70,8 @@ const std::map<std::string, Expected>& expected() {
       {"MultipleScenes", {3, 2, 2, 1, 1, 1, 0, false}},
       {"SimpleInstancing", {12, 1500, 12, 125, 1, 1, 0, false}},
       {"SimpleMeshes", {1, 2, 1, 2, 1, 1, 0, false}},
-      // Occlusion and clearcoat textures are not read, so 6 of 8.
-      {"ToyCar", {108936, 108936, 108936, 3, 3, 3, 6, true}},
+      // Occlusion textures are not read, so 7 of 8.
+      {"ToyCar", {108936, 108936, 108936, 3, 3, 3, 7, true}},
       // 22 meshes, 18 distinct (same accessors and materials).
       {"TransmissionTest", {128775, 128775, 128759, 22, 18, 14, 9, true}},
   };
@@ -113,7 +113,8 @@ void check_consistent(const Scene& scene) {
   for (const Material& m : scene.materials()) {
     for (const TextureRef* ref :
          {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture,
-          &m.emissive_texture, &m.transmission_texture}) {
+          &m.emissive_texture, &m.transmission_texture, &m.clearcoat_texture,
+          &m.clearcoat_roughness_texture, &m.sheen_color_texture, &m.sheen_roughness_texture}) {
       EXPECT_GE(ref->texture, -1);
       EXPECT_LT(ref->texture, int32_t(scene.textures().size())) << m.name;
       EXPECT_LE(ref->transform.uv_set, 1u);
@@ -288,6 +289,40 @@ TEST(GltfModels, ToyCarHasTextureTransformAndGlass) {
   ASSERT_NE(glass, scene.materials().end());
   EXPECT_EQ(glass->transmission, 1.0f);
   EXPECT_TRUE(scene.materials()[0].double_sided);
+}
+
+TEST(GltfModels, ToyCarGetsItsClearcoatAndSheenWithoutWarnings) {
+  testing::internal::CaptureStderr();
+  const Scene scene = load("ToyCar/glTF/ToyCar.gltf");
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(log.find("KHR_materials_clearcoat"), std::string::npos) << log;
+  EXPECT_EQ(log.find("KHR_materials_sheen"), std::string::npos) << log;
+  EXPECT_EQ(log.find("not supported"), std::string::npos) << log;
+  auto named = [&](const std::string& name) -> const Material& {
+    const auto it = std::find_if(scene.materials().begin(), scene.materials().end(),
+                                 [&](const Material& m) { return m.name == name; });
+    EXPECT_NE(it, scene.materials().end()) << name;
+    return it == scene.materials().end() ? scene.materials()[0] : *it;
+  };
+  // The body: a full clear coat whose strength comes from a texture.
+  const Material& body = named("ToyCar");
+  EXPECT_FLOAT_EQ(body.clearcoat, 1.0f);
+  EXPECT_FLOAT_EQ(body.clearcoat_roughness, 0.0f);
+  ASSERT_GE(body.clearcoat_texture.texture, 0);
+  EXPECT_EQ(scene.textures()[size_t(body.clearcoat_texture.texture)].name, "ToyCar_clearcoat.png");
+  EXPECT_EQ(body.clearcoat_roughness_texture.texture, -1);
+  EXPECT_EQ(body.sheen_color, glm::vec3(0.0f));
+  // The cloth: a red sheen of roughness 0.5 over a dark base.
+  const Material& fabric = named("Fabric");
+  EXPECT_EQ(fabric.sheen_color, glm::vec3(1.0f, 0.0f, 0.0f));
+  EXPECT_FLOAT_EQ(fabric.sheen_roughness, 0.5f);
+  EXPECT_EQ(fabric.sheen_color_texture.texture, -1);
+  EXPECT_EQ(fabric.sheen_roughness_texture.texture, -1);
+  EXPECT_FLOAT_EQ(fabric.clearcoat, 0.0f);
+  // The glass has neither layer.
+  const Material& glass = named("Glass");
+  EXPECT_FLOAT_EQ(glass.clearcoat, 0.0f);
+  EXPECT_EQ(glass.sheen_color, glm::vec3(0.0f));
 }
 
 TEST(GltfModels, FlightHelmetLoadsWithWarningsForMissingImages) {
@@ -626,6 +661,60 @@ TEST_F(GltfHandMade, TextureTransformSamplerAndImages) {
   EXPECT_FALSE(grey16.nearest);
 }
 
+TEST_F(GltfHandMade, ClearcoatAndSheenFactorsAndTextures) {
+  std::string text = triangle_gltf(std::string(R"(
+      "extensionsUsed": ["KHR_materials_clearcoat", "KHR_materials_sheen"],
+      "images": [{"uri": "data:image/png;base64,)") +
+                                   kPng2x2 + R"("}],
+      "textures": [{"source": 0}],
+      "materials": [{"extensions": {
+          "KHR_materials_clearcoat": {"clearcoatFactor": 0.75, "clearcoatRoughnessFactor": 0.25,
+                                      "clearcoatTexture": {"index": 0},
+                                      "clearcoatRoughnessTexture": {"index": 0, "texCoord": 1},
+                                      "clearcoatNormalTexture": {"index": 0}},
+          "KHR_materials_sheen": {"sheenColorFactor": [0.5, 2, -1], "sheenRoughnessFactor": 0.3,
+                                  "sheenColorTexture": {"index": 0},
+                                  "sheenRoughnessTexture": {"index": 0}}}},
+                    {"extensions": {"KHR_materials_clearcoat": {}, "KHR_materials_sheen": {}}}],
+      "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}])");
+  text.replace(text.find(R"({"POSITION": 0}})"), 16, R"({"POSITION": 0}, "material": 0})");
+  testing::internal::CaptureStderr();
+  const Scene scene = load("layers.gltf", text);
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("clearcoatNormalTexture"), std::string::npos) << log;
+  EXPECT_NE(log.find("clamped"), std::string::npos) << log;  // the sheen colour
+  EXPECT_EQ(log.find("not supported"), std::string::npos) << log;
+  ASSERT_EQ(scene.materials().size(), 2u);
+  const Material& m = scene.materials()[0];
+  EXPECT_FLOAT_EQ(m.clearcoat, 0.75f);
+  EXPECT_FLOAT_EQ(m.clearcoat_roughness, 0.25f);
+  EXPECT_EQ(m.clearcoat_texture.texture, 0);
+  EXPECT_EQ(m.clearcoat_roughness_texture.texture, 0);
+  EXPECT_EQ(m.clearcoat_roughness_texture.transform.uv_set, 1u);
+  EXPECT_EQ(m.sheen_color, glm::vec3(0.5f, 1.0f, 0.0f));
+  EXPECT_FLOAT_EQ(m.sheen_roughness, 0.3f);
+  EXPECT_EQ(m.sheen_color_texture.texture, 0);
+  EXPECT_EQ(m.sheen_roughness_texture.texture, 0);
+  // Empty extension objects: the spec's defaults, which mean "no layer".
+  const Material& d = scene.materials()[1];
+  EXPECT_FLOAT_EQ(d.clearcoat, 0.0f);
+  EXPECT_FLOAT_EQ(d.clearcoat_roughness, 0.0f);
+  EXPECT_EQ(d.sheen_color, glm::vec3(0.0f));
+  EXPECT_FLOAT_EQ(d.sheen_roughness, 0.0f);
+  EXPECT_EQ(d.clearcoat_texture.texture, -1);
+
+  EXPECT_NE(error("badcoat.gltf", triangle_gltf(R"(
+      "materials": [{"extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": "shiny"}}}],
+      "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}])"))
+                .find("clearcoatFactor must be a finite number"),
+            std::string::npos);
+  EXPECT_NE(error("badsheen.gltf", triangle_gltf(R"(
+      "materials": [{"extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 0]}}}],
+      "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}])"))
+                .find("sheenColorFactor must be an array of 3 numbers"),
+            std::string::npos);
+}
+
 TEST(GltfImages, ConvertsEveryChannelLayoutToRgba8) {
   tinygltf::Image img;
   img.width = 1;
@@ -719,10 +808,10 @@ TEST_F(GltfHandMade, CameraAndLightsFromNodes) {
 TEST_F(GltfHandMade, UnsupportedExtensionsWarnOrFail) {
   testing::internal::CaptureStderr();
   const Scene scene = load("used.gltf", triangle_gltf(R"(
-      "extensionsUsed": ["KHR_materials_clearcoat", "EXT_some_vendor_thing"],
+      "extensionsUsed": ["KHR_materials_iridescence", "EXT_some_vendor_thing"],
       "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}])"));
   const std::string log = testing::internal::GetCapturedStderr();
-  EXPECT_NE(log.find("KHR_materials_clearcoat"), std::string::npos);
+  EXPECT_NE(log.find("KHR_materials_iridescence"), std::string::npos);
   EXPECT_NE(log.find("EXT_some_vendor_thing"), std::string::npos);
   EXPECT_EQ(scene.instances().size(), 1u);
 

@@ -19,55 +19,25 @@
 // always returns the mixture pdf, so bsdf_sample and bsdf_eval agree exactly
 // (which the chi-square tests check).
 //
+// Two optional layers go over that base (bsdf_layers.h has the details):
+// the sheen (KHR_materials_sheen, a Charlie microfiber lobe) directly on
+// it, and the clear coat (KHR_materials_clearcoat, a colourless GGX
+// dielectric with F0 = 0.04) over both:
+//
+//   f = coat + T_coat (sheen + T_sheen base)
+//
+// where T_coat and T_sheen dim what lies underneath by what the layer above
+// reflected, the glTF spec's energy bookkeeping. Materials without layers
+// skip every term of them and give the same bits as before the layers
+// existed.
+//
 // All directions are local (z = shading normal) with wo.z > 0: the caller
 // flips the frame for back-side hits and passes eta = n(wi side) / n(wo side).
 #pragma once
 
-#include "core/kernel/microfacet.h"
-#include "core/kernel/sampling.h"
+#include "core/kernel/bsdf_layers.h"
 
 namespace tandem {
-
-struct BsdfParams {
-  Vec3 base_color;
-  float metallic;
-  Vec3 specular_color;  // components in [0, 1]
-  float alpha;          // GGX alpha (>= kMinGgxAlpha)
-  float transmission;
-  float eta;       // relative index of refraction across the surface
-  float specular;  // weight of the dielectric reflection layer
-  // Hemispherical average of fresnel_dielectric(., eta); < 0 means "compute
-  // it here" (slow; the integrator passes the per-material precomputed value).
-  float fresnel_avg = -1.0f;
-};
-
-TANDEM_HD float bsdf_fresnel_average(const BsdfParams& p) {
-  return p.fresnel_avg >= 0.0f ? p.fresnel_avg : fresnel_dielectric_average(p.eta);
-}
-
-struct BsdfEval {
-  Vec3 f;     // BSDF value (no cosine)
-  float pdf;  // solid-angle density of bsdf_sample producing wi
-};
-
-struct BsdfSample {
-  Vec3 wi;
-  Vec3 weight;  // f * |cos| / pdf
-  float pdf;
-};
-
-struct BsdfLobeProbabilities {
-  float reflect, diffuse, transmit;
-};
-
-// Floor on the Fresnel factors of the lobe-selection weights below. Those
-// use Fresnel at the macro normal, which can be exactly 0 (Schlick with a
-// black F0 at normal incidence) or 1 (total internal reflection) while
-// off-normal microfacets still reflect or transmit: without the floor such a
-// lobe has f > 0 but probability 0, and bsdf_sample can never reach it (bias,
-// not noise). Any positive floor keeps the estimator unbiased; 0.1 also keeps
-// the weights of those samples moderate.
-constexpr float kMinLobeFresnelWeight = 0.1f;
 
 TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec3 wo) {
   const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo.z, p.eta) : 0.0f;
@@ -82,18 +52,26 @@ TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec
       dielectric * max_f(kMinLobeFresnelWeight,
                          1.0f - p.specular * f_dielectric * max_component(p.specular_color));
   const float albedo = luminance(p.base_color);
-  const float diffuse = base * (1.0f - p.transmission) * albedo;
-  const float transmit = base * p.transmission * albedo;
-  const float sum = reflect + diffuse + transmit;
+  float diffuse = base * (1.0f - p.transmission) * albedo;
+  float transmit = base * p.transmission * albedo;
+  if (!bsdf_has_layers(p)) {
+    const float sum = reflect + diffuse + transmit;
+    if (!(sum > 0.0f)) return {0.0f, 0.0f, 0.0f};
+    const float inv = 1.0f / sum;
+    return {reflect * inv, diffuse * inv, transmit * inv};
+  }
+  const LayerWeights w = layer_lobe_weights(p, wo.z);
+  const float r = reflect * w.base, d = diffuse * w.base, t = transmit * w.base;
+  const float sum = r + d + t + w.sheen + w.coat;
   if (!(sum > 0.0f)) return {0.0f, 0.0f, 0.0f};
   const float inv = 1.0f / sum;
-  return {reflect * inv, diffuse * inv, transmit * inv};
+  return {r * inv, d * inv, t * inv, w.sheen * inv, w.coat * inv};
 }
 
-// bsdf_eval with the lobe probabilities for this wo already computed (the
-// integrator evaluates and samples the same wo, so it computes them once).
-TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
-                                   Vec3 wi) {
+// The base's three lobes (f and their share of the mixture pdf), without
+// the layers.
+TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
+                                  Vec3 wi) {
   BsdfEval out = {make_vec3(0.0f), 0.0f};
   if (wo.z <= 0.0f || wi.z == 0.0f) return out;
   const float dielectric = 1.0f - p.metallic;
@@ -149,6 +127,16 @@ TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilit
   return out;
 }
 
+// bsdf_eval with the lobe probabilities for this wo already computed (the
+// integrator evaluates and samples the same wo, so it computes them once).
+TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
+                                   Vec3 wi) {
+  BsdfEval out = bsdf_eval_base(p, prob, wo, wi);
+  if (!bsdf_has_layers(p) || wo.z <= 0.0f || wi.z == 0.0f) return out;
+  add_layers(p, prob, wo, wi, &out);
+  return out;
+}
+
 TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
   return bsdf_eval_lobes(p, bsdf_lobe_probabilities(p, wo), wo, wi);
 }
@@ -160,11 +148,23 @@ TANDEM_HD bool bsdf_sample_lobes(const BsdfParams& p, const BsdfLobeProbabilitie
                                  float u_lobe, float u1, float u2, BsdfSample* out) {
   if (wo.z <= 0.0f) return false;
   Vec3 wi;
-  if (u_lobe < prob.reflect) {
+  // The layers' lobes come first: without them both bounds are 0 and the
+  // base's thresholds below are the same numbers as before they existed.
+  const float below_sheen = prob.coat, below_base = below_sheen + prob.sheen;
+  if (u_lobe < below_sheen) {
+    const Vec3 m = ggx_sample_visible_normal(wo, p.clearcoat_alpha, u1, u2);
+    wi = reflect(wo, m);
+    if (wi.z <= 0.0f) return false;
+  } else if (u_lobe < below_base) {
+    // Cosine-weighted: the Charlie lobe has no practical inverse, and it is
+    // broad enough that the cosine's variance stays moderate.
+    wi = sample_cosine_hemisphere(u1, u2);
+    if (wi.z <= 0.0f) return false;
+  } else if (u_lobe < below_base + prob.reflect) {
     const Vec3 m = ggx_sample_visible_normal(wo, p.alpha, u1, u2);
     wi = reflect(wo, m);
     if (wi.z <= 0.0f) return false;
-  } else if (u_lobe < prob.reflect + prob.diffuse) {
+  } else if (u_lobe < below_base + prob.reflect + prob.diffuse) {
     wi = sample_cosine_hemisphere(u1, u2);
     if (wi.z <= 0.0f) return false;
   } else if (prob.transmit > 0.0f) {

@@ -42,6 +42,39 @@ struct ShadingSetup {
   Vec3 wo_local;
 };
 
+// The clear coat and sheen parameters of a material with either layer at a
+// shading point (texture channels as KHR_materials_clearcoat and _sheen
+// define them). Out of line from setup_shading so that materials without
+// layers pay one branch.
+TANDEM_HD void setup_layers(const KernelData& kd, const KMaterial& m, const Vec2 uv[2],
+                            BsdfParams* p) {
+  float clearcoat = m.clearcoat, coat_roughness = m.clearcoat_roughness;
+  if (m.clearcoat_tex.texture >= 0) {
+    clearcoat *=
+        sample_texture(kd, uint32_t(m.clearcoat_tex.texture), material_uv(m.clearcoat_tex, uv)).x;
+  }
+  if (m.clearcoat_roughness_tex.texture >= 0) {
+    coat_roughness *= sample_texture(kd, uint32_t(m.clearcoat_roughness_tex.texture),
+                                     material_uv(m.clearcoat_roughness_tex, uv))
+                          .y;
+  }
+  Vec3 sheen = m.sheen_color;
+  float sheen_roughness = m.sheen_roughness;
+  if (m.sheen_color_tex.texture >= 0) {
+    sheen *= xyz(sample_texture(kd, uint32_t(m.sheen_color_tex.texture),
+                                material_uv(m.sheen_color_tex, uv)));
+  }
+  if (m.sheen_roughness_tex.texture >= 0) {
+    sheen_roughness *= sample_texture(kd, uint32_t(m.sheen_roughness_tex.texture),
+                                      material_uv(m.sheen_roughness_tex, uv))
+                           .w;
+  }
+  p->clearcoat = saturate(clearcoat);
+  p->clearcoat_alpha = ggx_alpha_from_roughness(saturate(coat_roughness));
+  p->sheen_color = {saturate(sheen.x), saturate(sheen.y), saturate(sheen.z)};
+  p->sheen_roughness = saturate(sheen_roughness);
+}
+
 // Evaluates textures and orients the shading frame towards wo. Returns
 // false when the surface cannot scatter towards wo at all.
 TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 wo,
@@ -82,6 +115,7 @@ TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 
   const bool leaving = p.transmission > 0.0f && !front;
   p.eta = leaving ? 1.0f / m.ior : m.ior;
   p.fresnel_avg = leaving ? m.fresnel_avg_leave : m.fresnel_avg_enter;
+  if (m.clearcoat > 0.0f || !is_black(m.sheen_color)) setup_layers(kd, m, sp.uv, &p);
   s->lobes = bsdf_lobe_probabilities(p, s->wo_local);
   return true;
 }

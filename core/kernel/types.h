@@ -4,6 +4,10 @@
 
 #include "core/kernel/math.h"
 
+#if !defined(__CUDACC_RTC__)
+#include <cstddef>  // offsetof
+#endif
+
 namespace tandem {
 
 struct Ray {
@@ -97,8 +101,10 @@ enum KAlphaMode : uint32_t { kAlphaOpaque = 0, kAlphaMask = 1, kAlphaBlend = 2 }
 enum KMaterialFlags : uint32_t { kMaterialDoubleSided = 1u << 0 };
 
 // glTF metallic-roughness material with the extensions Tandem supports
-// (emissive_strength, transmission, ior, specular). Factors are already
-// multiplied out (emission = emissiveFactor * emissiveStrength).
+// (emissive_strength, transmission, ior, specular, clearcoat, sheen). Factors
+// are already multiplied out (emission = emissiveFactor * emissiveStrength).
+// The layer fields were added after the others, in what was padding and at
+// the end, so that the offsets of the older fields did not move.
 struct KMaterial {
   Vec4 base_color;  // linear RGB + alpha
   Vec3 emission;
@@ -118,14 +124,25 @@ struct KMaterial {
   // diffuse-under-specular energy normalisation needs them at every hit.
   float fresnel_avg_enter;
   float fresnel_avg_leave;
-  float pad[2];
+  float clearcoat;            // KHR_materials_clearcoat clearcoatFactor (0: no coat)
+  float clearcoat_roughness;  // clearcoatRoughnessFactor, perceptual
   KTextureRef base_color_tex;
   KTextureRef metallic_roughness_tex;
   KTextureRef normal_tex;
   KTextureRef emissive_tex;
   KTextureRef transmission_tex;
+  Vec3 sheen_color;           // KHR_materials_sheen sheenColorFactor, linear (black: no sheen)
+  float sheen_roughness;      // sheenRoughnessFactor, perceptual
+  KTextureRef clearcoat_tex;  // R: clearcoat
+  KTextureRef clearcoat_roughness_tex;  // G: clearcoat roughness
+  KTextureRef sheen_color_tex;          // RGB, sRGB-encoded
+  KTextureRef sheen_roughness_tex;      // A: sheen roughness
 };
-static_assert(sizeof(KMaterial) == 96 + 5 * 32, "GPU layout");
+static_assert(sizeof(KMaterial) == 96 + 5 * 32 + 16 + 4 * 32, "GPU layout");
+static_assert(offsetof(KMaterial, clearcoat) == 88 && offsetof(KMaterial, base_color_tex) == 96 &&
+                  offsetof(KMaterial, sheen_color) == 256 &&
+                  offsetof(KMaterial, clearcoat_tex) == 272,
+              "GPU layout");
 
 enum KLightType : uint32_t {
   kLightTriangle = 0,

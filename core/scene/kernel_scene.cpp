@@ -151,6 +151,15 @@ KTextureRef to_texture_ref(const TextureRef& ref, int32_t slot) {
   return r;
 }
 
+// The KHR_materials_clearcoat and _sheen factors (their texture references
+// are compiled with the others).
+void compile_layers(const Material& m, KMaterial& k) {
+  k.clearcoat = std::clamp(m.clearcoat, 0.0f, 1.0f);
+  k.clearcoat_roughness = std::clamp(m.clearcoat_roughness, 0.0f, 1.0f);
+  k.sheen_color = to_vec3(glm::clamp(m.sheen_color, glm::vec3(0.0f), glm::vec3(1.0f)));
+  k.sheen_roughness = std::clamp(m.sheen_roughness, 0.0f, 1.0f);
+}
+
 bool material_emits(const Material& m) {
   return m.emissive_strength > 0.0f &&
          (m.emissive.x > 0.0f || m.emissive.y > 0.0f || m.emissive.z > 0.0f);
@@ -206,6 +215,10 @@ void SceneCompiler::compile_textures(const Scene& scene, KernelScene& out) {
     slot_for(m.metallic_roughness_texture.texture, false);
     slot_for(m.normal_texture.texture, false);
     slot_for(m.transmission_texture.texture, false);
+    slot_for(m.clearcoat_texture.texture, false);
+    slot_for(m.clearcoat_roughness_texture.texture, false);
+    slot_for(m.sheen_color_texture.texture, true);
+    slot_for(m.sheen_roughness_texture.texture, false);
   }
 }
 
@@ -236,6 +249,11 @@ KMaterial SceneCompiler::compile_material(const Scene& scene, const Material& m)
   k.normal_tex = ref(m.normal_texture, false);
   k.emissive_tex = ref(m.emissive_texture, true);
   k.transmission_tex = ref(m.transmission_texture, false);
+  compile_layers(m, k);
+  k.clearcoat_tex = ref(m.clearcoat_texture, false);
+  k.clearcoat_roughness_tex = ref(m.clearcoat_roughness_texture, false);
+  k.sheen_color_tex = ref(m.sheen_color_texture, true);
+  k.sheen_roughness_tex = ref(m.sheen_roughness_texture, false);
   if (k.emissive_tex.texture >= 0) {
     k.emission_luminance_scale = texture_mean_luminance_[size_t(m.emissive_texture.texture)];
   }

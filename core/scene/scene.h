@@ -62,6 +62,14 @@ struct Material {
   float normal_scale = 1.0f;
   TextureRef base_color_texture, metallic_roughness_texture, normal_texture, emissive_texture,
       transmission_texture;
+  // KHR_materials_clearcoat (clearcoat 0: no coat) and KHR_materials_sheen
+  // (black sheen colour: no sheen); roughness values are perceptual.
+  float clearcoat = 0.0f;
+  float clearcoat_roughness = 0.0f;
+  glm::vec3 sheen_color{0.0f};
+  float sheen_roughness = 0.0f;
+  TextureRef clearcoat_texture, clearcoat_roughness_texture, sheen_color_texture,
+      sheen_roughness_texture;
 };
 
 // Triangle mesh (one BLAS). glTF primitives of one mesh are merged into one
