@@ -9,7 +9,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -27,6 +26,22 @@ using tandem::app_test::RunResult;
 using tandem::app_test::shell_quote;
 
 namespace {
+
+// "NAME 1.2.3\n" (no std::regex: GCC 12 warns inside it under -O1 + ASan).
+bool is_version_line(const std::string& text, const std::string& name) {
+  if (text.rfind(name + " ", 0) != 0 || text.empty() || text.back() != '\n') return false;
+  const std::string v = text.substr(name.size() + 1, text.size() - name.size() - 2);
+  int dots = 0;
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i] == '.') {
+      if (i == 0 || i + 1 == v.size() || v[i - 1] == '.') return false;
+      ++dots;
+    } else if (v[i] < '0' || v[i] > '9') {
+      return false;
+    }
+  }
+  return dots == 2;
+}
 
 // --- the parser and the tables ---------------------------------------------
 
@@ -120,8 +135,7 @@ TEST(CliSurface, EverySubcommandHasHelpWithDashHAndDashDashHelp) {
 TEST(CliSurface, VersionOfTandem) {
   const RunResult r = run_tandem("--version");
   EXPECT_EQ(r.exit_code, 0);
-  EXPECT_TRUE(std::regex_search(r.output, std::regex("^tandem [0-9]+\\.[0-9]+\\.[0-9]+\n$")))
-      << r.output;
+  EXPECT_TRUE(is_version_line(r.output, "tandem")) << r.output;
 }
 
 TEST(CliSurface, UsageErrorPointsAtTheSubcommandsHelp) {
@@ -208,10 +222,14 @@ TEST(CliSurface, SplitWithoutStealingIsTheShareOfSamplesAsked) {
                    " --no-stealing --width 200 --height 150 --spp 8 --threads 2 --output " +
                    shell_quote((dir.path() / "x.pfm").string()));
     ASSERT_EQ(r.exit_code, 0) << r.output;
-    const std::regex share("tandem:   cpu .* ([0-9.]+)% of samples");
-    std::smatch m;
-    ASSERT_TRUE(std::regex_search(r.output, m, share)) << r.output;
-    EXPECT_NEAR(std::stod(m[1]), 100.0 * std::stod(split), 2.0) << r.output;
+    // "tandem:   cpu  ... (0 stolen), 50.0% of samples, ..."
+    const size_t line = r.output.find("tandem:   cpu ");
+    ASSERT_NE(line, std::string::npos) << r.output;
+    const size_t percent = r.output.find("% of samples", line);
+    ASSERT_NE(percent, std::string::npos) << r.output;
+    const size_t start = r.output.rfind(' ', percent) + 1;
+    const double share = std::stod(r.output.substr(start, percent - start));
+    EXPECT_NEAR(share, 100.0 * std::stod(split), 2.0) << r.output;
   }
 }
 
@@ -245,8 +263,7 @@ TEST(ViewOptions, VersionHelpAndTheSceneOptionsOfRender) {
 #else
   RunResult r = run_view("--version");
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_TRUE(std::regex_search(r.output, std::regex("^tandem-view [0-9]+\\.[0-9]+\\.[0-9]+\n$")))
-      << r.output;
+  EXPECT_TRUE(is_version_line(r.output, "tandem-view")) << r.output;
   EXPECT_EQ(run_view("-h").exit_code, 0);
   TempDir dir("tandem_view_options");
   const fs::path box =
