@@ -17,6 +17,7 @@
 #include "app/bench_accstruc.h"
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
+#include "app/bench_scene_update.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
 #include "app/view/bench_frames.h"
@@ -99,13 +100,15 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 
 int run_bench(const std::vector<std::string>& argv) {
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
+  if (is_scene_update_bench(argv)) return run_scene_update_bench(argv);
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
         "usage: tandem bench [SCENE] [options]\n"
         "       tandem bench --gpu [SCENE] [options]\n"
         "       tandem bench --frames N [--scene SCENE] [options]  (see bench --frames 1 "
-        "--help)\n\n"
+        "--help)\n"
+        "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
         "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
         "interactive\nframe loop.\n\n%s",
