@@ -29,19 +29,6 @@ void mark_all(ArrayChange& c) {
 
 }  // namespace
 
-void AccelUpdate::mark(SceneDelta& d) const {
-  auto merge = [](ArrayChange& to, const ArrayChange& from) {
-    to.reallocated = to.reallocated || from.reallocated;
-    to.mark(from.begin, from.end);
-  };
-  merge(d.bvh_nodes, bvh_nodes);
-  merge(d.bvh_prim_indices, bvh_prim_indices);
-  merge(d.bvh_wide_nodes, bvh_wide_nodes);
-  merge(d.bvh_wide_prim_indices, bvh_wide_prim_indices);
-  merge(d.meshes, meshes);
-  d.constants = d.constants || constants;
-}
-
 MeshGeometry mesh_geometry(const KernelScene& ks, uint32_t mesh) {
   const KMesh& km = ks.meshes[mesh];
   MeshGeometry g;
@@ -190,21 +177,25 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   ks.bvh_wide_nodes.assign(wide_node, KWideBvhNode{});
   ks.bvh_wide_prim_indices.assign(wide_prim, 0u);
   tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
+  if (ks.blas_roots.size() != n) {
+    ks.blas_roots.assign(n, KBlasRoot{kInvalidIndex, kInvalidIndex});
+    mark_all(up.delta.blas_roots);
+  }
   for (uint32_t m = 0; m < n; ++m) {
-    KMesh& km = ks.meshes[m];
+    KBlasRoot& roots = ks.blas_roots[m];
     const bool empty = blas_[m].empty();
     const uint32_t root = empty ? kInvalidIndex : blas_bases_[m].node;
     const uint32_t wide_root = empty ? kInvalidIndex : blas_bases_[m].wide_node;
-    if (km.bvh_root != root || km.wide_root != wide_root) {
-      km.bvh_root = root;
-      km.wide_root = wide_root;
-      up.meshes.mark(m, m + 1);
+    if (roots.bvh_root != root || roots.wide_root != wide_root) {
+      roots.bvh_root = root;
+      roots.wide_root = wide_root;
+      up.delta.blas_roots.mark(m, m + 1);
     }
   }
-  mark_all(up.bvh_nodes);
-  mark_all(up.bvh_prim_indices);
-  mark_all(up.bvh_wide_nodes);
-  mark_all(up.bvh_wide_prim_indices);
+  mark_all(up.delta.bvh_nodes);
+  mark_all(up.delta.bvh_prim_indices);
+  mark_all(up.delta.bvh_wide_nodes);
+  mark_all(up.delta.bvh_wide_prim_indices);
   laid_out_ = true;
 }
 
@@ -292,20 +283,21 @@ void AccelStructure::emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_chan
                ks.bvh_prim_indices.data() + tlas_base_.prim,
                ks.bvh_wide_nodes.data() + tlas_base_.wide_node,
                ks.bvh_wide_prim_indices.data() + tlas_base_.wide_prim);
-  up.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
-  up.bvh_wide_nodes.mark(tlas_base_.wide_node,
-                         tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
+  SceneDelta& d = up.delta;
+  d.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
+  d.bvh_wide_nodes.mark(tlas_base_.wide_node,
+                        tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
   if (prims_changed) {
-    up.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
-    up.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
-                                  tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
+    d.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
+    d.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
+                                 tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
   }
   const uint32_t root = tlas_.empty() ? kInvalidIndex : tlas_base_.node;
   const uint32_t wide_root = tlas_.empty() ? kInvalidIndex : tlas_base_.wide_node;
-  if (ks.constants.tlas_root != root || ks.constants.tlas_wide_root != wide_root) {
-    ks.constants.tlas_root = root;
-    ks.constants.tlas_wide_root = wide_root;
-    up.constants = true;
+  if (ks.bvh.tlas_root != root || ks.bvh.tlas_wide_root != wide_root) {
+    ks.bvh.tlas_root = root;
+    ks.bvh.tlas_wide_root = wide_root;
+    d.bvh_constants = true;
   }
 }
 
@@ -352,8 +344,8 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     for (uint32_t m : refit) {
       emit_blas(ks, m);
       const LayoutBases& b = blas_bases_[m];
-      up.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
-      up.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
+      up.delta.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
+      up.delta.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
     }
   }
 
@@ -365,16 +357,10 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   }
   up.tlas_seconds = seconds_since(t0);
 
-  if (ks.constants.bvh_layout != uint32_t(settings_.layout)) {
-    ks.constants.bvh_layout = settings_.layout;
-    up.constants = true;
+  if (ks.bvh.layout != uint32_t(settings_.layout)) {
+    ks.bvh.layout = settings_.layout;
+    up.delta.bvh_constants = true;
   }
-  return up;
-}
-
-AccelUpdate AccelStructure::update_and_mark(KernelScene& ks, SceneDelta& delta) {
-  AccelUpdate up = update(ks, delta);
-  up.mark(delta);
   return up;
 }
 

@@ -91,15 +91,16 @@ TEST(AccelUpdate, RefitMatchesFreshBuildAndEmbree) {
   // node ranges and the TLAS are rewritten; no primitive order changes
   // except the TLAS's (and not even that when the TLAS was refit too).
   EXPECT_EQ(s.ks.bvh_nodes.size(), nodes_before);
-  EXPECT_FALSE(up.bvh_nodes.reallocated);
-  EXPECT_FALSE(up.bvh_prim_indices.reallocated);
-  const uint32_t first_root = std::min(s.ks.meshes[rock].bvh_root, s.ks.meshes[terrain].bvh_root);
-  EXPECT_EQ(up.bvh_nodes.begin, first_root);
-  EXPECT_EQ(up.bvh_nodes.end,
+  EXPECT_FALSE(up.delta.bvh_nodes.reallocated);
+  EXPECT_FALSE(up.delta.bvh_prim_indices.reallocated);
+  const uint32_t first_root =
+      std::min(s.ks.blas_roots[rock].bvh_root, s.ks.blas_roots[terrain].bvh_root);
+  EXPECT_EQ(up.delta.bvh_nodes.begin, first_root);
+  EXPECT_EQ(up.delta.bvh_nodes.end,
             uint32_t(s.ks.bvh_nodes.size()) -
                 (uint32_t(s.ks.instances.size()) - 1 - uint32_t(s.accel.tlas().nodes.size())));
-  if (up.bvh_prim_indices.any()) {
-    EXPECT_GE(up.bvh_prim_indices.begin,
+  if (up.delta.bvh_prim_indices.any()) {
+    EXPECT_GE(up.delta.bvh_prim_indices.begin,
               uint32_t(s.ks.bvh_prim_indices.size() - s.ks.instances.size()));
   }
   EXPECT_TRUE(delta.bvh_nodes.any());
@@ -138,15 +139,15 @@ TEST(AccelUpdate, MovingInstancesRebuildsOnlyTheTlas) {
   const AccelUpdate up = s.recompile();
   EXPECT_EQ(up.blas_built + up.blas_refit + up.blas_loaded, 0u);
   EXPECT_TRUE(up.tlas_rebuilt || up.tlas_refit);
-  EXPECT_FALSE(up.bvh_nodes.reallocated);
-  EXPECT_FALSE(up.meshes.any());
+  EXPECT_FALSE(up.delta.bvh_nodes.reallocated);
+  EXPECT_FALSE(up.delta.blas_roots.any());
   // Only the TLAS region (the end of each array) changed.
   const uint32_t tlas_nodes_begin = uint32_t(s.ks.bvh_nodes.size()) - (instances - 1);
-  EXPECT_GE(up.bvh_nodes.begin, tlas_nodes_begin);
-  if (up.bvh_prim_indices.any()) {  // a refit keeps the leaves' order
-    EXPECT_GE(up.bvh_prim_indices.begin, uint32_t(s.ks.bvh_prim_indices.size()) - instances);
+  EXPECT_GE(up.delta.bvh_nodes.begin, tlas_nodes_begin);
+  if (up.delta.bvh_prim_indices.any()) {  // a refit keeps the leaves' order
+    EXPECT_GE(up.delta.bvh_prim_indices.begin, uint32_t(s.ks.bvh_prim_indices.size()) - instances);
   }
-  EXPECT_GE(up.bvh_wide_nodes.begin, uint32_t(s.ks.bvh_wide_nodes.size()) - (instances - 1));
+  EXPECT_GE(up.delta.bvh_wide_nodes.begin, uint32_t(s.ks.bvh_wide_nodes.size()) - (instances - 1));
   EXPECT_EQ(0, std::memcmp(blas_nodes.data(), s.ks.bvh_nodes.data(),
                            tlas_nodes_begin * sizeof(KBvhNode)));
   expect_same_hits(
@@ -158,11 +159,12 @@ TEST(AccelUpdate, UnchangedFrameTouchesNothingAndLayoutSwitches) {
   TracedScene s(make_procedural_scene(20000, 23));
   AccelUpdate up = s.recompile();
   EXPECT_FALSE(up.tlas_rebuilt);
-  EXPECT_FALSE(up.bvh_nodes.any() || up.bvh_wide_nodes.any() || up.meshes.any() || up.constants);
+  EXPECT_FALSE(up.delta.bvh_nodes.any() || up.delta.bvh_wide_nodes.any() ||
+               up.delta.blas_roots.any() || up.delta.bvh_constants);
   s.accel.set_layout(kBvhLayoutWide);
   up = s.recompile();
-  EXPECT_TRUE(up.constants);
-  EXPECT_EQ(s.ks.constants.bvh_layout, uint32_t(kBvhLayoutWide));
+  EXPECT_TRUE(up.delta.bvh_constants);
+  EXPECT_EQ(s.ks.bvh.layout, uint32_t(kBvhLayoutWide));
   const KernelData kd = s.kd();
   const BvhTracer tracer{&kd};
   for (const RaySample& r : primary_rays(s, 500, 5)) {
@@ -193,7 +195,7 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
     const AccelUpdate up = s.recompile();
     EXPECT_TRUE(up.tlas_refit);
     EXPECT_FALSE(up.tlas_rebuilt);
-    EXPECT_FALSE(up.bvh_prim_indices.any());
+    EXPECT_FALSE(up.delta.bvh_prim_indices.any());
     std::printf("[accstruc] TLAS refit of 5000 instances (binary + wide): %.3f ms\n",
                 up.tlas_seconds * 1e3);
   }
