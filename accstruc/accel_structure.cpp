@@ -258,13 +258,44 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
   for (uint32_t i = 0; i < instances; ++i)
     tlas_members_[i] = aabb_valid(tlas_boxes_[i]);
   tlas_built_quality_ = tlas_quality(tlas_);
+  tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/true);
   up.tlas_rebuilt = true;
 }
 
-bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up) {
+bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up,
+                                const std::vector<uint32_t>* moved) {
   const uint32_t instances = uint32_t(ks.instances.size());
   if (tlas_.empty() || tlas_members_.size() != instances) return false;
+  if (moved && tlas_boxes_.size() == instances) {
+    // Only the moved instances' boxes and their paths to the root: the
+    // result is bit for bit the full refit's (partial_refit.h).
+    for (uint32_t i : *moved) {
+      if (i >= instances) continue;
+      const KInstance& inst = ks.instances[i];
+      tlas_boxes_[i] = inst.mesh < blas_.size()
+                           ? transform_box(inst.object_to_world, blas_[inst.mesh].bounds)
+                           : Aabb{};
+      if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
+    }
+    tlas_partial_.refit(tlas_, tlas_boxes_, *moved);
+    // tlas_quality(), from the refit's running sum of child areas.
+    const double root = tlas_.bounds.half_area();
+    const double quality = root > 0.0 ? tlas_partial_.child_area_sum() / root : 0.0;
+    if (quality > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+    const std::vector<uint32_t>& nodes = tlas_partial_.changed_nodes();
+    const std::vector<uint32_t>& wide = tlas_partial_.changed_wide_nodes();
+    emit_layout_nodes(tlas_, tlas_base_, nodes, wide, ks.bvh_nodes.data() + tlas_base_.node,
+                      ks.bvh_wide_nodes.data() + tlas_base_.wide_node);
+    if (!nodes.empty())
+      up.delta.bvh_nodes.mark(tlas_base_.node + nodes.front(), tlas_base_.node + nodes.back() + 1);
+    if (!wide.empty()) {
+      up.delta.bvh_wide_nodes.mark(tlas_base_.wide_node + wide.front(),
+                                   tlas_base_.wide_node + wide.back() + 1);
+    }
+    up.tlas_refit = true;
+    return true;
+  }
   compute_tlas_boxes(ks);
   for (uint32_t i = 0; i < instances; ++i) {
     if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
@@ -273,6 +304,7 @@ bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up) {
   // the boxes alone.
   refit_layouts(tlas_, tlas_boxes_);
   if (tlas_quality(tlas_) > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+  tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/false);
   up.tlas_refit = true;
   return true;
@@ -353,7 +385,12 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   // Moved instances (and refit BLAS, whose bounds changed) only need the
   // TLAS refit, as long as its quality holds; anything else rebuilds it.
   if (relayout || delta.instances_changed || !refit.empty()) {
-    if (relayout || !refit_tlas(ks, up)) rebuild_tlas(ks, up);
+    // Moved instances alone (no BLAS refit, whose bounds every instance of
+    // the mesh sees): refit only their paths.
+    const std::vector<uint32_t>* moved =
+        refit.empty() && !delta.full && !delta.instances_moved.empty() ? &delta.instances_moved
+                                                                       : nullptr;
+    if (relayout || !refit_tlas(ks, up, moved)) rebuild_tlas(ks, up);
   }
   up.tlas_seconds = seconds_since(t0);
 

@@ -26,6 +26,7 @@
 #include "accstruc/bvh_builder.h"
 #include "accstruc/bvh_cache.h"
 #include "accstruc/bvh_layouts.h"
+#include "accstruc/partial_refit.h"
 #include "core/scene/kernel_scene.h"
 
 namespace tandem {
@@ -79,9 +80,10 @@ class AccelStructure {
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
-  // Refits the TLAS to moved instances; false (nothing done) when the set of
-  // instances in it changed or the refit tree got much worse than a rebuild.
-  bool refit_tlas(KernelScene& ks, AccelUpdate& up);
+  // Refits the TLAS to moved instances (`moved`, or every instance when
+  // null); false when the set of instances in it changed or the refit tree
+  // got much worse than a rebuild (then the TLAS is left for a rebuild).
+  bool refit_tlas(KernelScene& ks, AccelUpdate& up, const std::vector<uint32_t>* moved);
   void compute_tlas_boxes(const KernelScene& ks);
   void emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_changed);
 
@@ -96,6 +98,7 @@ class AccelStructure {
   std::vector<Aabb> tlas_boxes_;       // reused every frame
   std::vector<uint8_t> tlas_members_;  // per instance: in the TLAS (valid box) at its last build
   double tlas_built_quality_ = 0.0;    // tlas_quality() right after the last rebuild
+  PartialRefit tlas_partial_;          // refits just the paths of moved instances
 };
 
 // The boxes a mesh's BLAS is built from: one per triangle, invalid (and so

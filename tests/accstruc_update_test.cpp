@@ -219,3 +219,73 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
 
 }  // namespace
 }  // namespace tandem
+
+namespace tandem {
+namespace {
+
+// The TLAS refit of only the moved instances' paths against the full refit
+// of every instance: the same kernel arrays bit for bit, frame after frame,
+// and the same decision to rebuild once the instances scatter.
+TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
+  Scene scene;
+  scene.add_material(Material{});
+  const uint32_t a = scene.add_mesh(make_uv_sphere(1.0f, 6, 8, 0, false));
+  const uint32_t b = scene.add_mesh(make_uv_sphere(0.5f, 4, 6, 0, true));
+  TestRandom rng(5);
+  for (uint32_t i = 0; i < 700; ++i) {
+    const glm::vec3 p(rng.uniform() * 80.0f, rng.uniform() * 8.0f, rng.uniform() * 80.0f);
+    scene.add_instance({"i", i % 4 ? a : b, glm::translate(glm::mat4(1.0f), p)});
+  }
+  Scene full_scene = scene;
+  RenderSettings settings;
+  SceneCompiler partial_compiler, full_compiler;
+  KernelScene partial_ks, full_ks;
+  AccelStructure partial_accel, full_accel;
+  partial_accel.update(partial_ks, partial_compiler.compile(scene, settings, partial_ks));
+  full_accel.update(full_ks, full_compiler.compile(full_scene, settings, full_ks));
+  for (int frame = 0; frame < 40; ++frame) {
+    const bool scatter = frame == 30;
+    const uint32_t moves = scatter ? 700 : 1 + uint32_t(rng.uniform() * 60.0f);
+    for (uint32_t k = 0; k < moves; ++k) {
+      const uint32_t i = scatter ? k : std::min(699u, uint32_t(rng.uniform() * 700.0f));
+      const glm::vec3 step =
+          scatter ? glm::vec3(rng.uniform() * 80.0f - 40.0f, 0.0f, rng.uniform() * 80.0f - 40.0f)
+                  : glm::vec3(rng.uniform() - 0.5f, 0.0f, rng.uniform() - 0.5f);
+      const glm::mat4 t = glm::translate(glm::mat4(1.0f), step) * scene.instances()[i].transform;
+      scene.set_instance_transform(i, t);
+      full_scene.set_instance_transform(i, t);
+    }
+    const SceneDelta partial_delta = partial_compiler.compile(scene, settings, partial_ks);
+    SceneDelta full_delta = full_compiler.compile(full_scene, settings, full_ks);
+    ASSERT_FALSE(partial_delta.instances_moved.empty());
+    full_delta.instances_moved.clear();  // the updater then refits every instance
+    const AccelUpdate p = partial_accel.update(partial_ks, partial_delta);
+    const AccelUpdate f = full_accel.update(full_ks, full_delta);
+    ASSERT_EQ(p.tlas_refit, f.tlas_refit) << "frame " << frame;
+    ASSERT_EQ(p.tlas_rebuilt, f.tlas_rebuilt) << "frame " << frame;
+    if (scatter) {
+      EXPECT_TRUE(p.tlas_rebuilt);
+    }
+    if (frame == 0) {
+      EXPECT_TRUE(p.tlas_refit);
+    }
+#define TANDEM_EXPECT_SAME_BVH(T, name)                              \
+  ASSERT_EQ(partial_ks.name.size(), full_ks.name.size()) << #name;   \
+  EXPECT_EQ(std::memcmp(partial_ks.name.data(), full_ks.name.data(), \
+                        partial_ks.name.size() * sizeof(T)),         \
+            0)                                                       \
+      << #name << " differs in frame " << frame;
+    TANDEM_BVH_ARRAYS(TANDEM_EXPECT_SAME_BVH)
+#undef TANDEM_EXPECT_SAME_BVH
+    EXPECT_EQ(std::memcmp(&partial_ks.bvh, &full_ks.bvh, sizeof(KBvhConstants)), 0);
+    if (::testing::Test::HasFailure()) return;
+    // The partial refit reports at most the full refit's ranges.
+    if (p.tlas_refit) {
+      EXPECT_GE(p.delta.bvh_nodes.begin, f.delta.bvh_nodes.begin);
+      EXPECT_LE(p.delta.bvh_nodes.end, f.delta.bvh_nodes.end);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tandem

@@ -55,6 +55,7 @@ void SceneCompiler::update_instances(const Scene& scene, KernelScene& out, Scene
     out.instances[i] = compile_instance(scene.instances()[i]);
     delta.instances.mark(i, i + 1);
     delta.instances_changed = true;
+    delta.instances_moved.push_back(i);
     // Triangle lights are stored as (instance, prim): moving an emissive
     // instance rigidly changes neither the light list nor any light's
     // power, so the (large) light arrays stay as they are.

@@ -1,6 +1,7 @@
 #include "core/scene/kernel_scene.h"
 
 #include <algorithm>
+#include <iterator>
 
 namespace tandem {
 
@@ -57,6 +58,11 @@ void SceneDelta::merge(const SceneDelta& later) {
   };
   add_unique(meshes_rebuilt, later.meshes_rebuilt);
   add_unique(meshes_refit, later.meshes_refit);
+  // Possibly long (every moving body): a sorted merge, not add_unique.
+  std::vector<uint32_t> moved;
+  std::set_union(instances_moved.begin(), instances_moved.end(), later.instances_moved.begin(),
+                 later.instances_moved.end(), std::back_inserter(moved));
+  instances_moved = std::move(moved);
 }
 
 SceneDelta operator|(SceneDelta scene, const SceneDelta& bvh) {

@@ -62,6 +62,10 @@ struct SceneDelta {
   bool instances_changed = false;        // TLAS must be rebuilt
   std::vector<uint32_t> meshes_rebuilt;  // BLAS to rebuild (new topology)
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
+  // Ascending: the instances whose transform changed. When non-empty the
+  // BVH updater refits only their TLAS paths, so it must list every moved
+  // instance; a caller that leaves it empty gets a refit of all of them.
+  std::vector<uint32_t> instances_moved;
 
   bool any() const;
   // What a backend that has seen nothing of the scene needs: every array
