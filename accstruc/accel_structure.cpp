@@ -29,19 +29,6 @@ void mark_all(ArrayChange& c) {
 
 }  // namespace
 
-void AccelUpdate::mark(SceneDelta& d) const {
-  auto merge = [](ArrayChange& to, const ArrayChange& from) {
-    to.reallocated = to.reallocated || from.reallocated;
-    to.mark(from.begin, from.end);
-  };
-  merge(d.bvh_nodes, bvh_nodes);
-  merge(d.bvh_prim_indices, bvh_prim_indices);
-  merge(d.bvh_wide_nodes, bvh_wide_nodes);
-  merge(d.bvh_wide_prim_indices, bvh_wide_prim_indices);
-  merge(d.meshes, meshes);
-  d.constants = d.constants || constants;
-}
-
 MeshGeometry mesh_geometry(const KernelScene& ks, uint32_t mesh) {
   const KMesh& km = ks.meshes[mesh];
   MeshGeometry g;
@@ -190,21 +177,25 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   ks.bvh_wide_nodes.assign(wide_node, KWideBvhNode{});
   ks.bvh_wide_prim_indices.assign(wide_prim, 0u);
   tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
+  if (ks.blas_roots.size() != n) {
+    ks.blas_roots.assign(n, KBlasRoot{kInvalidIndex, kInvalidIndex});
+    mark_all(up.delta.blas_roots);
+  }
   for (uint32_t m = 0; m < n; ++m) {
-    KMesh& km = ks.meshes[m];
+    KBlasRoot& roots = ks.blas_roots[m];
     const bool empty = blas_[m].empty();
     const uint32_t root = empty ? kInvalidIndex : blas_bases_[m].node;
     const uint32_t wide_root = empty ? kInvalidIndex : blas_bases_[m].wide_node;
-    if (km.bvh_root != root || km.wide_root != wide_root) {
-      km.bvh_root = root;
-      km.wide_root = wide_root;
-      up.meshes.mark(m, m + 1);
+    if (roots.bvh_root != root || roots.wide_root != wide_root) {
+      roots.bvh_root = root;
+      roots.wide_root = wide_root;
+      up.delta.blas_roots.mark(m, m + 1);
     }
   }
-  mark_all(up.bvh_nodes);
-  mark_all(up.bvh_prim_indices);
-  mark_all(up.bvh_wide_nodes);
-  mark_all(up.bvh_wide_prim_indices);
+  mark_all(up.delta.bvh_nodes);
+  mark_all(up.delta.bvh_prim_indices);
+  mark_all(up.delta.bvh_wide_nodes);
+  mark_all(up.delta.bvh_wide_prim_indices);
   laid_out_ = true;
 }
 
@@ -267,13 +258,44 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
   for (uint32_t i = 0; i < instances; ++i)
     tlas_members_[i] = aabb_valid(tlas_boxes_[i]);
   tlas_built_quality_ = tlas_quality(tlas_);
+  tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/true);
   up.tlas_rebuilt = true;
 }
 
-bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up) {
+bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up,
+                                const std::vector<uint32_t>* moved) {
   const uint32_t instances = uint32_t(ks.instances.size());
   if (tlas_.empty() || tlas_members_.size() != instances) return false;
+  if (moved && tlas_boxes_.size() == instances) {
+    // Only the moved instances' boxes and their paths to the root: the
+    // result is bit for bit the full refit's (partial_refit.h).
+    for (uint32_t i : *moved) {
+      if (i >= instances) continue;
+      const KInstance& inst = ks.instances[i];
+      tlas_boxes_[i] = inst.mesh < blas_.size()
+                           ? transform_box(inst.object_to_world, blas_[inst.mesh].bounds)
+                           : Aabb{};
+      if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
+    }
+    tlas_partial_.refit(tlas_, tlas_boxes_, *moved);
+    // tlas_quality(), from the refit's running sum of child areas.
+    const double root = tlas_.bounds.half_area();
+    const double quality = root > 0.0 ? tlas_partial_.child_area_sum() / root : 0.0;
+    if (quality > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+    const std::vector<uint32_t>& nodes = tlas_partial_.changed_nodes();
+    const std::vector<uint32_t>& wide = tlas_partial_.changed_wide_nodes();
+    emit_layout_nodes(tlas_, tlas_base_, nodes, wide, ks.bvh_nodes.data() + tlas_base_.node,
+                      ks.bvh_wide_nodes.data() + tlas_base_.wide_node);
+    if (!nodes.empty())
+      up.delta.bvh_nodes.mark(tlas_base_.node + nodes.front(), tlas_base_.node + nodes.back() + 1);
+    if (!wide.empty()) {
+      up.delta.bvh_wide_nodes.mark(tlas_base_.wide_node + wide.front(),
+                                   tlas_base_.wide_node + wide.back() + 1);
+    }
+    up.tlas_refit = true;
+    return true;
+  }
   compute_tlas_boxes(ks);
   for (uint32_t i = 0; i < instances; ++i) {
     if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
@@ -282,6 +304,7 @@ bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up) {
   // the boxes alone.
   refit_layouts(tlas_, tlas_boxes_);
   if (tlas_quality(tlas_) > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+  tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/false);
   up.tlas_refit = true;
   return true;
@@ -292,20 +315,21 @@ void AccelStructure::emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_chan
                ks.bvh_prim_indices.data() + tlas_base_.prim,
                ks.bvh_wide_nodes.data() + tlas_base_.wide_node,
                ks.bvh_wide_prim_indices.data() + tlas_base_.wide_prim);
-  up.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
-  up.bvh_wide_nodes.mark(tlas_base_.wide_node,
-                         tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
+  SceneDelta& d = up.delta;
+  d.bvh_nodes.mark(tlas_base_.node, tlas_base_.node + uint32_t(tlas_.nodes.size()));
+  d.bvh_wide_nodes.mark(tlas_base_.wide_node,
+                        tlas_base_.wide_node + uint32_t(tlas_.wide_nodes.size()));
   if (prims_changed) {
-    up.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
-    up.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
-                                  tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
+    d.bvh_prim_indices.mark(tlas_base_.prim, tlas_base_.prim + uint32_t(tlas_.prims.size()));
+    d.bvh_wide_prim_indices.mark(tlas_base_.wide_prim,
+                                 tlas_base_.wide_prim + uint32_t(tlas_.wide_prims.size()));
   }
   const uint32_t root = tlas_.empty() ? kInvalidIndex : tlas_base_.node;
   const uint32_t wide_root = tlas_.empty() ? kInvalidIndex : tlas_base_.wide_node;
-  if (ks.constants.tlas_root != root || ks.constants.tlas_wide_root != wide_root) {
-    ks.constants.tlas_root = root;
-    ks.constants.tlas_wide_root = wide_root;
-    up.constants = true;
+  if (ks.bvh.tlas_root != root || ks.bvh.tlas_wide_root != wide_root) {
+    ks.bvh.tlas_root = root;
+    ks.bvh.tlas_wide_root = wide_root;
+    d.bvh_constants = true;
   }
 }
 
@@ -352,8 +376,8 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     for (uint32_t m : refit) {
       emit_blas(ks, m);
       const LayoutBases& b = blas_bases_[m];
-      up.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
-      up.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
+      up.delta.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
+      up.delta.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
     }
   }
 
@@ -361,20 +385,19 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   // Moved instances (and refit BLAS, whose bounds changed) only need the
   // TLAS refit, as long as its quality holds; anything else rebuilds it.
   if (relayout || delta.instances_changed || !refit.empty()) {
-    if (relayout || !refit_tlas(ks, up)) rebuild_tlas(ks, up);
+    // Moved instances alone (no BLAS refit, whose bounds every instance of
+    // the mesh sees): refit only their paths.
+    const std::vector<uint32_t>* moved =
+        refit.empty() && !delta.full && !delta.instances_moved.empty() ? &delta.instances_moved
+                                                                       : nullptr;
+    if (relayout || !refit_tlas(ks, up, moved)) rebuild_tlas(ks, up);
   }
   up.tlas_seconds = seconds_since(t0);
 
-  if (ks.constants.bvh_layout != uint32_t(settings_.layout)) {
-    ks.constants.bvh_layout = settings_.layout;
-    up.constants = true;
+  if (ks.bvh.layout != uint32_t(settings_.layout)) {
+    ks.bvh.layout = settings_.layout;
+    up.delta.bvh_constants = true;
   }
-  return up;
-}
-
-AccelUpdate AccelStructure::update_and_mark(KernelScene& ks, SceneDelta& delta) {
-  AccelUpdate up = update(ks, delta);
-  up.mark(delta);
   return up;
 }
 

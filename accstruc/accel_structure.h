@@ -2,9 +2,11 @@
 // "UpdateAccStruc" step.
 //
 // Every frame, after the SceneCompiler, AccelStructure::update() brings the
-// BVH kernel arrays (bvh_nodes, bvh_prim_indices, bvh_wide_nodes,
-// bvh_wide_prim_indices), the meshes' BLAS roots and the TLAS roots in
-// KernelConstants up to date with what the SceneDelta says changed:
+// BVH kernel arrays it owns (TANDEM_BVH_ARRAYS: blas_roots, bvh_nodes,
+// bvh_prim_indices, bvh_wide_nodes, bvh_wide_prim_indices) and the BVH
+// constants (KernelScene::bvh: TLAS roots, layout) up to date with what the
+// compiler's SceneDelta says changed; it never writes the compiler's arrays
+// or its delta:
 //   - BLAS of delta.meshes_rebuilt (all meshes on delta.full) are built (or
 //     read from the disk cache), in parallel across and within meshes;
 //   - BLAS of delta.meshes_refit are refit in place (same size, same place);
@@ -12,8 +14,9 @@
 // Each concatenated array holds every BLAS (in mesh order) and then the
 // TLAS, whose region is sized from the instance count alone, so a frame that
 // only moves instances rewrites only the TLAS region and a refit frame only
-// the refit meshes' regions. update() reports those element ranges so a GPU
-// backend can upload just them.
+// the refit meshes' regions. update() reports those element ranges in a
+// SceneDelta of its own (AccelUpdate::delta); backends commit the union
+// `scene_delta | update.delta`, so a GPU backend uploads just them.
 #pragma once
 
 #include <chrono>
@@ -23,6 +26,7 @@
 #include "accstruc/bvh_builder.h"
 #include "accstruc/bvh_cache.h"
 #include "accstruc/bvh_layouts.h"
+#include "accstruc/partial_refit.h"
 #include "core/scene/kernel_scene.h"
 
 namespace tandem {
@@ -31,25 +35,21 @@ struct AccelSettings {
   BuildSettings blas;  // binned SAH, leaves of up to 4 triangles
   // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
   BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};
-  KBvhLayout layout = kBvhLayoutBinary;  // what BvhTracer traverses (kd.constants.bvh_layout)
+  KBvhLayout layout = kBvhLayoutBinary;  // what BvhTracer traverses (kd.bvh.layout)
   BvhCacheSettings cache;
 };
 
-// What one update() did. The ArrayChanges use SceneDelta's conventions
-// (reallocated: resend the whole array; else [begin, end) changed).
+// What one update() did.
 struct AccelUpdate {
-  ArrayChange bvh_nodes, bvh_prim_indices, bvh_wide_nodes, bvh_wide_prim_indices;
-  ArrayChange meshes;      // bvh_root / wide_root rewritten
-  bool constants = false;  // tlas_root / tlas_wide_root / bvh_layout changed
+  // The BVH arrays' changes (only TANDEM_BVH_ARRAYS and bvh_constants are
+  // ever marked), to be united with the compiler's delta for the backends.
+  SceneDelta delta;
   uint32_t blas_built = 0, blas_loaded = 0, blas_refit = 0;
   bool tlas_rebuilt = false;
   // Instances only moved: the TLAS kept its topology and had its boxes refit
   // (far cheaper than a rebuild), until its quality drops too far.
   bool tlas_refit = false;
   double blas_seconds = 0.0, refit_seconds = 0.0, tlas_seconds = 0.0;
-
-  // Merges the changes into a SceneDelta for the backends' sync().
-  void mark(SceneDelta& delta) const;
 };
 
 class AccelStructure {
@@ -60,12 +60,10 @@ class AccelStructure {
   AccelStructure& operator=(const AccelStructure&) = delete;
 
   // Updates ks's BVH arrays for `delta` (as returned by SceneCompiler) and
-  // reports what changed; `delta` itself is not modified.
+  // reports what it changed in AccelUpdate::delta.
   AccelUpdate update(KernelScene& ks, const SceneDelta& delta);
-  // update() followed by AccelUpdate::mark(delta).
-  AccelUpdate update_and_mark(KernelScene& ks, SceneDelta& delta);
 
-  // Takes effect (kd.constants.bvh_layout) at the next update().
+  // Takes effect (kd.bvh.layout) at the next update().
   void set_layout(KBvhLayout layout) { settings_.layout = layout; }
   const AccelSettings& settings() const { return settings_; }
 
@@ -82,9 +80,10 @@ class AccelStructure {
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
-  // Refits the TLAS to moved instances; false (nothing done) when the set of
-  // instances in it changed or the refit tree got much worse than a rebuild.
-  bool refit_tlas(KernelScene& ks, AccelUpdate& up);
+  // Refits the TLAS to moved instances (`moved`, or every instance when
+  // null); false when the set of instances in it changed or the refit tree
+  // got much worse than a rebuild (then the TLAS is left for a rebuild).
+  bool refit_tlas(KernelScene& ks, AccelUpdate& up, const std::vector<uint32_t>* moved);
   void compute_tlas_boxes(const KernelScene& ks);
   void emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_changed);
 
@@ -99,6 +98,7 @@ class AccelStructure {
   std::vector<Aabb> tlas_boxes_;       // reused every frame
   std::vector<uint8_t> tlas_members_;  // per instance: in the TLAS (valid box) at its last build
   double tlas_built_quality_ = 0.0;    // tlas_quality() right after the last rebuild
+  PartialRefit tlas_partial_;          // refits just the paths of moved instances
 };
 
 // The boxes a mesh's BLAS is built from: one per triangle, invalid (and so

@@ -223,6 +223,53 @@ BvhLayouts make_layouts(const BuildTree& tree, std::span<const Aabb> prim_boxes,
   return l;
 }
 
+Aabb refit_binary_node(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes) {
+  KBvhNode& n = l.nodes[index];
+  Aabb boxes[2];
+  for (uint32_t c = 0; c < 2; ++c) {
+    if (n.child[c] & kBvhLeafFlag) {
+      boxes[c] = leaf_box(l.prims, n.child[c] & ~kBvhLeafFlag, n.count[c], prim_boxes);
+    } else {
+      // The child's boxes are stored exactly: their union is what a full
+      // refit would return for it.
+      const KBvhNode& ch = l.nodes[n.child[c]];
+      boxes[c] = binary_child_box(ch, 0);
+      boxes[c].grow(binary_child_box(ch, 1));
+    }
+  }
+  set_child_box(n, 0, boxes[0]);
+  set_child_box(n, 1, boxes[1]);
+  Aabb all = boxes[0];
+  all.grow(boxes[1]);
+  return all;
+}
+
+Aabb binary_child_box(const KBvhNode& n, uint32_t c) {
+  const Vec4& xy = c == 0 ? n.c0_xy : n.c1_xy;
+  const float zlo = c == 0 ? n.c01_z.x : n.c01_z.z, zhi = c == 0 ? n.c01_z.y : n.c01_z.w;
+  return Aabb{{xy.x, xy.z, zlo}, {xy.y, xy.w, zhi}};
+}
+
+void emit_layout_nodes(const BvhLayouts& l, const LayoutBases& base,
+                       std::span<const uint32_t> node_list,
+                       std::span<const uint32_t> wide_node_list, KBvhNode* nodes,
+                       KWideBvhNode* wide_nodes) {
+  for (uint32_t i : node_list) {
+    KBvhNode n = l.nodes[i];
+    for (uint32_t c = 0; c < 2; ++c) {
+      n.child[c] =
+          (n.child[c] & kBvhLeafFlag) ? (n.child[c] + base.prim) : (n.child[c] + base.node);
+    }
+    nodes[i] = n;
+  }
+  for (uint32_t i : wide_node_list) {
+    KWideBvhNode n = l.wide_nodes[i];
+    n.child_base += base.wide_node;
+    n.prim_base += base.wide_prim;
+    wide_nodes[i] = n;
+  }
+}
+
 void refit_layouts(BvhLayouts& l, std::span<const Aabb> prim_boxes) {
   if (l.empty()) return;
   // Task-parallel over the top levels of large hierarchies only.

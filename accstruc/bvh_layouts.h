@@ -54,6 +54,20 @@ void collapse_wide(const BuildTree& tree, std::span<const Aabb> prim_boxes,
 // Invalid primitive boxes count as empty. Updates `bounds`.
 void refit_layouts(BvhLayouts& layouts, std::span<const Aabb> prim_boxes);
 
+// One node's boxes from its children, for refits of a few paths
+// (partial_refit.h). Binary: interior children's boxes are read from the
+// child nodes, which must be up to date. Wide: interior children's exact
+// boxes come from node_boxes (indexed by wide node). Both return the node's
+// exact box, bit for bit what refit_layouts() computes for it.
+Aabb refit_binary_node(BvhLayouts& layouts, uint32_t index, std::span<const Aabb> prim_boxes);
+Aabb refit_wide_node(BvhLayouts& layouts, uint32_t index, std::span<const Aabb> prim_boxes,
+                     std::span<const Aabb> node_boxes);
+// refit_wide_node()'s box without touching the node.
+Aabb wide_node_box(const BvhLayouts& layouts, uint32_t index, std::span<const Aabb> prim_boxes,
+                   std::span<const Aabb> node_boxes);
+// Child c's box of a binary node.
+Aabb binary_child_box(const KBvhNode& node, uint32_t c);
+
 // Structural check of an untrusted hierarchy (e.g. read from disk): every
 // index in range, children after their parents (no cycles), depth within the
 // kernel stacks, primitive ids below prim_count. Boxes are not checked.
@@ -64,6 +78,13 @@ bool validate_layouts(const BvhLayouts& layouts, uint32_t prim_count);
 // wide_nodes.size() and wide_prims.size() elements.
 void emit_layouts(const BvhLayouts& layouts, const LayoutBases& bases, KBvhNode* nodes,
                   uint32_t* prims, KWideBvhNode* wide_nodes, uint32_t* wide_prims);
+
+// emit_layouts() for the listed nodes only (node indices relative to the
+// hierarchy; the primitive arrays are left alone).
+void emit_layout_nodes(const BvhLayouts& layouts, const LayoutBases& bases,
+                       std::span<const uint32_t> node_list,
+                       std::span<const uint32_t> wide_node_list, KBvhNode* nodes,
+                       KWideBvhNode* wide_nodes);
 
 // Decoded box of a wide node's slot (for tests and refits).
 Aabb wide_slot_box(const KWideBvhNode& node, uint32_t slot);

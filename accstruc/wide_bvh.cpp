@@ -317,6 +317,55 @@ Aabb refit_node(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
 
 }  // namespace
 
+namespace {
+
+// The exact boxes of a node's used slots (interior ones from node_boxes).
+uint32_t slot_boxes(const BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
+                    std::span<const Aabb> node_boxes, Aabb boxes[kWideBvhWidth]) {
+  const KWideBvhNode& n = l.wide_nodes[index];
+  uint32_t used = 0, rank = 0;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if (n.meta[s] == 0) continue;
+    used |= 1u << s;
+    if ((n.imask >> s) & 1u) {
+      boxes[s] = node_boxes[n.child_base + rank++];
+      continue;
+    }
+    const uint32_t first = n.prim_base + (n.meta[s] & 31u);
+    const uint32_t count = leaf_count_from_meta(n.meta[s]);
+    for (uint32_t i = first; i < first + count; ++i) {
+      const Aabb& pb = prim_boxes[l.wide_prims[i]];
+      if (aabb_valid(pb)) boxes[s].grow(pb);
+    }
+  }
+  return used;
+}
+
+Aabb union_of(const Aabb boxes[kWideBvhWidth], uint32_t used) {
+  Aabb all;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if ((used >> s) & 1u) all.grow(boxes[s]);
+  }
+  return all;
+}
+
+}  // namespace
+
+Aabb refit_wide_node(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
+                     std::span<const Aabb> node_boxes) {
+  Aabb boxes[kWideBvhWidth];
+  const uint32_t used = slot_boxes(l, index, prim_boxes, node_boxes, boxes);
+  quantize(l.wide_nodes[index], boxes, used);
+  return union_of(boxes, used);
+}
+
+Aabb wide_node_box(const BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
+                   std::span<const Aabb> node_boxes) {
+  Aabb boxes[kWideBvhWidth];
+  const uint32_t used = slot_boxes(l, index, prim_boxes, node_boxes, boxes);
+  return union_of(boxes, used);
+}
+
 void collapse_wide(const BuildTree& tree, std::span<const Aabb> prim_boxes,
                    uint32_t max_wide_leaf_prims, float traversal_cost, float intersection_cost,
                    BvhLayouts& out) {

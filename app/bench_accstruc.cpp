@@ -144,19 +144,19 @@ struct PerRayCounts {
 PerRayCounts count_kind(const KernelData& kd, const std::vector<Ray>& rays, bool shadow) {
   BvhCounters total;
   std::mutex merge;
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, rays.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-        BvhCounters c;
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          bvh_trace_counted<true>(kd, rays[i], 0, kd.constants.bvh_layout, shadow, &c);
-        }
-        const std::lock_guard<std::mutex> lock(merge);
-        total.nodes += c.nodes;
-        total.boxes += c.boxes;
-        total.triangles += c.triangles;
-        total.instances += c.instances;
-        total.blas_nodes += c.blas_nodes;
-      });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 1024),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      BvhCounters c;
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        bvh_trace_counted<true>(kd, rays[i], 0, kd.bvh.layout, shadow, &c);
+                      }
+                      const std::lock_guard<std::mutex> lock(merge);
+                      total.nodes += c.nodes;
+                      total.boxes += c.boxes;
+                      total.triangles += c.triangles;
+                      total.instances += c.instances;
+                      total.blas_nodes += c.blas_nodes;
+                    });
   PerRayCounts p;
   if (rays.empty()) return p;
   const double n = double(rays.size());
@@ -289,8 +289,8 @@ JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const
   // --- Traversal of the same rays.
   const std::array<std::vector<Ray>, 3> by_kind = rays_by_kind(rays);
   KernelData binary = ks.view(), wide = ks.view();
-  binary.constants.bvh_layout = kBvhLayoutBinary;
-  wide.constants.bvh_layout = kBvhLayoutWide;
+  binary.bvh.layout = kBvhLayoutBinary;
+  wide.bvh.layout = kBvhLayoutWide;
   const BvhTracer ours_binary{&binary}, ours_wide{&wide};
   // Embree through the backend's own tracer (its alpha filter needs the
   // extended context), the exact query the CPU backend renders with.

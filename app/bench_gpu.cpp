@@ -35,7 +35,7 @@ AccelSettings bench_accel_settings(KBvhLayout layout) {
 void use_layout(AccelStructure& accel, KernelScene& ks, CudaBackend& cuda, KBvhLayout layout) {
   accel.set_layout(layout);
   SceneDelta delta;
-  accel.update_and_mark(ks, delta);
+  delta = delta | accel.update(ks, delta).delta;
   cuda.sync(ks, delta);
 }
 
@@ -113,7 +113,7 @@ GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, K
   {
     AccelStructure accel(bench_accel_settings(kBvhLayoutBinary));
     SceneDelta d = delta;
-    accel.update_and_mark(ks, d);
+    d = d | accel.update(ks, d).delta;
     CudaBackend cuda;
     f.device = cuda.device_name();
     cuda.sync(ks, d);
@@ -152,7 +152,7 @@ GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, K
   SceneCompiler compiler;
   SceneDelta frame_delta = compiler.compile(scene, settings, frame_ks);
   AccelStructure accel(bench_accel_settings(kBvhLayoutBinary));
-  accel.update_and_mark(frame_ks, frame_delta);
+  frame_delta = frame_delta | accel.update(frame_ks, frame_delta).delta;
   CudaBackend cuda;
   cuda.sync(frame_ks, frame_delta);
   for (const CudaKernelVariant kernel : config.kernels) {

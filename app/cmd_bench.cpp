@@ -17,6 +17,7 @@
 #include "app/bench_accstruc.h"
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
+#include "app/bench_scene_update.h"
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/commands.h"
@@ -100,12 +101,14 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 
 int run_bench(const std::vector<std::string>& argv) {
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
+  if (is_scene_update_bench(argv)) return run_scene_update_bench(argv);
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
         "usage: tandem bench [SCENE] [options]\n"
         "       tandem bench --gpu [SCENE] [options]\n"
-        "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n\n"
+        "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n"
+        "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
         "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
         "interactive\nframe loop of tandem-view along its scripted camera path (default scene "

@@ -387,8 +387,8 @@ TEST(BvhRayTests, EmptySceneAndEmptyMeshesMiss) {
   scene.add_instance({"nothing", scene.add_mesh(Mesh{}), glm::mat4(1.0f)});
   TracedScene s(std::move(scene));
   const KernelData kd = s.kd();
-  EXPECT_EQ(kd.meshes[0].bvh_root, kInvalidIndex);
-  EXPECT_EQ(kd.constants.tlas_root, kInvalidIndex);
+  EXPECT_EQ(kd.blas_roots[0].bvh_root, kInvalidIndex);
+  EXPECT_EQ(kd.bvh.tlas_root, kInvalidIndex);
   const Ray ray = {{0, 0, 5}, 0.0f, {0, 0, -1}, kFloatMax};
   for (uint32_t layout = 0; layout < 2; ++layout) {
     EXPECT_FALSE(hit_valid(bvh_intersect(kd, ray, 0, layout)));

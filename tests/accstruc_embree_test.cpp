@@ -58,9 +58,9 @@ void compare_scene(TracedScene& s, const std::string& name) {
     // A comparison where nothing is hit proves nothing.
     EXPECT_GT(p.hits + d.hits + o.hits, 0u) << name;
   }
-  // The tracer wrapper follows kd.constants.bvh_layout.
+  // The tracer wrapper follows kd.bvh.layout.
   KernelData wide_kd = kd;
-  wide_kd.constants.bvh_layout = kBvhLayoutWide;
+  wide_kd.bvh.layout = kBvhLayoutWide;
   const BvhTracer tracer{&wide_kd};
   for (size_t i = 0; i < std::min<size_t>(primary.size(), 200); ++i) {
     const Hit a = tracer.intersect(primary[i].ray, primary[i].alpha_key);

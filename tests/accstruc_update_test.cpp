@@ -91,15 +91,16 @@ TEST(AccelUpdate, RefitMatchesFreshBuildAndEmbree) {
   // node ranges and the TLAS are rewritten; no primitive order changes
   // except the TLAS's (and not even that when the TLAS was refit too).
   EXPECT_EQ(s.ks.bvh_nodes.size(), nodes_before);
-  EXPECT_FALSE(up.bvh_nodes.reallocated);
-  EXPECT_FALSE(up.bvh_prim_indices.reallocated);
-  const uint32_t first_root = std::min(s.ks.meshes[rock].bvh_root, s.ks.meshes[terrain].bvh_root);
-  EXPECT_EQ(up.bvh_nodes.begin, first_root);
-  EXPECT_EQ(up.bvh_nodes.end,
+  EXPECT_FALSE(up.delta.bvh_nodes.reallocated);
+  EXPECT_FALSE(up.delta.bvh_prim_indices.reallocated);
+  const uint32_t first_root =
+      std::min(s.ks.blas_roots[rock].bvh_root, s.ks.blas_roots[terrain].bvh_root);
+  EXPECT_EQ(up.delta.bvh_nodes.begin, first_root);
+  EXPECT_EQ(up.delta.bvh_nodes.end,
             uint32_t(s.ks.bvh_nodes.size()) -
                 (uint32_t(s.ks.instances.size()) - 1 - uint32_t(s.accel.tlas().nodes.size())));
-  if (up.bvh_prim_indices.any()) {
-    EXPECT_GE(up.bvh_prim_indices.begin,
+  if (up.delta.bvh_prim_indices.any()) {
+    EXPECT_GE(up.delta.bvh_prim_indices.begin,
               uint32_t(s.ks.bvh_prim_indices.size() - s.ks.instances.size()));
   }
   EXPECT_TRUE(delta.bvh_nodes.any());
@@ -138,15 +139,15 @@ TEST(AccelUpdate, MovingInstancesRebuildsOnlyTheTlas) {
   const AccelUpdate up = s.recompile();
   EXPECT_EQ(up.blas_built + up.blas_refit + up.blas_loaded, 0u);
   EXPECT_TRUE(up.tlas_rebuilt || up.tlas_refit);
-  EXPECT_FALSE(up.bvh_nodes.reallocated);
-  EXPECT_FALSE(up.meshes.any());
+  EXPECT_FALSE(up.delta.bvh_nodes.reallocated);
+  EXPECT_FALSE(up.delta.blas_roots.any());
   // Only the TLAS region (the end of each array) changed.
   const uint32_t tlas_nodes_begin = uint32_t(s.ks.bvh_nodes.size()) - (instances - 1);
-  EXPECT_GE(up.bvh_nodes.begin, tlas_nodes_begin);
-  if (up.bvh_prim_indices.any()) {  // a refit keeps the leaves' order
-    EXPECT_GE(up.bvh_prim_indices.begin, uint32_t(s.ks.bvh_prim_indices.size()) - instances);
+  EXPECT_GE(up.delta.bvh_nodes.begin, tlas_nodes_begin);
+  if (up.delta.bvh_prim_indices.any()) {  // a refit keeps the leaves' order
+    EXPECT_GE(up.delta.bvh_prim_indices.begin, uint32_t(s.ks.bvh_prim_indices.size()) - instances);
   }
-  EXPECT_GE(up.bvh_wide_nodes.begin, uint32_t(s.ks.bvh_wide_nodes.size()) - (instances - 1));
+  EXPECT_GE(up.delta.bvh_wide_nodes.begin, uint32_t(s.ks.bvh_wide_nodes.size()) - (instances - 1));
   EXPECT_EQ(0, std::memcmp(blas_nodes.data(), s.ks.bvh_nodes.data(),
                            tlas_nodes_begin * sizeof(KBvhNode)));
   expect_same_hits(
@@ -158,11 +159,12 @@ TEST(AccelUpdate, UnchangedFrameTouchesNothingAndLayoutSwitches) {
   TracedScene s(make_procedural_scene(20000, 23));
   AccelUpdate up = s.recompile();
   EXPECT_FALSE(up.tlas_rebuilt);
-  EXPECT_FALSE(up.bvh_nodes.any() || up.bvh_wide_nodes.any() || up.meshes.any() || up.constants);
+  EXPECT_FALSE(up.delta.bvh_nodes.any() || up.delta.bvh_wide_nodes.any() ||
+               up.delta.blas_roots.any() || up.delta.bvh_constants);
   s.accel.set_layout(kBvhLayoutWide);
   up = s.recompile();
-  EXPECT_TRUE(up.constants);
-  EXPECT_EQ(s.ks.constants.bvh_layout, uint32_t(kBvhLayoutWide));
+  EXPECT_TRUE(up.delta.bvh_constants);
+  EXPECT_EQ(s.ks.bvh.layout, uint32_t(kBvhLayoutWide));
   const KernelData kd = s.kd();
   const BvhTracer tracer{&kd};
   for (const RaySample& r : primary_rays(s, 500, 5)) {
@@ -193,7 +195,7 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
     const AccelUpdate up = s.recompile();
     EXPECT_TRUE(up.tlas_refit);
     EXPECT_FALSE(up.tlas_rebuilt);
-    EXPECT_FALSE(up.bvh_prim_indices.any());
+    EXPECT_FALSE(up.delta.bvh_prim_indices.any());
     std::printf("[accstruc] TLAS refit of 5000 instances (binary + wide): %.3f ms\n",
                 up.tlas_seconds * 1e3);
   }
@@ -213,6 +215,76 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
   expect_same_hits(
       s, [&](const RaySample& r) { return s.embree.intersect(r.ray, r.alpha_key); },
       "5000 rebuilt instances vs Embree");
+}
+
+}  // namespace
+}  // namespace tandem
+
+namespace tandem {
+namespace {
+
+// The TLAS refit of only the moved instances' paths against the full refit
+// of every instance: the same kernel arrays bit for bit, frame after frame,
+// and the same decision to rebuild once the instances scatter.
+TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
+  Scene scene;
+  scene.add_material(Material{});
+  const uint32_t a = scene.add_mesh(make_uv_sphere(1.0f, 6, 8, 0, false));
+  const uint32_t b = scene.add_mesh(make_uv_sphere(0.5f, 4, 6, 0, true));
+  TestRandom rng(5);
+  for (uint32_t i = 0; i < 700; ++i) {
+    const glm::vec3 p(rng.uniform() * 80.0f, rng.uniform() * 8.0f, rng.uniform() * 80.0f);
+    scene.add_instance({"i", i % 4 ? a : b, glm::translate(glm::mat4(1.0f), p)});
+  }
+  Scene full_scene = scene;
+  RenderSettings settings;
+  SceneCompiler partial_compiler, full_compiler;
+  KernelScene partial_ks, full_ks;
+  AccelStructure partial_accel, full_accel;
+  partial_accel.update(partial_ks, partial_compiler.compile(scene, settings, partial_ks));
+  full_accel.update(full_ks, full_compiler.compile(full_scene, settings, full_ks));
+  for (int frame = 0; frame < 40; ++frame) {
+    const bool scatter = frame == 30;
+    const uint32_t moves = scatter ? 700 : 1 + uint32_t(rng.uniform() * 60.0f);
+    for (uint32_t k = 0; k < moves; ++k) {
+      const uint32_t i = scatter ? k : std::min(699u, uint32_t(rng.uniform() * 700.0f));
+      const glm::vec3 step =
+          scatter ? glm::vec3(rng.uniform() * 80.0f - 40.0f, 0.0f, rng.uniform() * 80.0f - 40.0f)
+                  : glm::vec3(rng.uniform() - 0.5f, 0.0f, rng.uniform() - 0.5f);
+      const glm::mat4 t = glm::translate(glm::mat4(1.0f), step) * scene.instances()[i].transform;
+      scene.set_instance_transform(i, t);
+      full_scene.set_instance_transform(i, t);
+    }
+    const SceneDelta partial_delta = partial_compiler.compile(scene, settings, partial_ks);
+    SceneDelta full_delta = full_compiler.compile(full_scene, settings, full_ks);
+    ASSERT_FALSE(partial_delta.instances_moved.empty());
+    full_delta.instances_moved.clear();  // the updater then refits every instance
+    const AccelUpdate p = partial_accel.update(partial_ks, partial_delta);
+    const AccelUpdate f = full_accel.update(full_ks, full_delta);
+    ASSERT_EQ(p.tlas_refit, f.tlas_refit) << "frame " << frame;
+    ASSERT_EQ(p.tlas_rebuilt, f.tlas_rebuilt) << "frame " << frame;
+    if (scatter) {
+      EXPECT_TRUE(p.tlas_rebuilt);
+    }
+    if (frame == 0) {
+      EXPECT_TRUE(p.tlas_refit);
+    }
+#define TANDEM_EXPECT_SAME_BVH(T, name)                              \
+  ASSERT_EQ(partial_ks.name.size(), full_ks.name.size()) << #name;   \
+  EXPECT_EQ(std::memcmp(partial_ks.name.data(), full_ks.name.data(), \
+                        partial_ks.name.size() * sizeof(T)),         \
+            0)                                                       \
+      << #name << " differs in frame " << frame;
+    TANDEM_BVH_ARRAYS(TANDEM_EXPECT_SAME_BVH)
+#undef TANDEM_EXPECT_SAME_BVH
+    EXPECT_EQ(std::memcmp(&partial_ks.bvh, &full_ks.bvh, sizeof(KBvhConstants)), 0);
+    if (::testing::Test::HasFailure()) return;
+    // The partial refit reports at most the full refit's ranges.
+    if (p.tlas_refit) {
+      EXPECT_GE(p.delta.bvh_nodes.begin, f.delta.bvh_nodes.begin);
+      EXPECT_LE(p.delta.bvh_nodes.end, f.delta.bvh_nodes.end);
+    }
+  }
 }
 
 }  // namespace

@@ -156,7 +156,7 @@ TEST(CudaCommit, FirstCommitsFillBothSetsThenNothingMoves) {
   const SceneDelta first = fs.next_frame();
   const CommitPlan a = commits.plan(fs.ks, first);
   EXPECT_EQ(a.set, 0u);
-  EXPECT_EQ(a.array_bytes(), fs.ks.byte_size() - sizeof(KernelConstants));
+  EXPECT_EQ(a.array_bytes(), fs.ks.byte_size() - sizeof(KernelConstants) - sizeof(KBvhConstants));
   EXPECT_TRUE(a.view_changed);
   // Set 1 has received nothing yet: the next commit sends everything again,
   // although this frame changed nothing.

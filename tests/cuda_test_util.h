@@ -78,7 +78,7 @@ struct FrameScene {
   // Compiles the scene's edits and updates the BVH; returns the delta.
   SceneDelta next_frame() {
     SceneDelta delta = compiler.compile(scene, settings, ks);
-    accel.update_and_mark(ks, delta);
+    delta = delta | accel.update(ks, delta).delta;
     return delta;
   }
 };

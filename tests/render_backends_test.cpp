@@ -99,7 +99,7 @@ struct BackendPair {
   void set_seed(uint32_t seed) {
     settings.seed = seed;
     SceneDelta delta = compiler.compile(scene, settings, ks);
-    accel.update_and_mark(ks, delta);
+    delta = delta | accel.update(ks, delta).delta;
     cpu.sync(ks, delta);
     host.sync(ks, delta);
     host_wavefront.sync(ks, delta);
@@ -168,7 +168,7 @@ TEST_P(BackendsAgreeTest, HostMatchesCpuInBothLayouts) {
     const char* layout_name = layout == kBvhLayoutWide ? "wide" : "binary";
     SCOPED_TRACE(layout_name);
     BackendPair pair(loaded, layout);
-    ASSERT_EQ(pair.ks.constants.bvh_layout, uint32_t(layout));
+    ASSERT_EQ(pair.ks.bvh.layout, uint32_t(layout));
 
     // 1 spp, same seed: the same paths.
     const ImageRGB cpu1 = pair.render(pair.cpu, 1);

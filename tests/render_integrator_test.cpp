@@ -141,7 +141,7 @@ struct Compiled {
     if (!scene.has_camera())
       scene.set_camera(frame_bounds_camera(scene.bounds(), 0.7f, float(width) / float(height)));
     SceneDelta delta = compiler.compile(scene, rs, ks);
-    accel.update_and_mark(ks, delta);
+    delta = delta | accel.update(ks, delta).delta;
   }
 };
 

@@ -33,9 +33,10 @@ void DoubleBufferedCommits::add_delta(SetState& s, const SceneDelta& delta) {
       p.mark(c.begin, c.end);
     }
   }
-  // KernelData carries the constants by value, so any constant change means
-  // re-sending it (176 bytes of constants inside ~500 bytes of view).
-  s.constants_pending = s.constants_pending || delta.constants || delta.full;
+  // KernelData carries both writers' constants by value (the compiler's
+  // KernelConstants, the BVH's KBvhConstants), so a change of either means
+  // re-sending it (a few hundred bytes).
+  s.constants_pending = s.constants_pending || delta.constants || delta.bvh_constants || delta.full;
 }
 
 void DoubleBufferedCommits::add(const SceneDelta& delta) {

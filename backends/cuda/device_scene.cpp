@@ -111,6 +111,7 @@ void DeviceScene::upload(BufferSet& set, const CommitPlan& plan, const KernelSce
     if (c.resize) set_kernel_array_view(set.view, c.array, set.buffers[c.array], c.count);
   }
   set.view.constants = ks.constants;
+  set.view.bvh = ks.bvh;
 
   // Pack every range into the staging buffer, then send each with one copy.
   size_t staging_bytes = plan.view_changed ? align_up(sizeof(KernelData)) : 0;

@@ -35,8 +35,7 @@ __global__ void __launch_bounds__(kTraceThreads)
     const bool valid = i < n;
     bool is_hit = false;
     if (valid) {
-      const Hit h =
-          bvh_trace(kd, rays[i], alpha_keys ? alpha_keys[i] : 0u, kd.constants.bvh_layout, any_hit);
+      const Hit h = bvh_trace(kd, rays[i], alpha_keys ? alpha_keys[i] : 0u, kd.bvh.layout, any_hit);
       hits[i] = h;
       is_hit = hit_valid(h);
     }

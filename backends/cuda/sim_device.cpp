@@ -693,12 +693,12 @@ void SimDevice::trace_rays(const KernelData* kd, const Ray* rays, const uint32_t
       },
       [=] {
         const KernelData& k = *local;
-        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n, 256),
-                          [&](const tbb::blocked_range<uint32_t>& r) {
-                            for (uint32_t i = r.begin(); i != r.end(); ++i)
-                              hits[i] = bvh_trace(k, rays[i], alpha_keys ? alpha_keys[i] : 0u,
-                                                  k.constants.bvh_layout, any_hit);
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range<uint32_t>(0, n, 256), [&](const tbb::blocked_range<uint32_t>& r) {
+              for (uint32_t i = r.begin(); i != r.end(); ++i)
+                hits[i] =
+                    bvh_trace(k, rays[i], alpha_keys ? alpha_keys[i] : 0u, k.bvh.layout, any_hit);
+            });
         *work_counter = n;
       });
 }

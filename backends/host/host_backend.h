@@ -7,7 +7,7 @@
 // the megakernel (one path per sample, tile by tile) and the wavefront
 // pipeline (core/kernel/wavefront.h over batches of tiles, run by
 // core/render/cpu_wavefront.h), which gives the same bits. It does not build
-// the BVH itself: the caller runs AccelStructure::update_and_mark() before
+// the BVH itself: the caller runs AccelStructure::update() before
 // sync() (traits().needs_bvh).
 #pragma once
 

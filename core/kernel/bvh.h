@@ -19,6 +19,25 @@ namespace tandem {
 
 enum KBvhLayout : uint32_t { kBvhLayoutBinary = 0, kBvhLayoutWide = 1 };
 
+// A mesh's BLAS roots (blas_roots, one per mesh; kInvalidIndex: the mesh has
+// no triangles to hit). Kept apart from KMesh because the BVH updater, not
+// the scene compiler, writes them.
+struct KBlasRoot {
+  uint32_t bvh_root;   // in bvh_nodes
+  uint32_t wide_root;  // in bvh_wide_nodes
+};
+static_assert(sizeof(KBlasRoot) == 8, "GPU layout");
+
+// The BVH's scalars (KernelData::bvh), written by the BVH updater: the TLAS
+// roots (kInvalidIndex: empty scene) and which layout BvhTracer traverses.
+struct KBvhConstants {
+  uint32_t tlas_root;       // in bvh_nodes
+  uint32_t tlas_wide_root;  // in bvh_wide_nodes
+  uint32_t layout;          // KBvhLayout
+  uint32_t pad;
+};
+static_assert(sizeof(KBvhConstants) == 16, "GPU layout");
+
 // Binary layout: a child reference with this bit set is a leaf; the low 31
 // bits are then the first entry of its primitive range in bvh_prim_indices.
 constexpr uint32_t kBvhLeafFlag = 0x80000000u;

@@ -311,7 +311,8 @@ struct BvhInstanceLeaf {
     const uint32_t instance = load_readonly(prim_indices + entry);
     const KInstance& inst = kd->instances[instance];
     const KMesh& mesh = kd->meshes[inst.mesh];
-    const uint32_t root = layout == kBvhLayoutWide ? mesh.wide_root : mesh.bvh_root;
+    const KBlasRoot& roots = kd->blas_roots[inst.mesh];
+    const uint32_t root = layout == kBvhLayoutWide ? roots.wide_root : roots.bvh_root;
     if (root == kInvalidIndex) return false;
     if constexpr (kCount) counters->instances += 1;
     // Subtract the instance's translation first and then apply the inverse
@@ -362,7 +363,7 @@ TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t a
                                 uint32_t layout, bool any_hit, BvhCounters* counters) {
   Hit hit = make_miss();
   const bool wide = layout == kBvhLayoutWide;
-  const uint32_t root = wide ? kd.constants.tlas_wide_root : kd.constants.tlas_root;
+  const uint32_t root = wide ? kd.bvh.tlas_wide_root : kd.bvh.tlas_root;
   if (root >= (wide ? kd.bvh_wide_nodes_count : kd.bvh_nodes_count)) return hit;
   float tmax = ray.tmax;
   BvhInstanceLeaf<kCount> leaf{&kd,     wide ? kd.bvh_wide_prim_indices : kd.bvh_prim_indices,
@@ -394,14 +395,14 @@ TANDEM_HD bool bvh_occluded(const KernelData& kd, const Ray& ray, uint32_t alpha
 }
 
 // The kernel Tracer (see integrator.h) over Tandem's BVH, in the layout
-// selected by kd.constants.bvh_layout.
+// selected by kd.bvh.layout.
 struct BvhTracer {
   const KernelData* kd;
   TANDEM_HD Hit intersect(const Ray& ray, uint32_t alpha_key) const {
-    return bvh_intersect(*kd, ray, alpha_key, kd->constants.bvh_layout);
+    return bvh_intersect(*kd, ray, alpha_key, kd->bvh.layout);
   }
   TANDEM_HD bool occluded(const Ray& ray, uint32_t alpha_key) const {
-    return bvh_occluded(*kd, ray, alpha_key, kd->constants.bvh_layout);
+    return bvh_occluded(*kd, ray, alpha_key, kd->bvh.layout);
   }
 };
 

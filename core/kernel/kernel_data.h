@@ -11,28 +11,37 @@
 
 namespace tandem {
 
-// X(element type, name)
-#define TANDEM_KERNEL_ARRAYS(X)                                                                  \
-  X(Vec3, positions)      /* per vertex, object space; padded by one for SSE loads */            \
-  X(Vec3, normals)        /* per vertex, or empty for a mesh without kMeshHasNormals */          \
-  X(Vec4, tangents)       /* per vertex: xyz + handedness w */                                   \
-  X(Vec2, uv0)            /* per vertex */                                                       \
-  X(Vec2, uv1)            /* per vertex */                                                       \
-  X(KTriangle, triangles) /* per triangle, indices relative to the mesh */                       \
-  X(KMesh, meshes)        /* one per BLAS */                                                     \
-  X(KInstance, instances) /* one per TLAS entry */                                               \
-  X(KMaterial, materials)                                                                        \
-  X(KTexture, textures)                                                                          \
-  X(uint32_t, texels) /* RGBA8 texels of all textures */                                         \
-  X(KLight, lights)                                                                              \
-  X(KAliasEntry, light_alias)        /* distribution over lights, by power */                    \
-  X(Vec4, env_texels)                /* equirectangular environment, linear RGB */               \
-  X(float, env_marginal_cdf)         /* height + 1 entries */                                    \
-  X(float, env_conditional_cdf)      /* height * (width + 1) entries */                          \
+// X(element type, name). Every array has one writer: TANDEM_SCENE_ARRAYS
+// (and KernelConstants) the SceneCompiler (core/scene), TANDEM_BVH_ARRAYS
+// (and KBvhConstants) the BVH updater (accstruc/AccelStructure). Each
+// reports what it rewrote in a SceneDelta of its own; the backends commit
+// the union of the two.
+#define TANDEM_SCENE_ARRAYS(X)                                                          \
+  X(Vec3, positions)      /* per vertex, object space; padded by one for SSE loads */   \
+  X(Vec3, normals)        /* per vertex, or empty for a mesh without kMeshHasNormals */ \
+  X(Vec4, tangents)       /* per vertex: xyz + handedness w */                          \
+  X(Vec2, uv0)            /* per vertex */                                              \
+  X(Vec2, uv1)            /* per vertex */                                              \
+  X(KTriangle, triangles) /* per triangle, indices relative to the mesh */              \
+  X(KMesh, meshes)        /* one per BLAS */                                            \
+  X(KInstance, instances) /* one per TLAS entry */                                      \
+  X(KMaterial, materials)                                                               \
+  X(KTexture, textures)                                                                 \
+  X(uint32_t, texels) /* RGBA8 texels of all textures */                                \
+  X(KLight, lights)                                                                     \
+  X(KAliasEntry, light_alias)   /* distribution over lights, by power */                \
+  X(Vec4, env_texels)           /* equirectangular environment, linear RGB */           \
+  X(float, env_marginal_cdf)    /* height + 1 entries */                                \
+  X(float, env_conditional_cdf) /* height * (width + 1) entries */
+
+#define TANDEM_BVH_ARRAYS(X)                                                                     \
+  X(KBlasRoot, blas_roots)           /* one per mesh */                                          \
   X(KBvhNode, bvh_nodes)             /* binary BVH: all BLAS, then the TLAS */                   \
   X(uint32_t, bvh_prim_indices)      /* leaf ranges of bvh_nodes: triangle / instance indices */ \
   X(KWideBvhNode, bvh_wide_nodes)    /* 8-wide compressed BVH: all BLAS, then the TLAS */        \
   X(uint32_t, bvh_wide_prim_indices) /* leaf entries of bvh_wide_nodes */
+
+#define TANDEM_KERNEL_ARRAYS(X) TANDEM_SCENE_ARRAYS(X) TANDEM_BVH_ARRAYS(X)
 
 // Read-only view of a scene: pointers into host vectors (CPU and host
 // backends) or device buffers (CUDA backend). Trivially copyable so it can be
@@ -44,6 +53,7 @@ struct KernelData {
   TANDEM_KERNEL_ARRAYS(TANDEM_DECLARE_VIEW)
 #undef TANDEM_DECLARE_VIEW
   KernelConstants constants;
+  KBvhConstants bvh;
 };
 
 }  // namespace tandem

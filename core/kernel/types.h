@@ -55,9 +55,7 @@ struct KMesh {
   uint32_t triangle_offset;
   uint32_t triangle_count;
   uint32_t flags;
-  uint32_t bvh_root;   // root of this mesh's BLAS in bvh_nodes (kInvalidIndex: no triangles)
-  uint32_t wide_root;  // root of this mesh's BLAS in bvh_wide_nodes
-  uint32_t pad;
+  uint32_t pad[3];  // the BLAS roots are in blas_roots (core/kernel/bvh.h)
 };
 static_assert(sizeof(KMesh) == 32, "GPU layout");
 
@@ -220,13 +218,7 @@ struct KernelConstants {
   float total_light_power;
   uint32_t environment_light_index;  // kInvalidIndex if the environment is black
   uint32_t pad[2];
-  // Tandem's own BVH (core/kernel/bvh.h): TLAS roots in bvh_nodes and
-  // bvh_wide_nodes (kInvalidIndex: empty scene) and which layout BvhTracer
-  // traverses (KBvhLayout).
-  uint32_t tlas_root;
-  uint32_t tlas_wide_root;
-  uint32_t bvh_layout;
-  uint32_t bvh_pad;
+  // The BVH's roots and layout are in KernelData::bvh (core/kernel/bvh.h).
 };
 
 }  // namespace tandem

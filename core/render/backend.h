@@ -84,9 +84,10 @@ class RenderIncomplete : public std::runtime_error {
 // cannot forget a new capability.
 struct BackendTraits {
   // Traces Tandem's own BVH (the kernel arrays bvh_nodes etc.) rather than
-  // building its own structure. The caller runs
-  // AccelStructure::update_and_mark() on the KernelScene before sync() when
-  // any of its backends needs it; the others never pay for the build.
+  // building its own structure. The caller runs AccelStructure::update()
+  // on the KernelScene before sync() when any of its backends needs it, and
+  // syncs the union of its delta and the compiler's; the others never pay
+  // for the build.
   bool needs_bvh = false;
   // render() runs on the host's CPU cores (TBB workers). Two such backends
   // compete for the same cores, so splitting a frame between them cannot beat

@@ -6,12 +6,12 @@
 namespace tandem {
 
 void check_bvh_present(const KernelScene& ks, const char* backend) {
-  const bool wide = ks.constants.bvh_layout == kBvhLayoutWide;
+  const bool wide = ks.bvh.layout == kBvhLayoutWide;
   const size_t node_count = wide ? ks.bvh_wide_nodes.size() : ks.bvh_nodes.size();
   const char* layout = wide ? "wide" : "binary";
   auto fail = [&](const std::string& what) {
     throw std::logic_error(std::string(backend) + ": " + what + " (" + layout +
-                           " layout); run AccelStructure::update_and_mark() before sync()");
+                           " layout); run AccelStructure::update() before sync()");
   };
   bool any_triangles = false;
   for (const KInstance& inst : ks.instances) {
@@ -19,12 +19,14 @@ void check_bvh_present(const KernelScene& ks, const char* backend) {
     const KMesh& mesh = ks.meshes[inst.mesh];
     if (mesh.triangle_count == 0) continue;
     any_triangles = true;
-    const uint32_t root = wide ? mesh.wide_root : mesh.bvh_root;
+    if (inst.mesh >= ks.blas_roots.size()) fail("a mesh has no BLAS root");
+    const KBlasRoot& roots = ks.blas_roots[inst.mesh];
+    const uint32_t root = wide ? roots.wide_root : roots.bvh_root;
     // kInvalidIndex is legitimate: a mesh whose triangles are all degenerate.
     if (root != kInvalidIndex && root >= node_count) fail("a mesh's BLAS root is out of range");
   }
   if (!any_triangles) return;
-  const uint32_t tlas = wide ? ks.constants.tlas_wide_root : ks.constants.tlas_root;
+  const uint32_t tlas = wide ? ks.bvh.tlas_wide_root : ks.bvh.tlas_root;
   if (node_count == 0 || tlas >= node_count) fail("the scene has no BVH");
 }
 

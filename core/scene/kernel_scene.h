@@ -3,11 +3,13 @@
 //
 // KernelScene owns one std::vector per entry of TANDEM_KERNEL_ARRAYS; every
 // backend reads the scene through KernelScene::view() (host pointers) or
-// uploads the same vectors (CUDA). SceneCompiler applies the Scene's dirty
-// flags in a fixed order (textures -> materials -> meshes -> instances ->
-// lights -> camera/environment) and reports exactly which element ranges it
-// rewrote in a SceneDelta, so backends can commit deltas instead of
-// re-uploading everything.
+// uploads the same vectors (CUDA). Each array has one writer
+// (kernel_data.h): SceneCompiler fills TANDEM_SCENE_ARRAYS and `constants`
+// from the Scene's dirty objects (scene_compiler.cpp gives the order, the
+// compile_*.cpp files one kind of object each), AccelStructure
+// (accstruc/) fills TANDEM_BVH_ARRAYS and `bvh`. Each reports exactly which
+// element ranges it rewrote in a SceneDelta, and backends commit the union
+// of the two, so they upload deltas instead of everything.
 #pragma once
 
 #include <cstddef>
@@ -24,7 +26,8 @@ class KernelScene {
 #define TANDEM_DECLARE_VECTOR(T, name) std::vector<T> name;
   TANDEM_KERNEL_ARRAYS(TANDEM_DECLARE_VECTOR)
 #undef TANDEM_DECLARE_VECTOR
-  KernelConstants constants{};
+  KernelConstants constants{};  // written by SceneCompiler
+  KBvhConstants bvh{};          // written by AccelStructure
 
   // Pointers into the vectors above; valid until the next compile.
   KernelData view() const;
@@ -55,20 +58,30 @@ struct SceneDelta {
 #undef TANDEM_DECLARE_CHANGE
   bool full = false;                     // everything was rebuilt
   bool constants = false;                // camera / environment / integrator scalars
+  bool bvh_constants = false;            // KernelScene::bvh (TLAS roots, layout)
   bool instances_changed = false;        // TLAS must be rebuilt
   std::vector<uint32_t> meshes_rebuilt;  // BLAS to rebuild (new topology)
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
+  // Ascending: the instances whose transform changed. When non-empty the
+  // BVH updater refits only their TLAS paths, so it must list every moved
+  // instance; a caller that leaves it empty gets a refit of all of them.
+  std::vector<uint32_t> instances_moved;
 
   bool any() const;
   // What a backend that has seen nothing of the scene needs: every array
   // reallocated, the constants, the instances.
   static SceneDelta everything();
-  // Adds `later`'s changes (what a second compile found) to this delta.
+  // Adds `later`'s changes (what a second compile found, or the BVH
+  // updater's changes) to this delta.
   void merge(const SceneDelta& later);
   // Bytes an upload of exactly the changed ranges moves (what the CUDA
   // backend reports as "commit bytes").
   size_t bytes(const KernelScene& ks) const;
 };
+
+// The union of two deltas: what a backend commits after the compiler
+// (`scene`) and the BVH updater (`bvh`) each reported their own arrays.
+SceneDelta operator|(SceneDelta scene, const SceneDelta& bvh);
 
 // Per-frame render parameters that end up in KernelConstants.
 struct RenderSettings {
@@ -84,21 +97,46 @@ struct RenderSettings {
 
 class SceneCompiler {
  public:
-  // Brings `out` up to date with `scene` and `settings`, then clears the
-  // scene's dirty flags. The first call (or any added/removed object) does a
-  // full build.
+  // Brings `out`'s scene arrays and constants up to date with `scene` and
+  // `settings`, then clears the scene's dirty flags. The first call (or any
+  // added/removed object) does a full build. Costs O(what changed): the
+  // dirty lists are walked, never the whole scene (light tables excepted,
+  // whose alias table is rebuilt, O(lights), when a light's power changes).
   SceneDelta compile(Scene& scene, const RenderSettings& settings, KernelScene& out);
 
  private:
+  // What the edits of one incremental compile require downstream.
+  struct Needs {
+    bool full = false;          // an edit only a full build handles (alpha mode)
+    bool light_list = false;    // triangle lights or the environment light changed
+    bool light_powers = false;  // punctual light parameters or the scene size changed
+  };
+  bool needs_full_build(const Scene& scene) const;
   void compile_full(const Scene& scene, KernelScene& out, SceneDelta& delta);
+
+  // compile_textures.cpp
   void compile_textures(const Scene& scene, KernelScene& out);
-  KMaterial compile_material(const Scene& scene, const Material& m);
-  void write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out);
-  KInstance compile_instance(const Instance& inst) const;
-  void compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  void compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  void compile_constants(const Scene& scene, const RenderSettings& settings, KernelScene& out);
   uint32_t texture_index(uint32_t texture, bool srgb) const;
+  // compile_materials.cpp
+  void compile_materials(const Scene& scene, KernelScene& out);
+  KMaterial compile_material(const Scene& scene, const Material& m);
+  void update_materials(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // compile_meshes.cpp
+  void compile_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  void write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out);
+  void update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // compile_instances.cpp
+  void compile_instances(const Scene& scene, KernelScene& out);
+  KInstance compile_instance(const Instance& inst) const;
+  void update_instances(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // compile_environment.cpp
+  void compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  // compile_lights.cpp
+  void compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  void update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  bool scene_size_changed(const Scene& scene) const;
+  // compile_constants.cpp
+  void compile_constants(const Scene& scene, const RenderSettings& settings, KernelScene& out);
 
   bool compiled_once_ = false;
   size_t counts_[5] = {};  // textures, materials, meshes, instances, lights at last compile
@@ -107,6 +145,14 @@ class SceneCompiler {
   std::vector<float> texture_mean_luminance_;  // sRGB-decoded, for emissive power
   std::vector<bool> mesh_emissive_;            // mesh uses an emissive material
   float lights_radius_ = -1.0f;                // scene radius the light powers were computed with
+  // Every light's power as in light_alias, in the order of out.lights
+  // (punctual lights, the environment, triangles): a punctual light's
+  // change rebuilds the alias table from these without revisiting triangles.
+  std::vector<double> light_power_;
+  // An emissive instance moved rigidly since the light tables were built:
+  // its triangle powers may differ in the last bits, so the next light
+  // change rebuilds the tables in full, as if nothing were cached.
+  bool triangle_powers_stale_ = false;
   RenderSettings last_settings_{};
 };
 

@@ -8,9 +8,11 @@ std::vector<KAliasEntry> build_alias_table(const std::vector<double>& weights) {
   const size_t n = weights.size();
   std::vector<KAliasEntry> table(n);
   double sum = 0.0;
-  for (double w : weights) sum += w > 0.0 ? w : 0.0;
+  for (double w : weights)
+    sum += w > 0.0 ? w : 0.0;
   if (n == 0 || !(sum > 0.0)) {
-    for (size_t i = 0; i < n; ++i) table[i] = {1.0f, uint32_t(i), n ? float(1.0 / double(n)) : 0.0f, 0.0f};
+    for (size_t i = 0; i < n; ++i)
+      table[i] = {1.0f, uint32_t(i), n ? float(1.0 / double(n)) : 0.0f, 0.0f};
     return table;
   }
   // Vose's method: scaled probabilities split into "small" (< 1) and "large".
@@ -35,8 +37,10 @@ std::vector<KAliasEntry> build_alias_table(const std::vector<double>& weights) {
     }
   }
   // Leftovers are 1 up to rounding.
-  for (uint32_t i : large) table[i].threshold = 1.0f;
-  for (uint32_t i : small) table[i].threshold = 1.0f;
+  for (uint32_t i : large)
+    table[i].threshold = 1.0f;
+  for (uint32_t i : small)
+    table[i].threshold = 1.0f;
   // An entry with zero weight must never be returned by its own slot.
   for (size_t i = 0; i < n; ++i) {
     if (table[i].pdf == 0.0f && table[i].alias == i) table[i].threshold = 0.0f;
@@ -60,7 +64,8 @@ float build_environment_cdfs(const KernelData& kd, std::vector<float>& marginal,
     }
     row_sums[y] = acc;
     total += acc;
-    for (uint32_t x = 1; x <= w; ++x) row[x] = acc > 0.0 ? float(row[x] / acc) : float(x) / float(w);
+    for (uint32_t x = 1; x <= w; ++x)
+      row[x] = acc > 0.0 ? float(row[x] / acc) : float(x) / float(w);
     row[w] = 1.0f;
   }
   double acc = 0.0;

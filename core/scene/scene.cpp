@@ -6,40 +6,47 @@
 
 namespace tandem {
 
-void SceneBounds::extend(const glm::vec3& p) {
-  if (empty) {
-    lo = hi = p;
-    empty = false;
-  } else {
-    lo = glm::min(lo, p);
-    hi = glm::max(hi, p);
-  }
-}
-
-float SceneBounds::radius() const { return empty ? 0.0f : 0.5f * glm::length(hi - lo); }
-
-namespace {
-template <class T>
-uint32_t append(std::vector<T>& items, std::vector<uint32_t>& dirty, T item) {
-  items.push_back(std::move(item));
-  dirty.push_back(kDirtyCreated | kDirtyParams);
-  return uint32_t(items.size() - 1);
-}
-}  // namespace
-
-uint32_t Scene::add_texture(Texture t) { return append(textures_, texture_dirty_, std::move(t)); }
-uint32_t Scene::add_material(Material m) { return append(materials_, material_dirty_, std::move(m)); }
-uint32_t Scene::add_mesh(Mesh m) {
-  const uint32_t id = append(meshes_, mesh_dirty_, std::move(m));
-  mesh_dirty_[id] |= kDirtyTopology | kDirtyVertices;
+uint32_t Scene::DirtySet::add(uint32_t bits) {
+  const uint32_t id = uint32_t(mask.size());
+  mask.push_back(0);
+  mark(id, bits);
   return id;
+}
+
+void Scene::DirtySet::mark(uint32_t index, uint32_t bits) {
+  uint32_t& m = mask.at(index);
+  if (m == 0 && bits != 0) list.push_back(index);
+  m |= bits;
+}
+
+void Scene::DirtySet::clear() {
+  for (uint32_t i : list)
+    mask[i] = 0;
+  list.clear();
+}
+
+uint32_t Scene::add_texture(Texture t) {
+  textures_.push_back(std::move(t));
+  return textures_dirty_.add(kDirtyCreated | kDirtyParams);
+}
+uint32_t Scene::add_material(Material m) {
+  materials_.push_back(std::move(m));
+  return materials_dirty_.add(kDirtyCreated | kDirtyParams);
+}
+uint32_t Scene::add_mesh(Mesh m) {
+  meshes_.push_back(std::move(m));
+  bounds_cache_.mesh_added();
+  return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
-  const uint32_t id = append(instances_, instance_dirty_, std::move(i));
-  instance_dirty_[id] |= kDirtyTransform;
-  return id;
+  bounds_cache_.instance_added(i.mesh);
+  instances_.push_back(std::move(i));
+  return instances_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTransform);
 }
-uint32_t Scene::add_light(Light l) { return append(lights_, light_dirty_, std::move(l)); }
+uint32_t Scene::add_light(Light l) {
+  lights_.push_back(std::move(l));
+  return lights_dirty_.add(kDirtyCreated | kDirtyParams);
+}
 
 void Scene::set_camera(const Camera& c) {
   camera_ = c;
@@ -54,21 +61,23 @@ void Scene::set_environment(Environment e) {
 
 void Scene::set_instance_transform(uint32_t instance, const glm::mat4& transform) {
   instances_.at(instance).transform = transform;
-  instance_dirty_[instance] |= kDirtyTransform;
+  instances_dirty_.mark(instance, kDirtyTransform);
+  bounds_cache_.instance_changed(instance);
 }
 
 Material& Scene::edit_material(uint32_t material) {
-  material_dirty_.at(material) |= kDirtyParams;
+  materials_dirty_.mark(material, kDirtyParams);
   return materials_[material];
 }
 
 Light& Scene::edit_light(uint32_t light) {
-  light_dirty_.at(light) |= kDirtyParams;
+  lights_dirty_.mark(light, kDirtyParams);
   return lights_[light];
 }
 
 Mesh& Scene::edit_mesh_vertices(uint32_t mesh) {
-  mesh_dirty_.at(mesh) |= kDirtyVertices;
+  meshes_dirty_.mark(mesh, kDirtyVertices);
+  bounds_cache_.mesh_changed(mesh);
   return meshes_[mesh];
 }
 
@@ -85,49 +94,32 @@ Environment& Scene::edit_environment() {
 
 size_t Scene::triangle_count_unique() const {
   size_t n = 0;
-  for (const Mesh& m : meshes_) n += m.triangles.size();
+  for (const Mesh& m : meshes_)
+    n += m.triangles.size();
   return n;
 }
 
 size_t Scene::triangle_count_instanced() const {
   size_t n = 0;
-  for (const Instance& i : instances_) n += meshes_[i.mesh].triangles.size();
+  for (const Instance& i : instances_)
+    n += meshes_[i.mesh].triangles.size();
   return n;
 }
 
 SceneBounds Scene::bounds() const {
-  // Per-mesh object-space bounds, then the 8 transformed corners per instance.
-  std::vector<SceneBounds> mesh_bounds(meshes_.size());
-  for (size_t i = 0; i < meshes_.size(); ++i) {
-    for (const glm::uvec3& t : meshes_[i].triangles) {
-      for (int k = 0; k < 3; ++k) mesh_bounds[i].extend(meshes_[i].positions[t[k]]);
-    }
-  }
-  SceneBounds b;
-  for (const Instance& inst : instances_) {
-    const SceneBounds& mb = mesh_bounds[inst.mesh];
-    if (mb.empty) continue;
-    for (int c = 0; c < 8; ++c) {
-      const glm::vec3 corner((c & 1) ? mb.hi.x : mb.lo.x, (c & 2) ? mb.hi.y : mb.lo.y,
-                             (c & 4) ? mb.hi.z : mb.lo.z);
-      b.extend(glm::vec3(inst.transform * glm::vec4(corner, 1.0f)));
-    }
-  }
-  return b;
+  return bounds_cache_.bounds(meshes_, instances_);
 }
 
 bool Scene::any_dirty() const {
-  auto any = [](const std::vector<uint32_t>& v) {
-    return std::any_of(v.begin(), v.end(), [](uint32_t d) { return d != 0; });
-  };
-  return camera_dirty_ || environment_dirty_ || any(texture_dirty_) || any(material_dirty_) ||
-         any(mesh_dirty_) || any(instance_dirty_) || any(light_dirty_);
+  return camera_dirty_ || environment_dirty_ || !textures_dirty_.list.empty() ||
+         !materials_dirty_.list.empty() || !meshes_dirty_.list.empty() ||
+         !instances_dirty_.list.empty() || !lights_dirty_.list.empty();
 }
 
 void Scene::clear_dirty() {
-  for (auto* v : {&texture_dirty_, &material_dirty_, &mesh_dirty_, &instance_dirty_, &light_dirty_}) {
-    std::fill(v->begin(), v->end(), 0u);
-  }
+  for (DirtySet* d :
+       {&textures_dirty_, &materials_dirty_, &meshes_dirty_, &instances_dirty_, &lights_dirty_})
+    d->clear();
   camera_dirty_ = false;
   environment_dirty_ = false;
 }

@@ -14,6 +14,8 @@
 
 #include <glm/glm.hpp>
 
+#include "core/scene/scene_bounds.h"
+
 namespace tandem {
 
 enum class AlphaMode : uint8_t { kOpaque, kMask, kBlend };
@@ -131,14 +133,6 @@ struct Environment {
   std::string source;             // file it came from, for messages
 };
 
-struct SceneBounds {
-  glm::vec3 lo{0.0f}, hi{0.0f};
-  bool empty = true;
-  void extend(const glm::vec3& p);
-  glm::vec3 center() const { return (lo + hi) * 0.5f; }
-  float radius() const;
-};
-
 // Bits of a per-object dirty mask.
 enum DirtyBits : uint32_t {
   kDirtyCreated = 1u << 0,    // object is new since the last compile
@@ -180,16 +174,27 @@ class Scene {
 
   size_t triangle_count_unique() const;     // sum over meshes
   size_t triangle_count_instanced() const;  // sum over instances
-  SceneBounds bounds() const;               // world-space bounds of all instances
+  // World-space bounds of all instances, from per-mesh and per-instance
+  // boxes cached across edits (scene_bounds.h): O(k log n) after k edits.
+  // Like every Scene method it must not run concurrently with another call
+  // on the same Scene.
+  SceneBounds bounds() const;
 
   // --- change tracking -------------------------------------------------------
-  const std::vector<uint32_t>& texture_dirty() const { return texture_dirty_; }
-  const std::vector<uint32_t>& material_dirty() const { return material_dirty_; }
-  const std::vector<uint32_t>& mesh_dirty() const { return mesh_dirty_; }
-  const std::vector<uint32_t>& instance_dirty() const { return instance_dirty_; }
-  const std::vector<uint32_t>& light_dirty() const { return light_dirty_; }
+  const std::vector<uint32_t>& texture_dirty() const { return textures_dirty_.mask; }
+  const std::vector<uint32_t>& material_dirty() const { return materials_dirty_.mask; }
+  const std::vector<uint32_t>& mesh_dirty() const { return meshes_dirty_.mask; }
+  const std::vector<uint32_t>& instance_dirty() const { return instances_dirty_.mask; }
+  const std::vector<uint32_t>& light_dirty() const { return lights_dirty_.mask; }
   bool camera_dirty() const { return camera_dirty_; }
   bool environment_dirty() const { return environment_dirty_; }
+  // The indices whose mask above is non-zero, in the order they were first
+  // marked: what the compiler walks, so k edits cost O(k), not O(scene).
+  const std::vector<uint32_t>& dirty_textures() const { return textures_dirty_.list; }
+  const std::vector<uint32_t>& dirty_materials() const { return materials_dirty_.list; }
+  const std::vector<uint32_t>& dirty_meshes() const { return meshes_dirty_.list; }
+  const std::vector<uint32_t>& dirty_instances() const { return instances_dirty_.list; }
+  const std::vector<uint32_t>& dirty_lights() const { return lights_dirty_.list; }
   bool any_dirty() const;
   void clear_dirty();
 
@@ -206,7 +211,15 @@ class Scene {
   Environment environment_;
   bool has_camera_ = false;
 
-  std::vector<uint32_t> texture_dirty_, material_dirty_, mesh_dirty_, instance_dirty_, light_dirty_;
+  // Per-object dirty masks and the list of the marked ones.
+  struct DirtySet {
+    std::vector<uint32_t> mask, list;
+    uint32_t add(uint32_t bits);  // a new object; returns its index
+    void mark(uint32_t index, uint32_t bits);
+    void clear();
+  };
+  DirtySet textures_dirty_, materials_dirty_, meshes_dirty_, instances_dirty_, lights_dirty_;
+  mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;
   bool environment_dirty_ = true;
 };

@@ -139,7 +139,7 @@ void CoreTracer::begin_frame(Scene& scene) {
   SceneDelta late = compiler_.compile(scene, settings_.render, kernel_scene_);
   m.sync_scene_seconds = seconds_since(t);
   t = Clock::now();
-  if (accel_) accel_->update_and_mark(kernel_scene_, late);
+  if (accel_) late = late | accel_->update(kernel_scene_, late).delta;
   m.update_accstruc_seconds = seconds_since(t);
   SceneDelta delta = late;
   if (prepared_delta_) {
@@ -283,7 +283,7 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   SceneDelta delta = compiler_.compile(scene, next, kernel_scene_);
   prepared_sync_seconds_ = seconds_since(t);
   t = Clock::now();
-  if (accel_) accel_->update_and_mark(kernel_scene_, delta);
+  if (accel_) delta = delta | accel_->update(kernel_scene_, delta).delta;
   prepared_accstruc_seconds_ = seconds_since(t);
 
   // SyncAccStruc ahead, for backends that commit into a copy this frame's

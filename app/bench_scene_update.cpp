@@ -1,0 +1,157 @@
+// The scene-update benchmark. Every case repeats one kind of edit and times
+// SceneCompiler::compile + AccelStructure::update for it; the edit itself
+// (writing a transform, a colour) is outside the timed region. Moves
+// alternate between two poses so the TLAS refit never drifts far from the
+// built tree, as in a game where bodies move a little per frame.
+#include "app/bench_scene_update.h"
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <optional>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "accstruc/accel_structure.h"
+#include "app/bench_report.h"
+#include "app/cli_args.h"
+#include "core/scene/kernel_scene.h"
+#include "core/util/errors.h"
+#include "scenes/scene_loader.h"
+
+namespace tandem {
+
+namespace {
+
+const std::vector<OptionSpec>& scene_update_options() {
+  static const std::vector<OptionSpec> specs = {
+      {"scene-update", false,
+       "measure SyncScene + UpdateAccStruc for one instance, 100 instances, one material and one "
+       "light changed (default scenes: builtin:procedural builtin:arena)"},
+      {"repeats", true, "timed updates per case (default 31)", "N"},
+      {"threads", true, "CPU worker threads (default: all cores)", "N"},
+      {"json", true, "also write a list of {scene, case, median_ms} to FILE as JSON", "FILE"},
+      {"help", false, "show this help"},
+  };
+  return specs;
+}
+
+using Clock = std::chrono::steady_clock;
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+struct UpdateCase {
+  const char* name;
+  std::function<void(Scene&, uint32_t repeat)> edit;
+};
+
+// `count` instances spread evenly over the scene (all of them when fewer).
+std::vector<uint32_t> spread_instances(const Scene& scene, uint32_t count) {
+  const uint32_t n = uint32_t(scene.instances().size());
+  std::vector<uint32_t> picked;
+  if (n == 0) return picked;
+  count = std::min(count, n);
+  for (uint32_t i = 0; i < count; ++i)
+    picked.push_back(uint32_t(uint64_t(i) * n / count));
+  return picked;
+}
+
+std::vector<UpdateCase> update_cases(const Scene& scene) {
+  auto mover = [&scene](uint32_t count) {
+    const std::vector<uint32_t> picked = spread_instances(scene, count);
+    std::vector<glm::mat4> rest;
+    for (uint32_t i : picked)
+      rest.push_back(scene.instances()[i].transform);
+    return [picked, rest](Scene& s, uint32_t repeat) {
+      const float step = (repeat % 2) ? 0.01f : 0.0f;
+      for (size_t k = 0; k < picked.size(); ++k)
+        s.set_instance_transform(picked[k],
+                                 glm::translate(glm::mat4(1.0f), glm::vec3(step, 0, 0)) * rest[k]);
+    };
+  };
+  // A material no emitter uses, so the case measures the material path and
+  // not a light-table rebuild.
+  uint32_t material = 0;
+  for (uint32_t i = 0; i < scene.materials().size(); ++i) {
+    const Material& m = scene.materials()[i];
+    if (!(m.emissive_strength > 0.0f && glm::length(m.emissive) > 0.0f)) {
+      material = i;
+      break;
+    }
+  }
+  return {
+      {"move_1", mover(1)},
+      {"move_100", mover(100)},
+      {"material_1",
+       [material](Scene& s, uint32_t repeat) {
+         s.edit_material(material).roughness = (repeat % 2) ? 0.5f : 0.6f;
+       }},
+      {"light_1",
+       [](Scene& s, uint32_t repeat) { s.edit_light(0).intensity *= (repeat % 2) ? 1.25f : 0.8f; }},
+  };
+}
+
+}  // namespace
+
+bool is_scene_update_bench(const std::vector<std::string>& args) {
+  return std::find(args.begin(), args.end(), "--scene-update") != args.end();
+}
+
+int run_scene_update_bench(const std::vector<std::string>& argv) {
+  const ParsedArgs args("bench", scene_update_options(), argv);
+  if (args.has("help")) {
+    std::printf("usage: tandem bench [SCENE...] --scene-update [options]\n\n%s",
+                format_options_help(scene_update_options()).c_str());
+    return 0;
+  }
+  const uint32_t repeats = args.get_u32("repeats", 31, 1, 100000);
+  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
+  std::optional<tbb::global_control> limit;
+  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  const std::optional<std::string> json_path = args.value("json");
+  if (json_path) check_json_output_path(*json_path);
+  std::vector<std::string> specs = args.positionals();
+  if (specs.empty()) specs = {"builtin:procedural", "builtin:arena"};
+
+  JsonValue report = JsonValue::array();
+  RenderSettings settings;
+  std::printf("%-24s %-12s %12s\n", "scene", "case", "median ms");
+  for (const std::string& spec : specs) {
+    Scene scene = load_scene(spec);
+    // light_1 needs a light to change.
+    if (scene.lights().empty()) scene.add_light(Light{});
+    if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(scene.bounds(), 0.69f, 1.0f));
+    KernelScene ks;
+    SceneCompiler compiler;
+    AccelStructure accel;
+    const SceneDelta first = compiler.compile(scene, settings, ks);
+    accel.update(ks, first);
+    for (const UpdateCase& c : update_cases(scene)) {
+      std::vector<double> ms;
+      // One untimed round first: caches and the refit path warm up.
+      for (uint32_t r = 0; r <= repeats; ++r) {
+        c.edit(scene, r);
+        const auto t0 = Clock::now();
+        const SceneDelta delta = compiler.compile(scene, settings, ks);
+        accel.update(ks, delta);
+        const double t = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        if (r > 0) ms.push_back(t);
+      }
+      const double m = median(ms);
+      std::printf("%-24s %-12s %12.3f\n", spec.c_str(), c.name, m);
+      report.push(JsonValue::object().set("scene", spec).set("case", c.name).set("median_ms", m));
+    }
+  }
+  write_json_report(json_path, report);
+  return 0;
+}
+
+}  // namespace tandem

@@ -1,0 +1,33 @@
+// The environment: its constants and, for a map, the texels and the
+// sampling CDFs.
+#include "core/scene/kernel_conversions.h"
+#include "core/scene/kernel_scene.h"
+#include "core/scene/light_tables.h"
+
+namespace tandem {
+
+void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta) {
+  const Environment& e = scene.environment();
+  KEnvironment& k = out.constants.environment;
+  k = {};
+  k.color = to_vec3(e.color * e.intensity);
+  k.rotation = e.rotation;
+  out.env_texels.clear();
+  out.env_marginal_cdf.clear();
+  out.env_conditional_cdf.clear();
+  if (!e.texels.empty() && e.width > 0 && e.height > 0) {
+    k.has_map = 1;
+    k.width = e.width;
+    k.height = e.height;
+    out.env_texels.resize(e.texels.size());
+    for (size_t i = 0; i < e.texels.size(); ++i)
+      out.env_texels[i] = make_vec4(to_vec3(e.texels[i]), 0.0f);
+    k.map_integral =
+        build_environment_cdfs(out.view(), out.env_marginal_cdf, out.env_conditional_cdf);
+  }
+  delta.env_texels.reallocated = delta.env_marginal_cdf.reallocated =
+      delta.env_conditional_cdf.reallocated = true;
+  delta.constants = true;
+}
+
+}  // namespace tandem

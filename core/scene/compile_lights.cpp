@@ -1,0 +1,160 @@
+// Lights: punctual lights, the environment light and one light per
+// emissive (instance, triangle), and the alias table that picks among them
+// by power. A full build walks the emissive triangles; a change of punctual
+// lights or of the scene's size (which scales directional and environment
+// powers) only recomputes those powers and the alias table.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+#include "core/scene/kernel_conversions.h"
+#include "core/scene/kernel_scene.h"
+
+#include "core/kernel/lights.h"
+#include "core/scene/light_tables.h"
+
+namespace tandem {
+
+namespace {
+
+KLight punctual_light(const Light& l) {
+  KLight k{};
+  const glm::vec3 intensity = l.color * l.intensity;
+  k.intensity = to_vec3(intensity);
+  k.position = to_vec3(l.position);
+  k.direction = to_vec3(glm::normalize(l.direction));
+  k.cos_inner = std::cos(l.inner_cone_angle);
+  k.cos_outer = std::cos(l.outer_cone_angle);
+  switch (l.type) {
+    case LightType::kPoint:
+      k.type = kLightPoint;
+      break;
+    case LightType::kSpot:
+      k.type = kLightSpot;
+      break;
+    case LightType::kDirectional:
+      k.type = kLightDirectional;
+      break;
+  }
+  return k;
+}
+
+// Emitted power, what light selection is proportional to. A directional
+// light's flux is through the scene's bounding disk of `radius`.
+double punctual_power(const KLight& k, float radius) {
+  const float lum = luminance(k.intensity);
+  switch (k.type) {
+    case kLightSpot:
+      return 2.0 * kPi * lum * (1.0 - 0.5 * (k.cos_inner + k.cos_outer));
+    case kLightDirectional:
+      return kPi * radius * radius * lum;
+    default:
+      return 4.0 * kPi * lum;
+  }
+}
+
+float environment_luminance(const KEnvironment& env) {
+  return env.has_map ? luminance(env.color) * env.map_integral /
+                           std::max(1.0f, float(env.width) * float(env.height) * 0.6366f)
+                     : luminance(env.color);
+}
+
+// Flux of a uniform radiance through the scene's bounding disk.
+double environment_power(float env_lum, float radius) {
+  return kPi * kPi * radius * radius * env_lum;
+}
+
+float light_radius(const Scene& scene) {
+  return std::max(scene.bounds().radius(), 1e-3f);
+}
+
+void finish_light_tables(const std::vector<double>& power, KernelScene& out, SceneDelta& delta) {
+  out.light_alias = build_alias_table(power);
+  double total = 0.0;
+  for (double p : power)
+    total += p;
+  out.constants.total_light_power = float(total);
+  delta.constants = true;
+}
+
+}  // namespace
+
+void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta) {
+  out.lights.clear();
+  std::vector<double>& power = light_power_;
+  power.clear();
+  const float radius = light_radius(scene);
+  lights_radius_ = radius;
+  triangle_powers_stale_ = false;
+
+  for (const Light& l : scene.lights()) {
+    const KLight k = punctual_light(l);
+    power.push_back(punctual_power(k, radius));
+    out.lights.push_back(k);
+  }
+
+  out.constants.environment_light_index = kInvalidIndex;
+  const float env_lum = environment_luminance(out.constants.environment);
+  if (env_lum > 0.0f) {
+    KLight k{};
+    k.type = kLightEnvironment;
+    out.constants.environment_light_index = uint32_t(out.lights.size());
+    out.lights.push_back(k);
+    power.push_back(environment_power(env_lum, radius));
+  }
+
+  // Emissive triangles, one light per (instance, triangle). Power comes from
+  // the same kernel function the integrator uses for MIS.
+  const KernelData kd = out.view();
+  for (uint32_t i = 0; i < out.instances.size(); ++i) {
+    const uint32_t mesh_index = out.instances[i].mesh;
+    if (!mesh_emissive_[mesh_index]) continue;
+    const KMesh& km = out.meshes[mesh_index];
+    for (uint32_t p = 0; p < km.triangle_count; ++p) {
+      const KMaterial& m = out.materials[out.triangles[km.triangle_offset + p].material];
+      if (is_black(m.emission)) continue;
+      const float pw = triangle_light_power(m, triangle_world_area(kd, out.instances[i], p));
+      if (!(pw > 0.0f)) continue;
+      KLight k{};
+      k.type = kLightTriangle;
+      k.instance = i;
+      k.prim = p;
+      out.lights.push_back(k);
+      power.push_back(pw);
+    }
+  }
+  finish_light_tables(power, out, delta);
+  delta.lights.reallocated = true;
+  delta.light_alias.reallocated = true;
+}
+
+void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta) {
+  const float radius = light_radius(scene);
+  lights_radius_ = radius;
+  std::vector<uint32_t> dirty = scene.dirty_lights();
+  std::sort(dirty.begin(), dirty.end());
+  for (uint32_t i : dirty) {
+    out.lights[i] = punctual_light(scene.lights()[i]);
+    delta.lights.mark(i, i + 1);
+  }
+  // Directional powers follow the radius: all punctual lights, never the
+  // (many) triangle lights after them.
+  for (uint32_t i = 0; i < scene.lights().size(); ++i)
+    light_power_[i] = punctual_power(out.lights[i], radius);
+  const uint32_t env = out.constants.environment_light_index;
+  if (env != kInvalidIndex) {
+    light_power_[env] = environment_power(environment_luminance(out.constants.environment), radius);
+  }
+  finish_light_tables(light_power_, out, delta);
+  delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
+}
+
+// Directional and environment light powers scale with the scene's size,
+// which bodies moving about change a little every frame. The powers only
+// steer light selection (the alias table and total_light_power are rebuilt
+// together, so pdfs stay consistent), so they are refreshed only when the
+// size changed by more than 10%.
+bool SceneCompiler::scene_size_changed(const Scene& scene) const {
+  return std::fabs(light_radius(scene) - lights_radius_) > 0.1f * lights_radius_;
+}
+
+}  // namespace tandem

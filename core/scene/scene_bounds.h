@@ -1,0 +1,66 @@
+// World-space bounds of a scene, kept up to date edit by edit.
+//
+// A frame that moves k instances must not pay for the whole scene: the
+// cache keeps each mesh's object-space box (recomputed only when that mesh's
+// vertices change) and each instance's world box in a binary reduction tree
+// over the instances, so after k edits bounds() costs O(k log n) instead of
+// a walk over every triangle. Boxes combine by exact min/max, so the result
+// equals compute_scene_bounds() on the same scene.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tandem {
+
+struct Mesh;
+struct Instance;
+
+struct SceneBounds {
+  glm::vec3 lo{0.0f}, hi{0.0f};
+  bool empty = true;
+  void extend(const glm::vec3& p);
+  void extend(const SceneBounds& b);
+  glm::vec3 center() const { return (lo + hi) * 0.5f; }
+  float radius() const;
+};
+
+// Object-space box of the vertices the mesh's triangles use.
+SceneBounds mesh_object_bounds(const Mesh& mesh);
+// The mesh box's 8 corners under the instance's transform.
+SceneBounds instance_world_bounds(const Instance& instance, const SceneBounds& mesh_bounds);
+// The full recomputation (every triangle of every mesh): what the cache
+// must always agree with.
+SceneBounds compute_scene_bounds(const std::vector<Mesh>& meshes,
+                                 const std::vector<Instance>& instances);
+
+class SceneBoundsCache {
+ public:
+  // Scene mutations, in the order the Scene performs them. An instance's
+  // mesh never changes after it was added.
+  void mesh_added();
+  void instance_added(uint32_t mesh);
+  void mesh_changed(uint32_t mesh);
+  void instance_changed(uint32_t instance);
+
+  // Brings the stale entries up to date and returns the union.
+  SceneBounds bounds(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
+
+ private:
+  void mark_instance(uint32_t instance);
+  void regrow_tree(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
+
+  std::vector<SceneBounds> mesh_bounds_;
+  std::vector<std::vector<uint32_t>> mesh_instances_;  // instances of each mesh
+  std::vector<uint32_t> instance_mesh_;
+  std::vector<uint8_t> mesh_stale_, instance_stale_;
+  std::vector<uint32_t> stale_meshes_, stale_instances_;
+  // tree_[leaves_ + i] is instance i's world box, tree_[p] the union of
+  // tree_[2p] and tree_[2p + 1]; tree_[1] is the scene's box.
+  std::vector<SceneBounds> tree_;
+  uint32_t leaves_ = 0;
+};
+
+}  // namespace tandem

@@ -1,0 +1,87 @@
+// The order in which SceneCompiler brings the kernel arrays up to date.
+// Each step names what it must come after; the per-kind work is in the
+// compile_*.cpp files.
+#include <algorithm>
+#include "core/scene/kernel_conversions.h"
+#include "core/scene/kernel_scene.h"
+
+namespace tandem {
+
+bool SceneCompiler::needs_full_build(const Scene& scene) const {
+  const size_t counts[5] = {scene.textures().size(), scene.materials().size(),
+                            scene.meshes().size(), scene.instances().size(), scene.lights().size()};
+  if (!compiled_once_ || !std::equal(counts, counts + 5, counts_)) return true;
+  // New texels move every later texture's offset.
+  if (!scene.dirty_textures().empty()) return true;
+  // New topology moves every later mesh's vertex and triangle offsets.
+  for (uint32_t m : scene.dirty_meshes()) {
+    if (scene.mesh_dirty()[m] & (kDirtyTopology | kDirtyCreated)) return true;
+  }
+  return false;
+}
+
+void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelta& delta) {
+  // Texture slots first: materials refer to them.
+  compile_textures(scene, out);
+  // Materials before meshes: mesh flags (alpha test, emission) read them.
+  compile_materials(scene, out);
+  compile_meshes(scene, out, delta);
+  compile_instances(scene, out);
+  // The environment before the lights: its luminance is the environment
+  // light's power.
+  compile_environment(scene, out, delta);
+  // Lights last: triangle lights read materials, meshes and instances.
+  compile_lights(scene, out, delta);
+
+  delta.full = true;
+  delta.instances_changed = true;
+#define TANDEM_MARK_ALL(T, name) delta.name.reallocated = true;
+  TANDEM_SCENE_ARRAYS(TANDEM_MARK_ALL)
+#undef TANDEM_MARK_ALL
+}
+
+SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, KernelScene& out) {
+  SceneDelta delta;
+  if (needs_full_build(scene)) {
+    compile_full(scene, out, delta);
+  } else {
+    Needs needs;
+    // Materials first: their emission decides whether lights follow.
+    update_materials(scene, out, delta, needs);
+    // Vertices: BLAS refits for the BVH updater, and emissive areas.
+    update_meshes(scene, out, delta, needs);
+    // Instances: the TLAS, and emissive areas of non-rigid moves.
+    update_instances(scene, out, delta, needs);
+    // The environment before the lights (its power is a light's).
+    if (scene.environment_dirty()) {
+      compile_environment(scene, out, delta);
+      needs.light_list = true;
+    }
+    // Punctual lights, and the scene's size that directional powers scale with.
+    needs.light_powers =
+        !scene.dirty_lights().empty() || (delta.instances_changed && scene_size_changed(scene));
+    // Lights last: every step above may change a light's power.
+    if (needs.full) {
+      delta = SceneDelta{};
+      compile_full(scene, out, delta);
+    } else if (needs.light_list || (needs.light_powers && triangle_powers_stale_)) {
+      compile_lights(scene, out, delta);
+    } else if (needs.light_powers) {
+      update_light_powers(scene, out, delta);
+    }
+  }
+  // Constants after everything: any change above may move the bounds.
+  if (delta.any() || scene.camera_dirty() || settings != last_settings_ || !compiled_once_) {
+    compile_constants(scene, settings, out);
+    delta.constants = true;
+  }
+  last_settings_ = settings;
+  compiled_once_ = true;
+  const size_t counts[5] = {scene.textures().size(), scene.materials().size(),
+                            scene.meshes().size(), scene.instances().size(), scene.lights().size()};
+  std::copy(counts, counts + 5, counts_);
+  scene.clear_dirty();
+  return delta;
+}
+
+}  // namespace tandem
