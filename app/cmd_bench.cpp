@@ -10,6 +10,7 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -19,6 +20,7 @@
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
+#include "app/distributed.h"
 #include "app/view/bench_frames.h"
 #include "backends/backend_factory.h"
 #include "backends/cpu/embree_backend.h"
@@ -98,6 +100,8 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
+  if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
+    return run_distributed_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {

@@ -14,6 +14,7 @@
 #include "app/backend_list.h"
 #include "app/cli_args.h"
 #include "app/commands.h"
+#include "app/distributed.h"
 #include "app/progress.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
@@ -66,6 +67,9 @@ const std::vector<OptionSpec>& render_options() {
       {"tile-size", true, "tile edge in pixels (default 32)", "N"},
       {"clamp", true, "clamp per-sample radiance to this value (biased; default off)", "X"},
       {"quiet", false, "no progress bar or summary"},
+      {"distributed", false,
+       "under mpirun -np N: every rank renders tiles of each frame, rank 0 writes the output "
+       "(docs/distributed.md)"},
       {"save-on-interrupt", false,
        "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
       {"allow-outside-uris", false,
@@ -172,6 +176,12 @@ int run_render(const std::vector<std::string>& argv) {
   load_options.allow_outside_uris = args.has("allow-outside-uris");
   std::optional<tbb::global_control> thread_limit;
   if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  // A worker rank serves rank 0 from here on and never touches the output.
+  const bool distributed = args.has("distributed");
+  if (distributed) {
+    const int worker_status = start_distributed("render", backend_spec, backend_options);
+    if (worker_status >= 0) return worker_status;
+  }
 
   // Check the output extension before spending time on loading/rendering.
   {
@@ -240,7 +250,9 @@ int run_render(const std::vector<std::string>& argv) {
   const uint32_t frames = std::min(spp, 32u);
   const uint32_t per_frame = (spp + frames - 1) / frames;
   tracer_settings.samples_per_frame = per_frame;
-  CoreTracer tracer(make_backend_list(backend_spec, backend_options), tracer_settings);
+  std::vector<std::unique_ptr<Backend>> backends = make_backend_list(backend_spec, backend_options);
+  if (distributed) add_distributed_peers(backends);
+  CoreTracer tracer(std::move(backends), tracer_settings);
 
   ProgressBar bar(!quiet && stderr_is_terminal());
   const auto start = std::chrono::steady_clock::now();
@@ -310,6 +322,7 @@ int run_render(const std::vector<std::string>& argv) {
         settings.width, settings.height, spp, settings.max_depth, names.c_str(), worker_threads,
         seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6, output.c_str());
   }
+  if (distributed) finish_distributed();
   return 0;
 }
 
