@@ -96,6 +96,9 @@ struct Run {
   std::vector<mpi::MpiPeerBackend*> peers;
   std::vector<RankTotals> ranks;  // rank 0's backends, then one per peer
   std::vector<double> frame_s;
+  // Per frame: the frame time beyond the busiest rank's rendering, i.e.
+  // what the network and an uneven finish add to the frame.
+  std::vector<double> overhead_s;
   double total_s = 0;
 };
 
@@ -118,6 +121,7 @@ void account(Run& run, const FrameMetrics& m) {
   run.frame_s.push_back(m.total_seconds);
   run.ranks.resize(m.backends.size());
   const size_t local = m.backends.size() - run.peers.size();
+  double busiest = 0.0;
   for (size_t b = 0; b < m.backends.size(); ++b) {
     RankTotals& r = run.ranks[b];
     r.name = m.backends[b].name;
@@ -133,7 +137,9 @@ void account(Run& run, const FrameMetrics& m) {
     }
     r.busy_s += busy;
     r.idle_s += std::max(0.0, m.render_seconds - busy);
+    busiest = std::max(busiest, busy);
   }
+  run.overhead_s.push_back(std::max(0.0, m.total_seconds - busiest));
 }
 
 double mean(const std::vector<double>& v, size_t skip) {
@@ -245,13 +251,8 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
     std::printf("all %d ranks:       %8.3f s\n", ranks, dist_s);
   }
   std::printf("speed-up:          %8.2fx\n", speedup);
-  double busiest = 0.0;
-  for (const RankTotals& r : dist.ranks)
-    busiest = std::max(busiest, r.busy_s);
   const double frames_d = double(std::max<size_t>(dist.frame_s.size(), 1));
-  // Per frame: the distributed frame time minus the busiest rank's rendering
-  // time, i.e. what the network and the uneven finish add to a frame.
-  const double overhead_ms = (dist.total_s - busiest) / frames_d * 1e3;
+  const double overhead_ms = mean(dist.overhead_s, skip) * 1e3;
   std::printf(
       "overhead:          %8.2f ms/frame (frame time beyond the busiest rank's "
       "rendering)\n",

@@ -2,6 +2,7 @@
 
 #include "app/backend_list.h"
 #include "core/util/errors.h"
+#include "core/util/log.h"
 
 #if TANDEM_HAVE_MPI
 #include "backends/mpi/mpi_cluster.h"
@@ -18,6 +19,9 @@ bool distributed_built_in() {
 int start_distributed(const std::string& command, const std::string& backend_spec,
                       const BackendOptions& options) {
   if (mpi::start() == 0) return -1;
+  // Workers print nothing but errors (rank 0 speaks for the run): no
+  // warnings such as the CPU fallback notice of every rank without a GPU.
+  set_log_level(LogLevel::kQuiet);
   return mpi::serve_as_worker([&] { return make_backend_list(backend_spec, options); });
 }
 
