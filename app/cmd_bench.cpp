@@ -109,7 +109,9 @@ int run_bench(const std::vector<std::string>& argv) {
         "usage: tandem bench [SCENE] [options]\n"
         "       tandem bench --gpu [SCENE] [options]\n"
         "       tandem bench --frames N [--scene SCENE] [options]  (see bench --frames 1 "
-        "--help)\n\n"
+        "--help)\n"
+        "       mpirun -np N tandem bench --distributed [SCENE] [options]  (see bench "
+        "--distributed --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
         "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
         "interactive\nframe loop.\n\n%s",

@@ -9,6 +9,7 @@
 #include "backends/mpi/mpi_channel.h"
 #include "backends/mpi/mpi_cluster.h"
 #include "backends/mpi/mpi_protocol.h"
+#include "core/render/backend.h"
 #include "core/render/film.h"
 
 namespace tandem::mpi {
@@ -104,7 +105,7 @@ class Worker {
     const auto start = Clock::now();
     BackendStats stats;
     if (backends_.size() == 1) {
-      stats = backends_[0]->render(pass, tiles, film_);
+      stats = render_on(*backends_[0], pass, tiles);
     } else {
       // Several local backends (a GPU and the CPU): each on its own thread
       // pulling from the same tiles, as the core tracer does.
@@ -114,7 +115,7 @@ class Worker {
       for (size_t b = 0; b < backends_.size(); ++b) {
         threads.emplace_back([&, b] {
           try {
-            each[b] = backends_[b]->render(pass, tiles, film_);
+            each[b] = render_on(*backends_[b], pass, tiles);
           } catch (...) {
             errors[b] = std::current_exception();
           }
@@ -146,6 +147,20 @@ class Worker {
     WireWriter w;
     encode_result(res, w);
     sends_.start(0, kTagResult, std::move(w.bytes()));
+  }
+
+  // A GPU that fails part-way under `auto` hands its tiles to the CPU
+  // (RenderIncomplete): finish them here, as the core tracer does on rank 0.
+  BackendStats render_on(Backend& backend, const RenderPass& pass, TileSource& tiles) {
+    try {
+      return backend.render(pass, tiles, film_);
+    } catch (const RenderIncomplete& e) {
+      backend.sync(scene_, SceneDelta::everything());
+      ResumedTiles rest(e.unfinished(), tiles);
+      BackendStats stats = backend.render(pass, rest, film_);
+      stats += e.finished();
+      return stats;
+    }
   }
 
   std::vector<std::unique_ptr<Backend>> backends_;
