@@ -86,6 +86,7 @@ class WireReader {
   }
   void get_bytes(void* p, size_t n) {
     need(n);
+    if (n == 0) return;  // p may be an empty vector's null data()
     std::memcpy(p, data_ + at_, n);
     at_ += n;
   }
