@@ -130,19 +130,38 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
 }
 
 bool try_receive(int source, Message* out) {
-  std::lock_guard<std::mutex> lock(mpi_lock());
-  int flag = 0;
-  MPI_Status status;
-  MPI_Iprobe(source, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &status);
-  if (!flag) return false;
-  int count = 0;
-  MPI_Get_count(&status, MPI_BYTE, &count);
-  out->source = status.MPI_SOURCE;
-  out->tag = status.MPI_TAG;
-  out->bytes.resize(size_t(count));
-  MPI_Recv(out->bytes.data(), count, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG, MPI_COMM_WORLD,
-           MPI_STATUS_IGNORE);
-  return true;
+  MPI_Request request;
+  {
+    std::lock_guard<std::mutex> lock(mpi_lock());
+    int flag = 0;
+    MPI_Status status;
+    MPI_Iprobe(source, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &status);
+    if (!flag) return false;
+    int count = 0;
+    MPI_Get_count(&status, MPI_BYTE, &count);
+    out->source = status.MPI_SOURCE;
+    out->tag = status.MPI_TAG;
+    out->bytes.resize(size_t(count));
+    MPI_Irecv(out->bytes.data(), count, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG, MPI_COMM_WORLD,
+              &request);
+  }
+  // A large message arrives only as fast as its sender lets MPI move it (a
+  // worker between two tiles): wait without holding the lock, so the other
+  // peers' threads go on meanwhile. Bounded like every other wait.
+  const double timeout_s = answer_timeout_seconds();
+  const auto start = Clock::now();
+  for (;;) {
+    int done = 0;
+    {
+      std::lock_guard<std::mutex> lock(mpi_lock());
+      MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    }
+    if (done) return true;
+    if (past(start, timeout_s))
+      throw RankFailure(out->source, "stopped answering in the middle of a message (" +
+                                         seconds_text(timeout_s) + ")");
+    nap();
+  }
 }
 
 Message receive(int source, double timeout_s, const std::string& waiting_for,
