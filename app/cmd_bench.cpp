@@ -102,7 +102,7 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 int run_bench(const std::vector<std::string>& argv) {
   if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
     return run_distributed_bench(argv);
-  if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
+  if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {
     std::printf(
