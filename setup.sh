@@ -18,6 +18,7 @@ packages=(cmake ninja-build g++ pkg-config
           libembree-dev libtbb-dev libglm-dev libtinygltf-dev libstb-dev
           libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
           xvfb xauth
+          libopenmpi-dev openmpi-bin
           clang libclang-rt-14-dev)
 
 missing=()

@@ -10,6 +10,7 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -22,6 +23,7 @@
 #include "app/cli_options.h"
 #include "app/commands.h"
 #include "app/scene_setup.h"
+#include "app/distributed.h"
 #include "app/view/bench_frames.h"
 #include "backends/backend_factory.h"
 #include "backends/cpu/embree_backend.h"
@@ -100,6 +102,8 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
+  if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
+    return run_distributed_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
   if (is_scene_update_bench(argv)) return run_scene_update_bench(argv);
   const ParsedArgs args("bench", bench_options(), argv);
@@ -108,7 +112,9 @@ int run_bench(const std::vector<std::string>& argv) {
         "usage: tandem bench [SCENE] [options]\n"
         "       tandem bench --gpu [SCENE] [options]\n"
         "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n"
-        "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n\n"
+        "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n"
+        "       mpirun -np N tandem bench --distributed [SCENE] [options]  (see bench "
+        "--distributed --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
         "scene;\nwith --gpu, the CUDA backend on the device beside Embree; with --frames, the "
         "interactive\nframe loop of tandem-view along its scripted camera path (default scene "

@@ -16,6 +16,7 @@
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/commands.h"
+#include "app/distributed.h"
 #include "app/progress.h"
 #include "app/render_frames.h"
 #include "app/scene_setup.h"
@@ -72,6 +73,9 @@ const std::vector<OptionSpec>& render_options() {
           {"tile-size", true, "tile edge in pixels", "N", "32"},
           {"clamp", true, "clamp per-sample radiance to this value (biased; 0 = off)", "X", "0"},
           {"quiet", false, "no progress bar or summary"},
+          {"distributed", false,
+           "under mpirun -np N: every rank renders tiles of each frame, rank 0 writes the output "
+           "(docs/distributed.md)"},
           {"save-on-interrupt", false,
            "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
       },
@@ -158,6 +162,12 @@ int run_render(const std::vector<std::string>& argv) {
   const SceneRequest scene_request = parse_scene_request(args, scene_spec);
   std::optional<tbb::global_control> thread_limit;
   if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  // A worker rank serves rank 0 from here on and never touches the output.
+  const bool distributed = args.has("distributed");
+  if (distributed) {
+    const int worker_status = start_distributed("render", backend_spec, backend_options);
+    if (worker_status >= 0) return worker_status;
+  }
 
   // Check the output extension before spending time on loading/rendering.
   const std::string ext = lower_extension(output);
@@ -222,7 +232,9 @@ int run_render(const std::vector<std::string>& argv) {
   const uint32_t frames = std::min(spp, 32u);
   const uint32_t per_frame = (spp + frames - 1) / frames;
   tracer_settings.samples_per_frame = per_frame;
-  CoreTracer tracer(make_backend_list(backend_spec, backend_options), tracer_settings);
+  std::vector<std::unique_ptr<Backend>> backends = make_backend_list(backend_spec, backend_options);
+  if (distributed) add_distributed_peers(backends);
+  CoreTracer tracer(std::move(backends), tracer_settings);
 
   // Animation frames: frame f is the scene posed at f / fps. The next
   // frame is posed while the last samples of this one render, so from one
@@ -325,6 +337,7 @@ int run_render(const std::vector<std::string>& argv) {
         seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6,
         frame_range && range.count() > 1 ? output_spec.c_str() : output.c_str());
   }
+  if (distributed) finish_distributed();
   return 0;
 }
 

@@ -31,6 +31,11 @@ class Film {
     samples_[i] += samples;
   }
   uint32_t samples(uint32_t x, uint32_t y) const { return samples_[size_t(y) * width_ + x]; }
+  // The sum of pixel (x, y)'s samples (3 doubles), for code that moves a
+  // film's sums elsewhere (a distributed worker sends them to rank 0).
+  const double* sum(uint32_t x, uint32_t y) const { return &sum_[3 * (size_t(y) * width_ + x)]; }
+  // Zeroes the pixels of [x0, x1) x [y0, y1).
+  void clear_rect(uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1);
 
   // Per-pixel mean radiance (black where no sample landed yet).
   ImageRGB resolve() const;

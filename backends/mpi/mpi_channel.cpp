@@ -1,0 +1,231 @@
+#include "backends/mpi/mpi_channel.h"
+
+#include <mpi.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <mutex>
+#include <thread>
+
+#include "core/util/errors.h"
+
+namespace tandem::mpi {
+
+namespace {
+
+std::mutex& mpi_lock() {
+  static std::mutex m;
+  return m;
+}
+
+bool g_initialized = false;
+bool g_finalized = false;
+
+using Clock = std::chrono::steady_clock;
+
+// Long enough not to steal a core from the renderers (the 2-core case),
+// short enough that a batch's answer is seen within a fraction of a tile.
+void nap() {
+  std::this_thread::sleep_for(std::chrono::microseconds(200));
+}
+
+void abort_if_unfinished() {
+  // An error left main() on this rank: the others may be waiting for it.
+  if (g_initialized && !g_finalized) {
+    std::fflush(stderr);
+    MPI_Abort(MPI_COMM_WORLD, 1);
+  }
+}
+
+bool past(Clock::time_point start, double timeout_s) {
+  return timeout_s > 0.0 && std::chrono::duration<double>(Clock::now() - start).count() > timeout_s;
+}
+
+std::string seconds_text(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g s", s);
+  return buf;
+}
+
+}  // namespace
+
+void initialize() {
+  std::lock_guard<std::mutex> lock(mpi_lock());
+  if (g_initialized) return;
+  int provided = 0;
+  if (MPI_Init_thread(nullptr, nullptr, MPI_THREAD_SERIALIZED, &provided) != MPI_SUCCESS)
+    throw InputError("--distributed: MPI could not be initialized");
+  g_initialized = true;
+  std::atexit(abort_if_unfinished);
+  if (provided < MPI_THREAD_SERIALIZED) {
+    throw InputError(
+        "--distributed: this MPI library does not allow calls from several threads "
+        "(MPI_THREAD_SERIALIZED)");
+  }
+}
+
+void finalize() {
+  std::lock_guard<std::mutex> lock(mpi_lock());
+  if (!g_initialized || g_finalized) return;
+  MPI_Finalize();
+  g_finalized = true;
+}
+
+bool initialized() {
+  return g_initialized && !g_finalized;
+}
+
+int rank() {
+  std::lock_guard<std::mutex> lock(mpi_lock());
+  int r = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &r);
+  return r;
+}
+
+int size() {
+  std::lock_guard<std::mutex> lock(mpi_lock());
+  int n = 1;
+  MPI_Comm_size(MPI_COMM_WORLD, &n);
+  return n;
+}
+
+void abort_all(int code) {
+  std::fflush(stderr);
+  std::fflush(stdout);
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::_Exit(code);  // not reached
+}
+
+double answer_timeout_seconds() {
+  const char* v = std::getenv("TANDEM_MPI_TIMEOUT");
+  if (!v || !*v) return 60.0;
+  char* end = nullptr;
+  const double s = std::strtod(v, &end);
+  if (*end != '\0' || !(s > 0.0) || s > 1e9)
+    throw InputError(std::string("TANDEM_MPI_TIMEOUT must be a number of seconds > 0, got '") + v +
+                     "'");
+  return s;
+}
+
+void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s) {
+  MPI_Request request;
+  {
+    std::lock_guard<std::mutex> lock(mpi_lock());
+    MPI_Isend(bytes.data(), int(bytes.size()), MPI_BYTE, dest, tag, MPI_COMM_WORLD, &request);
+  }
+  const auto start = Clock::now();
+  for (;;) {
+    int done = 0;
+    {
+      std::lock_guard<std::mutex> lock(mpi_lock());
+      MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    }
+    if (done) return;
+    if (past(start, timeout_s))
+      throw RankFailure(dest, "did not take a message within " + seconds_text(timeout_s) +
+                                  " (stopped answering)");
+    nap();
+  }
+}
+
+bool try_receive(int source, Message* out) {
+  MPI_Request request;
+  {
+    std::lock_guard<std::mutex> lock(mpi_lock());
+    int flag = 0;
+    MPI_Status status;
+    MPI_Iprobe(source, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &status);
+    if (!flag) return false;
+    int count = 0;
+    MPI_Get_count(&status, MPI_BYTE, &count);
+    out->source = status.MPI_SOURCE;
+    out->tag = status.MPI_TAG;
+    out->bytes.resize(size_t(count));
+    MPI_Irecv(out->bytes.data(), count, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG, MPI_COMM_WORLD,
+              &request);
+  }
+  // A large message arrives only as fast as its sender lets MPI move it (a
+  // worker between two tiles): wait without holding the lock, so the other
+  // peers' threads go on meanwhile. Bounded like every other wait.
+  const double timeout_s = answer_timeout_seconds();
+  const auto start = Clock::now();
+  for (;;) {
+    int done = 0;
+    {
+      std::lock_guard<std::mutex> lock(mpi_lock());
+      MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    }
+    if (done) return true;
+    if (past(start, timeout_s))
+      throw RankFailure(out->source, "stopped answering in the middle of a message (" +
+                                         seconds_text(timeout_s) + ")");
+    nap();
+  }
+}
+
+Message receive(int source, double timeout_s, const std::string& waiting_for,
+                const std::function<void()>& idle) {
+  Message m;
+  const auto start = Clock::now();
+  while (!try_receive(source, &m)) {
+    if (idle) idle();
+    if (past(start, timeout_s))
+      throw RankFailure(source, "did not answer within " + seconds_text(timeout_s) +
+                                    " (waiting for " + waiting_for + ")");
+    nap();
+  }
+  return m;
+}
+
+struct PendingSends::Send {
+  std::vector<uint8_t> bytes;
+  MPI_Request request;
+  int dest;
+};
+
+PendingSends::~PendingSends() {
+  // Only reached with sends outstanding when the run is ending on an error
+  // (MPI_Abort follows); the buffers must outlive the requests.
+  if (!sends_.empty() && initialized()) return;  // leaked on purpose
+  for (Send* s : sends_)
+    delete s;
+}
+
+void PendingSends::start(int dest, int tag, std::vector<uint8_t> bytes) {
+  auto* s = new Send{std::move(bytes), MPI_REQUEST_NULL, dest};
+  {
+    std::lock_guard<std::mutex> lock(mpi_lock());
+    MPI_Isend(s->bytes.data(), int(s->bytes.size()), MPI_BYTE, dest, tag, MPI_COMM_WORLD,
+              &s->request);
+  }
+  sends_.push_back(s);
+}
+
+void PendingSends::progress() {
+  std::lock_guard<std::mutex> lock(mpi_lock());
+  for (size_t i = 0; i < sends_.size();) {
+    int done = 0;
+    MPI_Test(&sends_[i]->request, &done, MPI_STATUS_IGNORE);
+    if (done) {
+      delete sends_[i];
+      sends_.erase(sends_.begin() + std::ptrdiff_t(i));
+    } else {
+      ++i;
+    }
+  }
+}
+
+void PendingSends::drain(double timeout_s) {
+  const auto start = Clock::now();
+  for (;;) {
+    progress();
+    if (sends_.empty()) return;
+    if (past(start, timeout_s))
+      throw RankFailure(sends_.front()->dest,
+                        "did not take a message within " + seconds_text(timeout_s));
+    nap();
+  }
+}
+
+}  // namespace tandem::mpi
