@@ -86,6 +86,7 @@ std::string build_fingerprint() {
   TANDEM_KERNEL_ARRAYS(TANDEM_FINGERPRINT_ARRAY)
 #undef TANDEM_FINGERPRINT_ARRAY
   s += " constants:" + std::to_string(sizeof(KernelConstants)) +
+       " bvh:" + std::to_string(sizeof(KBvhConstants)) +
        " tile:" + std::to_string(sizeof(Tile));
   return s;
 }
@@ -94,10 +95,15 @@ void encode_scene(const KernelScene& ks, const SceneDelta& delta, ArrayCounts& r
                   WireWriter& w) {
   w.put(uint8_t(delta.full));
   w.put(uint8_t(delta.constants || delta.full));
+  w.put(uint8_t(delta.bvh_constants || delta.full));
   w.put(uint8_t(delta.instances_changed));
   put_indices(w, delta.meshes_rebuilt);
   put_indices(w, delta.meshes_refit);
+  put_indices(w, delta.instances_moved);
   if (delta.constants || delta.full) w.put(ks.constants);
+  // The BVH updater's own record (TLAS roots, layout), sent like the
+  // compiler's constants.
+  if (delta.bvh_constants || delta.full) w.put(ks.bvh);
   uint32_t id = 0;
 #define TANDEM_ENCODE_ARRAY(T, name) \
   encode_array(w, id, ks.name, delta.name, delta.full, receiver[id]), ++id;
@@ -110,10 +116,13 @@ SceneDelta decode_scene(WireReader& r, KernelScene& ks) {
   SceneDelta delta;
   delta.full = r.get<uint8_t>() != 0;
   delta.constants = r.get<uint8_t>() != 0;
+  delta.bvh_constants = r.get<uint8_t>() != 0;
   delta.instances_changed = r.get<uint8_t>() != 0;
   delta.meshes_rebuilt = get_indices(r);
   delta.meshes_refit = get_indices(r);
+  delta.instances_moved = get_indices(r);
   if (delta.constants) ks.constants = r.get<KernelConstants>();
+  if (delta.bvh_constants) ks.bvh = r.get<KBvhConstants>();
   for (uint32_t previous = 0, first = 1;; first = 0) {
     const uint32_t id = r.get<uint32_t>();
     if (id == kEndOfArrays) break;
