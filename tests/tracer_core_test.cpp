@@ -39,6 +39,7 @@ class SnapshotBackend final : public Backend {
     TANDEM_KERNEL_ARRAYS(TANDEM_APPLY_CHANGE)
 #undef TANDEM_APPLY_CHANGE
     if (delta.constants || delta.full) copy_.constants = scene.constants;
+    if (delta.bvh_constants || delta.full) copy_.bvh = scene.bvh;
     kd_ = copy_.view();
   }
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
