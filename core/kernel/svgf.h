@@ -63,6 +63,33 @@ TANDEM_HD Vec3 svgf_guard_albedo(Vec3 albedo) {
   return make_vec3(max_f(albedo.x, kMin), max_f(albedo.y, kMin), max_f(albedo.z, kMin));
 }
 
+// exp(x) for x <= 0 to about 2e-6 relative, with plain arithmetic: the
+// edge-stopping weights are most of the filter's cost, and libm's expf is
+// several times slower (and not bit-equal between the CPU and the GPU).
+TANDEM_HD float svgf_exp_neg(float x) {
+  const float y = x * 1.44269504f;  // log2(e)
+  if (!(y > -126.0f)) return 0.0f;
+  const float i = floorf(y), g = y - i - 0.5f;
+  // 2^g for g in [-0.5, 0.5): degree-5 Taylor polynomial, times 2^0.5.
+  const float p =
+      1.41421356f *
+      (1.0f +
+       g * (0.693147182f +
+            g * (0.240226507f + g * (0.0555041087f + g * (0.00961812911f + g * 0.00133335581f)))));
+  return p * uint_as_float(uint32_t(int(i) + 127) << 23);
+}
+
+// x^n for a whole n by repeated squaring (the normal edge stop's exponent).
+TANDEM_HD float svgf_pow_whole(float x, uint32_t n) {
+  float r = 1.0f;
+  while (n) {
+    if (n & 1u) r *= x;
+    x *= x;
+    n >>= 1u;
+  }
+  return r;
+}
+
 // Depth slope of the current frame at (x, y): per axis the smaller one-sided
 // difference to a neighbour on the same surface kind (so an edge does not
 // count as slope), as a bound on how much depth may change per pixel.
@@ -94,6 +121,7 @@ struct SvgfTemporalBuffers {
   const Vec4* prev_moments;            // last frame's (m1, m2, length, 0)
   Vec4* color;                         // out: illumination rgb, variance (temporal)
   Vec4* moments;                       // out: (m1, m2, length, 0)
+  Vec2* depth_slope;                   // out: svgf_depth_slope per pixel, for the later stages
 };
 
 // Whether last frame's pixel `prev` shows the surface this frame's `cur` sees.
@@ -114,8 +142,9 @@ TANDEM_HD void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffer
 
   Vec3 hist_color = make_vec3(0.0f);
   float hist_m1 = 0.0f, hist_m2 = 0.0f, hist_len = 0.0f, weight_sum = 0.0f;
+  const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
+  b.depth_slope[i] = slope;
   if (b.prev_features) {
-    const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
     const float tol = p.reproject_depth_rel * f.prev_depth + 2.0f * (slope.x + slope.y);
     // Previous position in pixel-index coordinates (centres at integers).
     const float qx = float(x) + f.motion.x, qy = float(y) + f.motion.y;
@@ -161,29 +190,31 @@ TANDEM_HD void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffer
 
 // --- edge-stopping weights -------------------------------------------------
 
-// Weight of neighbour q for centre c at pixel offset (dx, dy) without the
-// luminance term: 0 across a hit/miss boundary, falling off with depth
-// beyond the local slope and with the angle between normals.
-TANDEM_HD float svgf_geometry_weight(const SvgfParams& p, const PixelFeatures& c,
-                                     const PixelFeatures& q, Vec2 slope, int dx, int dy) {
+// Weight of neighbour q for centre c at pixel offset (dx, dy), times
+// exp(-extra) (the luminance term): 0 across a material or hit/miss
+// boundary, falling off with depth beyond the local slope and with the
+// angle between normals.
+TANDEM_HD float svgf_edge_weight(const SvgfParams& p, const PixelFeatures& c,
+                                 const PixelFeatures& q, Vec2 slope, int dx, int dy, float extra) {
   // Material boundaries are edges too: an emitter next to a wall (often one
   // mesh) differs in demodulated illumination by orders of magnitude.
   if (c.material != q.material) return 0.0f;  // also: hit against miss
-  if (!features_hit(c)) return 1.0f;
+  if (!features_hit(c)) return svgf_exp_neg(-extra);
   const float expected =
       p.sigma_depth * (slope.x * fabsf(float(dx)) + slope.y * fabsf(float(dy))) + 1e-3f * c.depth;
   const float wz = fabsf(c.depth - q.depth) / max_f(expected, 1e-8f);
-  const float wn = powf(max_f(0.0f, dot(c.normal, q.normal)), p.sigma_normal);
-  return wn * expf(-wz);
+  const float wn = svgf_pow_whole(max_f(0.0f, dot(c.normal, q.normal)), uint32_t(p.sigma_normal));
+  return wn * svgf_exp_neg(-(wz + extra));
 }
 
 // --- variance --------------------------------------------------------------
 
 struct SvgfVarianceBuffers {
   const PixelFeatures* features;
-  const Vec4* color;    // temporal output: illumination, temporal variance
-  const Vec4* moments;  // temporal output: (m1, m2, length, 0)
-  Vec4* out;            // illumination, variance
+  const Vec2* depth_slope;  // from the temporal stage
+  const Vec4* color;        // temporal output: illumination, temporal variance
+  const Vec4* moments;      // temporal output: (m1, m2, length, 0)
+  Vec4* out;                // illumination, variance
 };
 
 // Below this many frames of history the moments are too young to trust.
@@ -200,7 +231,7 @@ TANDEM_HD void svgf_variance_pixel(const SvgfParams& p, const SvgfVarianceBuffer
   // A spatial estimate over 7x7 pixels of the same surface, boosted while
   // the history is short so that the filter smooths harder there.
   const PixelFeatures& c = b.features[i];
-  const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
+  const Vec2 slope = b.depth_slope[i];
   float wsum = 0.0f, m1 = 0.0f, m2 = 0.0f;
   Vec3 col = make_vec3(0.0f);
   for (int dy = -3; dy <= 3; ++dy) {
@@ -209,7 +240,7 @@ TANDEM_HD void svgf_variance_pixel(const SvgfParams& p, const SvgfVarianceBuffer
       if (qx < 0 || qy < 0 || qx >= int(p.width) || qy >= int(p.height)) continue;
       const size_t j = size_t(qy) * p.width + uint32_t(qx);
       const float w =
-          (dx == 0 && dy == 0) ? 1.0f : svgf_geometry_weight(p, c, b.features[j], slope, dx, dy);
+          (dx == 0 && dy == 0) ? 1.0f : svgf_edge_weight(p, c, b.features[j], slope, dx, dy, 0.0f);
       if (w <= 0.0f) continue;
       m1 += b.moments[j].x * w;
       m2 += b.moments[j].y * w;
@@ -229,7 +260,8 @@ TANDEM_HD void svgf_variance_pixel(const SvgfParams& p, const SvgfVarianceBuffer
 
 struct SvgfAtrousBuffers {
   const PixelFeatures* features;
-  const Vec4* in;  // illumination, variance
+  const Vec2* depth_slope;  // from the temporal stage
+  const Vec4* in;           // illumination, variance
   Vec4* out;
 };
 
@@ -241,7 +273,8 @@ TANDEM_HD float svgf_kernel_tap(int d) {
 TANDEM_HD void svgf_atrous_pixel(const SvgfParams& p, const SvgfAtrousBuffers& b, uint32_t step,
                                  uint32_t x, uint32_t y) {
   const size_t i = size_t(y) * p.width + x;
-  const PixelFeatures& c = b.features[i];
+  // Local copies: the compiler cannot know that b.out does not alias them.
+  const PixelFeatures c = b.features[i];
   const Vec4 center = b.in[i];
   const float lum_c = luminance(xyz(center));
   // The luminance edge stop uses the variance blurred over 3x3 pixels: the
@@ -257,7 +290,7 @@ TANDEM_HD void svgf_atrous_pixel(const SvgfParams& p, const SvgfAtrousBuffers& b
     }
   }
   const float lum_scale = 1.0f / (p.sigma_luminance * safe_sqrt(var_blur / var_w) + 1e-10f);
-  const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
+  const Vec2 slope = b.depth_slope[i];
 
   Vec3 sum = xyz(center) * 0.140625f;  // centre tap: 3/8 * 3/8, weight 1
   float var_sum = center.w * 0.140625f * 0.140625f, wsum = 0.140625f;
@@ -268,10 +301,12 @@ TANDEM_HD void svgf_atrous_pixel(const SvgfParams& p, const SvgfAtrousBuffers& b
       const int qx = int(x) + kx * s, qy = int(y) + ky * s;
       if (qx < 0 || qy < 0 || qx >= int(p.width) || qy >= int(p.height)) continue;
       const size_t j = size_t(qy) * p.width + uint32_t(qx);
+      const PixelFeatures& fq = b.features[j];
+      if (fq.material != c.material) continue;
       const Vec4 q = b.in[j];
-      float w = svgf_geometry_weight(p, c, b.features[j], slope, kx * s, ky * s);
+      const float w = svgf_edge_weight(p, c, fq, slope, kx * s, ky * s,
+                                       fabsf(luminance(xyz(q)) - lum_c) * lum_scale);
       if (w <= 0.0f) continue;
-      w *= expf(-fabsf(luminance(xyz(q)) - lum_c) * lum_scale);
       const float h = svgf_kernel_tap(kx) * svgf_kernel_tap(ky) * w;
       sum += xyz(q) * h;
       var_sum += q.w * h * h;

@@ -20,7 +20,8 @@ ImageRGB Film::resolve() const {
   ImageRGB img(width_, height_);
   for (size_t i = 0; i < samples_.size(); ++i) {
     const double inv = samples_[i] ? 1.0 / double(samples_[i]) : 0.0;
-    for (int c = 0; c < 3; ++c) img.rgb[3 * i + c] = float(sum_[3 * i + c] * inv);
+    for (int c = 0; c < 3; ++c)
+      img.rgb[3 * i + c] = float(sum_[3 * i + c] * inv);
   }
   return img;
 }

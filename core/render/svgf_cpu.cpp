@@ -31,10 +31,11 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr) {
   const size_t n = size_t(p.width) * p.height;
   if (n == 0) return t;
   const SvgfTemporalBuffers tb{fr.features,     fr.radiance,  fr.prev_features, fr.prev_color,
-                               fr.prev_moments, fr.scratch_a, fr.moments_out};
+                               fr.prev_moments, fr.scratch_a, fr.moments_out,   fr.depth_slope};
   t.temporal = for_each_pixel(p.width, p.height,
                               [&](uint32_t x, uint32_t y) { svgf_temporal_pixel(p, tb, x, y); });
-  const SvgfVarianceBuffers vb{fr.features, fr.scratch_a, fr.moments_out, fr.scratch_b};
+  const SvgfVarianceBuffers vb{fr.features, fr.depth_slope, fr.scratch_a, fr.moments_out,
+                               fr.scratch_b};
   t.variance = for_each_pixel(p.width, p.height,
                               [&](uint32_t x, uint32_t y) { svgf_variance_pixel(p, vb, x, y); });
   // scratch_b holds the input of the first iteration.
@@ -42,7 +43,7 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr) {
   const auto atrous_start = Clock::now();
   for (uint32_t it = 0; it < p.iterations; ++it) {
     Vec4* out = it == 0 ? fr.history_color_out : (in == fr.scratch_a ? fr.scratch_b : fr.scratch_a);
-    const SvgfAtrousBuffers ab{fr.features, in, out};
+    const SvgfAtrousBuffers ab{fr.features, fr.depth_slope, in, out};
     const uint32_t step = 1u << it;
     for_each_pixel(p.width, p.height,
                    [&](uint32_t x, uint32_t y) { svgf_atrous_pixel(p, ab, step, x, y); });

@@ -19,6 +19,7 @@ struct SvgfFrame {
   Vec3* output;                        // out: filtered radiance
   Vec4* scratch_a;                     // work space
   Vec4* scratch_b;
+  Vec2* depth_slope;  // work space
 };
 
 struct SvgfStageSeconds {

@@ -26,6 +26,7 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
     scratch_b_.assign(n, Vec4{});
     radiance_.assign(n, Vec3{});
     output_.assign(n, Vec3{});
+    depth_slope_.assign(n, Vec2{});
   }
   for (size_t i = 0; i < n; ++i)
     radiance_[i] = make_vec3(radiance.rgb[3 * i], radiance.rgb[3 * i + 1], radiance.rgb[3 * i + 2]);
@@ -43,7 +44,8 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                         moments_[next].data(),
                         output_.data(),
                         scratch_a_.data(),
-                        scratch_b_.data()};
+                        scratch_b_.data(),
+                        depth_slope_.data()};
   last_seconds_ = svgf_run_cpu(p, frame);
   current_ = next;
   has_history_ = true;

@@ -52,6 +52,7 @@ class TemporalDenoiser {
   std::vector<Vec4> color_[2], moments_[2];
   std::vector<Vec4> scratch_a_, scratch_b_;
   std::vector<Vec3> radiance_, output_;
+  std::vector<Vec2> depth_slope_;
   SvgfStageSeconds last_seconds_;
 };
 
