@@ -15,6 +15,7 @@
 
 #include "app/backend_list.h"
 #include "app/bench_accstruc.h"
+#include "app/bench_denoise.h"
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
@@ -98,6 +99,7 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
+  if (is_denoise_quality_bench(argv)) return run_denoise_quality_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // issue 6: frame loop
   const ParsedArgs args("bench", bench_options(), argv);
   if (args.has("help")) {

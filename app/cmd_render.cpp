@@ -15,6 +15,7 @@
 #include "app/cli_args.h"
 #include "app/commands.h"
 #include "app/progress.h"
+#include "app/render_denoise.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/scene/kernel_scene.h"
@@ -65,6 +66,9 @@ const std::vector<OptionSpec>& render_options() {
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"tile-size", true, "tile edge in pixels (default 32)", "N"},
       {"clamp", true, "clamp per-sample radiance to this value (biased; default off)", "X"},
+      {"denoise", false, "filter the image guided by primary-hit features (SVGF, one frame)"},
+      {"aov", true,
+       "also write the feature buffers (albedo, normal, depth, motion, ids) to DIR as EXR", "DIR"},
       {"quiet", false, "no progress bar or summary"},
       {"save-on-interrupt", false,
        "on Ctrl-C (SIGINT) or SIGTERM, write the samples rendered so far to --output"},
@@ -184,6 +188,7 @@ int run_render(const std::vector<std::string>& argv) {
   }
   // ... and that it can be written at all: a render is too costly to throw away at the end.
   check_output_path(output);
+  if (auto aov = args.value("aov")) check_aov_directory(*aov);
 
   Scene scene = load_scene(scene_spec, load_options);
   if (auto env = args.value("env")) {
@@ -281,7 +286,14 @@ int run_render(const std::vector<std::string>& argv) {
     return finish_interrupted(stop_signal, tracer, spp, output, write_options,
                               args.has("save-on-interrupt"));
 
-  write_image(output, tracer.image(), write_options);
+  ImageRGB final_image = tracer.image();
+  if (args.has("denoise") || args.has("aov")) {
+    const std::vector<PixelFeatures> features = render_scene_features(scene, settings);
+    if (auto aov = args.value("aov"))
+      write_feature_aovs(*aov, features, settings.width, settings.height);
+    if (args.has("denoise")) final_image = denoise_offline_image(features, final_image, spp);
+  }
+  write_image(output, final_image, write_options);
 
   if (!quiet) {
     uint64_t samples = 0, rays = 0;

@@ -43,7 +43,7 @@ TANDEM_HD SvgfParams svgf_default_params(uint32_t width, uint32_t height) {
   SvgfParams p;
   p.width = width;
   p.height = height;
-  p.max_history = 32;
+  p.max_history = 12;
   p.max_moments_history = 5;
   p.iterations = 5;
   p.sigma_depth = 1.0f;
@@ -69,14 +69,18 @@ TANDEM_HD Vec3 svgf_guard_albedo(Vec3 albedo) {
 TANDEM_HD float svgf_exp_neg(float x) {
   const float y = x * 1.44269504f;  // log2(e)
   if (!(y > -126.0f)) return 0.0f;
-  const float i = floorf(y), g = y - i - 0.5f;
+  // floor(y) by truncation (y <= 0 here): floorf is a library call on
+  // baseline x86-64.
+  int n = int(y);
+  n -= float(n) > y ? 1 : 0;
+  const float g = y - float(n) - 0.5f;
   // 2^g for g in [-0.5, 0.5): degree-5 Taylor polynomial, times 2^0.5.
   const float p =
       1.41421356f *
       (1.0f +
        g * (0.693147182f +
             g * (0.240226507f + g * (0.0555041087f + g * (0.00961812911f + g * 0.00133335581f)))));
-  return p * uint_as_float(uint32_t(int(i) + 127) << 23);
+  return p * uint_as_float(uint32_t(n + 127) << 23);
 }
 
 // x^n for a whole n by repeated squaring (the normal edge stop's exponent).
