@@ -58,8 +58,8 @@ TEST(DenoiseCli, QualityBenchWritesOneObjectPerMeasuredFrame) {
   TempDir dir("tandem_denoise_cli");
   const fs::path json = dir.path() / "q.json";
   const RunResult r = run_tandem(
-      "bench builtin:cornell --denoise-quality --width 32 --height 24 --path-frames 4 "
-      "--reference-spp 8 --json " +
+      "bench builtin:cornell --denoise-quality --width 64 --height 48 --path-frames 4 "
+      "--reference-spp 64 --json " +
       shell_quote(json.string()));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::ifstream in(json);
@@ -73,6 +73,8 @@ TEST(DenoiseCli, QualityBenchWritesOneObjectPerMeasuredFrame) {
       EXPECT_GE(f[key].number, 0.0) << key;
     }
     EXPECT_GT(f["raw1_relmse"].number, f["raw8_relmse"].number);
+    // The camera moves along the path: the history must still help.
+    EXPECT_LT(f["denoised_relmse"].number, f["raw1_relmse"].number);
   }
 }
 

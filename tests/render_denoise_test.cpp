@@ -165,6 +165,49 @@ TEST(Denoise, HistoryRejectedWhereMovingObjectUncoversBackground) {
   EXPECT_EQ(uncovered, int(sq.size * sq.speed));
 }
 
+TEST(Denoise, HistoryRejectedAcrossAMaterialEdgeWithinOneInstance) {
+  // A ceiling (material 0) with a light (material 1, albedo 0) in it, one
+  // instance; the view pans 2.5 pixels per frame, so the bilinear taps of
+  // the ceiling next to the light straddle the edge. They must not take the
+  // light's history.
+  const float shift = 2.5f;
+  auto features = [&](int frame) {
+    std::vector<PixelFeatures> f(kW * kH);
+    for (uint32_t y = 0; y < kH; ++y) {
+      for (uint32_t x = 0; x < kW; ++x) {
+        const float wx = float(x) + 0.5f + float(frame) * shift;  // world column
+        const bool light = wx >= 20.0f && wx < 30.0f && y >= 10 && y < 20;
+        PixelFeatures& p = f[y * kW + x];
+        p = plane_pixel(0, 3.0f, make_vec3(0, 0, 1), light ? make_vec3(0.0f) : make_vec3(0.7f));
+        p.material = light ? 1u : 0u;
+        if (frame > 0) p.motion = make_vec2(shift, 0.0f);
+      }
+    }
+    return f;
+  };
+  auto radiance = [&](const std::vector<PixelFeatures>& f) {
+    ImageRGB img(kW, kH);
+    for (size_t i = 0; i < f.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        img.rgb[3 * i + size_t(c)] = f[i].material == 1 ? 50.0f : 0.35f;
+    return img;
+  };
+  TemporalDenoiser denoiser;
+  ImageRGB out;
+  for (int frame = 0; frame < 3; ++frame) {
+    const std::vector<PixelFeatures> f = features(frame);
+    out = denoiser.process(f, radiance(f));
+  }
+  const std::vector<PixelFeatures> f = features(2);
+  for (uint32_t y = 0; y < kH; ++y) {
+    for (uint32_t x = 0; x + 3 < kW; ++x) {
+      const size_t i = y * kW + x;
+      if (f[i].material != 0) continue;
+      EXPECT_NEAR(out.rgb[3 * i], 0.35f, 0.02f) << "ceiling pixel " << x << "," << y;
+    }
+  }
+}
+
 TEST(Denoise, NoGhostTrailBehindMovingObject) {
   const MovingSquare sq;
   TemporalDenoiser denoiser;

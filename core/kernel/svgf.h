@@ -131,8 +131,11 @@ struct SvgfTemporalBuffers {
 // Whether last frame's pixel `prev` shows the surface this frame's `cur` sees.
 TANDEM_HD bool svgf_history_consistent(const SvgfParams& p, const PixelFeatures& cur,
                                        const PixelFeatures& prev, float depth_tolerance) {
-  if (cur.instance != prev.instance) return false;  // also: miss against hit
-  if (!features_hit(cur)) return true;              // environment on both
+  // Also: miss against hit. The material too: a light and the ceiling
+  // around it are often one instance, with illumination orders of magnitude
+  // apart, and bilinear taps at a fractional motion straddle their edge.
+  if (cur.instance != prev.instance || cur.material != prev.material) return false;
+  if (!features_hit(cur)) return true;  // environment on both
   if (fabsf(prev.depth - cur.prev_depth) > depth_tolerance) return false;
   return dot(prev.normal, cur.normal) >= p.reproject_normal_cos;
 }
