@@ -16,6 +16,7 @@
 
 #include "app/backend_list.h"
 #include "app/bench_accstruc.h"
+#include "app/bench_denoise.h"
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
 #include "app/bench_scene_update.h"
@@ -104,6 +105,7 @@ double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int
 int run_bench(const std::vector<std::string>& argv) {
   if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
     return run_distributed_bench(argv);
+  if (is_denoise_quality_bench(argv)) return run_denoise_quality_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
   if (is_scene_update_bench(argv)) return run_scene_update_bench(argv);
   const ParsedArgs args("bench", bench_options(), argv);

@@ -20,6 +20,7 @@
 #include "app/progress.h"
 #include "app/render_frames.h"
 #include "app/scene_setup.h"
+#include "app/render_denoise.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/scene/kernel_scene.h"
@@ -72,6 +73,10 @@ const std::vector<OptionSpec>& render_options() {
       {
           {"tile-size", true, "tile edge in pixels", "N", "32"},
           {"clamp", true, "clamp per-sample radiance to this value (biased; 0 = off)", "X", "0"},
+          {"denoise", false, "filter the image guided by primary-hit features (SVGF, one frame)"},
+          {"aov", true,
+           "also write the feature buffers (albedo, normal, depth, motion, ids) to DIR as EXR",
+           "DIR"},
           {"quiet", false, "no progress bar or summary"},
           {"distributed", false,
            "under mpirun -np N: every rank renders tiles of each frame, rank 0 writes the output "
@@ -186,6 +191,11 @@ int run_render(const std::vector<std::string>& argv) {
                                         : "--tonemap",
                  both ? "apply" : "applies", output.c_str(), both ? "them" : "it");
   }
+  if (auto aov = args.value("aov")) {
+    if (frame_range && frame_range->count() > 1)
+      throw UsageError("render: --aov writes one frame's feature buffers; use it with --frame N");
+    check_aov_directory(*aov);
+  }
 
   GltfAnimations animations;
   SceneRequest scene_load = scene_request;
@@ -250,6 +260,7 @@ int run_render(const std::vector<std::string>& argv) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<BackendFrameMetrics> totals;
   double render_seconds = 0.0;
+  const bool with_features = args.has("denoise") || args.has("aov");
   // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
   std::optional<GracefulStop> stop(std::in_place);
   for (uint32_t frame = range.first; frame <= range.last; ++frame) {
@@ -266,7 +277,8 @@ int run_render(const std::vector<std::string>& argv) {
         tracer.set_settings(tracer_settings);
       }
       std::function<void(Scene&)> pose_next;
-      if (frame < range.last && left <= tracer_settings.samples_per_frame) {
+      // (Not with features: they are traced from the scene as this frame has it.)
+      if (frame < range.last && left <= tracer_settings.samples_per_frame && !with_features) {
         const double next_time = range.time(frame + 1);
         pose_next = [&animator, next_time](Scene& s) { animator->pose(next_time, s); };
       }
@@ -299,7 +311,15 @@ int run_render(const std::vector<std::string>& argv) {
       return finish_interrupted(stop_signal, tracer, spp, frame_output, write_options,
                                 args.has("save-on-interrupt") && done > 0);
     }
-    write_image(frame_output, tracer.image(), write_options);
+    ImageRGB final_image = tracer.image();
+    if (with_features) {
+      const std::vector<PixelFeatures> features = render_scene_features(scene, settings);
+      if (auto aov = args.value("aov"))
+        write_feature_aovs(*aov, features, settings.width, settings.height);
+      if (args.has("denoise")) final_image = denoise_offline_image(features, final_image, spp);
+    }
+    write_image(frame_output, final_image, write_options);
+    if (with_features && frame < range.last) animator->pose(range.time(frame + 1), scene);
     if (frame_range && range.count() > 1 && !quiet && !bar.enabled())
       std::fprintf(stderr, "tandem: frame %u (t = %.4f s) -> %s\n", frame, range.time(frame),
                    frame_output.c_str());

@@ -107,6 +107,11 @@ class CpuFallbackBackend final : public Backend {
     return stats;
   }
 
+  bool render_features(const FeaturePass& pass, PixelFeatures* out) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return active_->render_features(pass, out);
+  }
+
  private:
   // Replaces the device backend by a CPU backend that has seen nothing yet.
   // The device backend is kept, not destroyed: the other thread may still be

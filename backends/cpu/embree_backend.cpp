@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/kernel/alpha.h"
+#include "core/render/cpu_features.h"
 #include "core/render/cpu_tile_loop.h"
 #include "core/render/cpu_wavefront.h"
 #include "core/util/log.h"
@@ -239,6 +240,11 @@ void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
     }
   }
   kd_ = ks.view();
+}
+
+bool EmbreeBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
+  render_features_on_cpu(kd_, EmbreeTracer{top_, &kd_}, pass, out);
+  return true;
 }
 
 BackendStats EmbreeBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {

@@ -32,6 +32,7 @@ class EmbreeBackend final : public Backend {
   BackendTraits traits() const override { return {.uses_host_cores = true}; }
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
+  bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
 
   // Single-ray queries, for tests and benchmarks (thread-safe after sync).
   Hit intersect(const Ray& ray, uint32_t alpha_key = 0) const;

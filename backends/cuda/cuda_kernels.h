@@ -17,6 +17,9 @@
 
 namespace tandem {
 
+struct FeaturePass;    // core/kernel/features.h
+struct PixelFeatures;  // core/kernel/features.h
+
 // Megakernel: one thread per pixel sample runs render_pixel_sample with
 // BvhTracer and writes the sample's radiance to radiance[item]; rays traced
 // are added to *ray_count.
@@ -29,6 +32,12 @@ void launch_megakernel(const KernelData* kd, const TileBatch& batch, Vec3* radia
 void launch_wavefront(const KernelData* kd, const TileBatch& batch, const WavefrontArrays& wave,
                       Vec3* radiance, unsigned long long* ray_count, uint32_t* host_counter,
                       cudaStream_t stream);
+
+// The denoiser's feature pass (core/kernel/features.h): one thread per
+// pixel of a width x height film; pass.prev_object_to_world must point to
+// device memory (backends/cuda/svgf_kernels.cu).
+void launch_features(const KernelData* kd, const FeaturePass& pass, uint32_t width, uint32_t height,
+                     PixelFeatures* out, cudaStream_t stream);
 
 // Closest hits (any_hit = false) or occlusion (any_hit = true: a valid hit
 // means occluded) of n rays with Tandem's BVH, with persistent threads

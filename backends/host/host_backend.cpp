@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "core/kernel/bvh_traverse.h"
+#include "core/render/cpu_features.h"
 #include "core/render/cpu_tile_loop.h"
 #include "core/render/cpu_wavefront.h"
 
@@ -17,6 +18,11 @@ void HostBackend::sync(const KernelScene& scene, const SceneDelta& /*delta*/) {
   // AccelStructure has already brought up to date for this delta.
   check_bvh_present(scene, "host backend");
   kd_ = scene.view();
+}
+
+bool HostBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
+  render_features_on_cpu(kd_, BvhTracer{&kd_}, pass, out);
+  return true;
 }
 
 BackendStats HostBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {

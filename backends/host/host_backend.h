@@ -30,6 +30,7 @@ class HostBackend final : public Backend {
   // or do not cover its instances (AccelStructure has not run on it).
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
+  bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
 
   const KernelData& kernel_data() const { return kd_; }
   CudaKernelVariant kernel() const { return kernel_; }

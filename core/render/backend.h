@@ -15,6 +15,9 @@
 
 namespace tandem {
 
+struct FeaturePass;    // core/kernel/features.h
+struct PixelFeatures;  // core/kernel/features.h
+
 // Samples [sample_begin, sample_begin + sample_count) of every pixel of the
 // tiles a backend takes.
 struct RenderPass {
@@ -120,6 +123,13 @@ class Backend {
   // Renders tiles pulled from `tiles` until it is empty, adding every
   // pixel's samples to `film`.
   virtual BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) = 0;
+
+  // Primary-hit features (core/kernel/features.h) of every pixel of the
+  // synced scene's camera into out[y * width + x], for the denoiser. Returns
+  // false when this backend has no feature pass (the caller asks another).
+  virtual bool render_features(const FeaturePass& /*pass*/, PixelFeatures* /*out*/) {
+    return false;
+  }
 };
 
 }  // namespace tandem

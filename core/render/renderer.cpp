@@ -24,7 +24,8 @@ OfflineRenderResult render_offline(Backend& backend, uint32_t width, uint32_t he
 
   // All queues outlive the monitor thread, which may still be reading one.
   std::vector<std::unique_ptr<TileQueue>> queues;
-  for (uint32_t p = 0; p < passes; ++p) queues.push_back(std::make_unique<TileQueue>(grid));
+  for (uint32_t p = 0; p < passes; ++p)
+    queues.push_back(std::make_unique<TileQueue>(grid));
   std::atomic<const TileQueue*> current{nullptr};
   std::atomic<uint32_t> pass_index{0};
   std::mutex mutex;

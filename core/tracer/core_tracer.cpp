@@ -98,6 +98,15 @@ void CoreTracer::apply_settings(const TracerSettings& settings) {
   scheduler_.set_settings(settings.scheduler);
 }
 
+bool CoreTracer::render_features(MotionHistory& motion, std::vector<PixelFeatures>& out) {
+  const KernelData kd = kernel_scene_.view();
+  out.resize(size_t(kd.constants.camera.width) * kd.constants.camera.height);
+  const FeaturePass pass = motion.advance(kd);
+  for (const std::unique_ptr<Backend>& backend : backends_)
+    if (backend->render_features(pass, out.data())) return true;
+  return false;
+}
+
 const FrameMetrics& CoreTracer::render_frame(Scene& scene) {
   begin_frame(scene);
   return end_frame();

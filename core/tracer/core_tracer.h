@@ -30,6 +30,7 @@
 
 #include "core/render/backend.h"
 #include "core/scene/kernel_scene.h"
+#include "core/scene/motion_history.h"
 #include "core/scene/scene.h"
 #include "core/tracer/tile_scheduler.h"
 
@@ -133,6 +134,12 @@ class CoreTracer {
   ImageRGB image() const { return film_.resolve(); }
 
   size_t backend_count() const { return backends_.size(); }
+  // Primary-hit features (core/kernel/features.h) of the last frame's
+  // scene, from the first backend with a feature pass, with motion measured
+  // from the frame of motion's previous advance(). Call after end_frame()
+  // and before the next prepare_next_frame()/begin_frame(). Returns false
+  // when no backend has a feature pass (a GPU-only list).
+  bool render_features(MotionHistory& motion, std::vector<PixelFeatures>& out);
   // Which backend rendered each tile of the last frame (index into
   // backends; -1: none), for the split overlay.
   const std::vector<Tile>& tiles() const { return scheduler_.tiles(); }

@@ -1,0 +1,195 @@
+// The denoiser's quality and cost along the scripted camera path. Every
+// frame renders 1 spp with a new seed while the arena moves and the camera
+// orbits, computes the features and runs the temporal denoiser, exactly as
+// a frame loop would. At three frames along the path the frame is frozen
+// and rendered again at 8 spp and at the reference sample count; the table
+// (and --json) compare raw 1 spp, raw 8 spp and the denoised 1 spp frame
+// (which has the history of the path so far) with that reference.
+#include "app/bench_denoise.h"
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
+
+#include "app/bench_report.h"
+#include "app/cli_args.h"
+#include "app/json_writer.h"
+#include "app/render_denoise.h"
+#include "app/view/scripted_path.h"
+#include "backends/cpu/embree_backend.h"
+#include "core/render/renderer.h"
+#include "core/render/temporal_denoiser.h"
+#include "core/scene/motion_history.h"
+#include "core/util/errors.h"
+#include "scenes/arena_scene.h"
+#include "scenes/scene_loader.h"
+
+namespace tandem {
+
+namespace {
+
+const std::vector<OptionSpec>& denoise_bench_options() {
+  static const std::vector<OptionSpec> specs = {
+      {"denoise-quality", false, "this benchmark"},
+      {"width", true, "frame width (default 640)", "W"},
+      {"height", true, "frame height (default 360)", "H"},
+      {"max-depth", true, "scattering events per path (default 4)", "D"},
+      {"path-frames", true,
+       "frames along the scripted path; measured at 1/4, 1/2 and the end (default 60)", "N"},
+      {"reference-spp", true, "samples per pixel of the reference frames (default 1024)", "N"},
+      {"max-history", true, "frames the colour history averages at most (default 12)", "N"},
+      {"threads", true, "CPU worker threads (default: all cores)", "N"},
+      {"images", true,
+       "write side-by-side PNGs (raw 1 spp | raw 8 spp | denoised | reference) to DIR", "DIR"},
+      {"json", true, "write a list with one object per measured frame to FILE", "FILE"},
+      {"help", false, "show this help"},
+  };
+  return specs;
+}
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+// Half-resolution copies of the images side by side, tone mapped.
+void write_side_by_side(const std::filesystem::path& path,
+                        const std::vector<const ImageRGB*>& imgs) {
+  const uint32_t w = imgs[0]->width / 2, h = imgs[0]->height / 2;
+  ImageRGB out(w * uint32_t(imgs.size()), h);
+  for (size_t k = 0; k < imgs.size(); ++k) {
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          const ImageRGB& im = *imgs[k];
+          out.pixel(uint32_t(k) * w + x, y)[c] =
+              0.25f * (im.pixel(2 * x, 2 * y)[c] + im.pixel(2 * x + 1, 2 * y)[c] +
+                       im.pixel(2 * x, 2 * y + 1)[c] + im.pixel(2 * x + 1, 2 * y + 1)[c]);
+        }
+      }
+    }
+  }
+  write_png_rgb8(path, out.width, out.height, tone_map_to_srgb8(out, 0.0f, ToneMap::kStandard));
+}
+
+}  // namespace
+
+bool is_denoise_quality_bench(const std::vector<std::string>& args) {
+  return std::find(args.begin(), args.end(), "--denoise-quality") != args.end();
+}
+
+int run_denoise_quality_bench(const std::vector<std::string>& argv) {
+  const ParsedArgs args("bench", denoise_bench_options(), argv);
+  if (args.has("help")) {
+    std::printf("usage: tandem bench [SCENE] --denoise-quality [options]\n\n%s",
+                format_options_help(denoise_bench_options()).c_str());
+    return 0;
+  }
+  if (args.positionals().size() > 1) throw UsageError("bench: expected at most one SCENE argument");
+  const std::string spec = args.positionals().empty() ? "builtin:arena" : args.positionals()[0];
+  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
+  std::optional<tbb::global_control> limit;
+  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  RenderSettings settings;
+  settings.width = args.get_u32("width", 640, 16, 16384);
+  settings.height = args.get_u32("height", 360, 16, 16384);
+  settings.max_depth = args.get_u32("max-depth", 4, 1, 1024);
+  const uint32_t frames = args.get_u32("path-frames", 60, 4, 1u << 20);
+  const uint32_t ref_spp = args.get_u32("reference-spp", 1024, 8, 1u << 20);
+  const std::optional<std::string> json_path = args.value("json");
+  if (json_path) check_json_output_path(*json_path);
+  const std::optional<std::string> images = args.value("images");
+  if (images) check_aov_directory(*images);
+
+  Scene scene = load_scene(spec);
+  if (!scene.has_camera()) {
+    scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f,
+                                         float(settings.width) / float(settings.height)));
+  }
+  std::optional<ArenaSimulation> arena;
+  if (spec == "builtin:arena") arena.emplace(scene);
+  const Camera base = scene.camera();
+  const uint32_t measured[3] = {frames / 4, frames / 2, frames - 1};
+
+  KernelScene ks;
+  SceneCompiler compiler;
+  EmbreeBackend backend;
+  MotionHistory motion;
+  SvgfParams params = svgf_default_params(settings.width, settings.height);
+  params.max_history = args.get_u32("max-history", params.max_history, 1, 1u << 16);
+  TemporalDenoiser denoiser(params);
+  std::vector<PixelFeatures> features;
+  JsonValue list = JsonValue::array();
+  const uint32_t w = settings.width, h = settings.height;
+  std::printf(
+      "scene %s, %ux%u, max depth %u, %u frames on the scripted path, reference %u spp, %d "
+      "threads\n",
+      spec.c_str(), w, h, settings.max_depth, frames, ref_spp,
+      threads ? int(threads) : tbb::info::default_concurrency());
+  std::printf("%6s %12s %12s %14s %9s %9s %9s %10s %11s %10s\n", "frame", "raw1_relmse",
+              "raw8_relmse", "denoised_relmse", "raw1_ssim", "raw8_ssim", "den_ssim", "filter_ms",
+              "feature_ms", "render_ms");
+  auto render = [&](uint32_t seed, uint32_t spp) {
+    settings.seed = seed;
+    backend.sync(ks, compiler.compile(scene, settings, ks));
+    OfflineRenderOptions o;
+    o.spp = spp;
+    return render_offline(backend, w, h, o).image;
+  };
+  for (uint32_t f = 0; f < frames; ++f) {
+    const double t = double(f) * kScriptedFrameStep;
+    if (arena) arena->advance_to(t, scene);
+    scene.edit_camera() = scripted_camera(base, t);
+    const auto render_start = Clock::now();
+    const ImageRGB raw1 = render(f, 1);
+    const double render_ms = ms_since(render_start);
+    const auto feature_start = Clock::now();
+    features.resize(size_t(w) * h);
+    backend.render_features(motion.advance(ks.view()), features.data());
+    const double feature_ms = ms_since(feature_start);
+    const ImageRGB denoised = denoiser.process(features, raw1);
+    const double filter_ms = denoiser.last_seconds().total() * 1e3;
+    if (std::getenv("TANDEM_DENOISE_STAGES")) {
+      const SvgfStageSeconds& st = denoiser.last_seconds();
+      std::fprintf(stderr, "frame %u: temporal %.2f variance %.2f atrous %.2f modulate %.2f ms\n",
+                   f, st.temporal * 1e3, st.variance * 1e3, st.atrous * 1e3, st.modulate * 1e3);
+    }
+    if (std::find(std::begin(measured), std::end(measured), f) == std::end(measured)) continue;
+    // The same frozen frame: 8 spp and the reference, with seeds of their own.
+    const ImageRGB raw8 = render(0x10000000u + f, 8);
+    const ImageRGB ref = render(0x20000000u + f, ref_spp);
+    const double e1 = relative_mse(raw1, ref), e8 = relative_mse(raw8, ref),
+                 ed = relative_mse(denoised, ref);
+    const double s1 = ssim_luminance(raw1, ref), s8 = ssim_luminance(raw8, ref),
+                 sd = ssim_luminance(denoised, ref);
+    std::printf("%6u %12.4f %12.4f %14.4f %9.3f %9.3f %9.3f %10.2f %11.2f %10.2f\n", f, e1, e8, ed,
+                s1, s8, sd, filter_ms, feature_ms, render_ms);
+    std::fflush(stdout);
+    list.push(JsonValue::object()
+                  .set("frame", f)
+                  .set("raw1_relmse", e1)
+                  .set("raw8_relmse", e8)
+                  .set("denoised_relmse", ed)
+                  .set("raw1_ssim", s1)
+                  .set("raw8_ssim", s8)
+                  .set("denoised_ssim", sd)
+                  .set("filter_ms", filter_ms)
+                  .set("feature_ms", feature_ms)
+                  .set("render_1spp_ms", render_ms)
+                  .set("reference_spp", ref_spp));
+    if (images) {
+      write_side_by_side(
+          std::filesystem::path(*images) / ("denoise_frame_" + std::to_string(f) + ".png"),
+          {&raw1, &raw8, &denoised, &ref});
+    }
+  }
+  write_json_report(json_path, list);
+  return 0;
+}
+
+}  // namespace tandem

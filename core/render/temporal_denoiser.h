@@ -1,0 +1,59 @@
+// The temporal denoiser a frame loop calls once per frame: SVGF
+// (core/kernel/svgf.h) with its history kept between calls.
+//
+//   MotionHistory motion;          // core/scene/motion_history.h
+//   TemporalDenoiser denoiser;
+//   per frame: render 1 spp -> radiance; features for the same KernelScene
+//   (Backend::render_features(motion.advance(kd), ...) or
+//   CoreTracer::render_features(motion, features)); then
+//   ImageRGB clean = denoiser.process(features, radiance);
+//
+// The history follows the camera and moving instances through the motion
+// vectors in the features; it is dropped where the surface changed
+// (disocclusion) and entirely by reset() (a cut, a scene switch) or a new
+// resolution.
+#pragma once
+
+#include <vector>
+
+#include "core/image/image.h"
+#include "core/render/svgf_cpu.h"
+
+namespace tandem {
+
+class TemporalDenoiser {
+ public:
+  TemporalDenoiser() = default;
+  // params.width/height are ignored: each process() call uses its image size.
+  explicit TemporalDenoiser(const SvgfParams& params) : params_(params) {}
+
+  // Filters `radiance` (this frame's noisy image) guided by `features` (this
+  // frame's, width * height of them, motion relative to the previous call).
+  ImageRGB process(const std::vector<PixelFeatures>& features, const ImageRGB& radiance);
+  // Forget the history: the next frame starts fresh.
+  void reset() { has_history_ = false; }
+  bool has_history() const { return has_history_; }
+
+  // Seconds the stages of the last process() took.
+  const SvgfStageSeconds& last_seconds() const { return last_seconds_; }
+  const SvgfParams& params() const { return params_; }
+  void set_params(const SvgfParams& params) { params_ = params; }
+
+  // The history the next frame reprojects (for tests and debugging views):
+  // (m1, m2, history length, 0) per pixel.
+  const std::vector<Vec4>& moments() const { return moments_[current_]; }
+
+ private:
+  SvgfParams params_ = svgf_default_params(0, 0);
+  bool has_history_ = false;
+  uint32_t width_ = 0, height_ = 0;
+  int current_ = 0;  // which of the double buffers holds the latest history
+  std::vector<PixelFeatures> features_[2];
+  std::vector<Vec4> color_[2], moments_[2];
+  std::vector<Vec4> scratch_a_, scratch_b_;
+  std::vector<Vec3> radiance_, output_;
+  std::vector<Vec2> depth_slope_;
+  SvgfStageSeconds last_seconds_;
+};
+
+}  // namespace tandem

@@ -1,0 +1,375 @@
+// The denoiser's parts: the feature pass (motion vectors against
+// independent camera math), temporal reprojection (rejection where a moving
+// object uncovers the background, no ghost trail) and the a-trous filter
+// (identity on a constant image, no blur across depth or normal edges), and
+// the whole pipeline on a rendered scene.
+#include <gtest/gtest.h>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <random>
+
+#include "accstruc/accel_structure.h"
+#include "backends/cpu/embree_backend.h"
+#include "backends/host/host_backend.h"
+#include "core/render/renderer.h"
+#include "core/render/temporal_denoiser.h"
+#include "core/scene/motion_history.h"
+#include "scenes/builtin_scenes.h"
+
+namespace tandem {
+namespace {
+
+constexpr uint32_t kW = 48, kH = 32;
+
+PixelFeatures plane_pixel(uint32_t instance, float depth, Vec3 normal, Vec3 albedo) {
+  PixelFeatures f{};
+  f.albedo = albedo;
+  f.depth = depth;
+  f.prev_depth = depth;
+  f.normal = normal;
+  f.instance = instance;
+  f.prim = 0;
+  f.material = 0;
+  return f;
+}
+
+ImageRGB image_from(const std::vector<Vec3>& v, uint32_t w, uint32_t h) {
+  ImageRGB img(w, h);
+  for (size_t i = 0; i < v.size(); ++i) {
+    img.rgb[3 * i] = v[i].x;
+    img.rgb[3 * i + 1] = v[i].y;
+    img.rgb[3 * i + 2] = v[i].z;
+  }
+  return img;
+}
+
+TEST(Denoise, ConstantImagePassesThroughUnchanged) {
+  // Two surfaces and some sky; a constant radiance must come out exactly
+  // (up to float rounding), on the first frame and with history.
+  std::vector<PixelFeatures> features(kW * kH);
+  for (uint32_t y = 0; y < kH; ++y) {
+    for (uint32_t x = 0; x < kW; ++x) {
+      PixelFeatures& f = features[y * kW + x];
+      if (y < 6) {
+        f = plane_pixel(kInvalidIndex, 0.0f, make_vec3(0.0f), make_vec3(1.0f));
+        f.prim = f.material = kInvalidIndex;
+      } else {
+        f = x < kW / 2
+                ? plane_pixel(0, 2.0f + 0.01f * float(y), make_vec3(0, 0, 1), make_vec3(0.5f))
+                : plane_pixel(1, 5.0f, make_vec3(0.6f, 0, 0.8f), make_vec3(0.5f));
+      }
+    }
+  }
+  ImageRGB radiance(kW, kH);
+  for (float& v : radiance.rgb)
+    v = 0.37f;
+  TemporalDenoiser denoiser;
+  for (int frame = 0; frame < 3; ++frame) {
+    const ImageRGB out = denoiser.process(features, radiance);
+    for (size_t i = 0; i < out.rgb.size(); ++i)
+      ASSERT_NEAR(out.rgb[i], 0.37f, 1e-5f) << "frame " << frame << " value " << i;
+  }
+}
+
+// Left and right halves differ in depth (or normal) and in brightness; both
+// are noisy. The filter must smooth each half but not mix them.
+void check_no_blur_across_edge(bool depth_edge) {
+  std::vector<PixelFeatures> features(kW * kH);
+  std::vector<Vec3> radiance(kW * kH);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> noise(-0.5f, 0.5f);
+  for (uint32_t y = 0; y < kH; ++y) {
+    for (uint32_t x = 0; x < kW; ++x) {
+      const bool left = x < kW / 2;
+      const float depth = depth_edge ? (left ? 2.0f : 6.0f) : 3.0f;
+      const Vec3 n = depth_edge || left ? make_vec3(0, 0, 1) : make_vec3(0.8f, 0, 0.6f);
+      features[y * kW + x] = plane_pixel(0, depth, n, make_vec3(1.0f));
+      const float base = left ? 0.2f : 1.0f;
+      radiance[y * kW + x] = make_vec3(base * (1.0f + noise(rng)));
+    }
+  }
+  TemporalDenoiser denoiser;
+  const ImageRGB out = denoiser.process(features, image_from(radiance, kW, kH));
+  double in_var = 0.0, out_var = 0.0;
+  for (uint32_t y = 2; y + 2 < kH; ++y) {
+    // The columns at the edge keep their own side's level.
+    EXPECT_NEAR(out.pixel(kW / 2 - 1, y)[0], 0.2f, 0.06f) << "row " << y;
+    EXPECT_NEAR(out.pixel(kW / 2, y)[0], 1.0f, 0.3f) << "row " << y;
+    for (uint32_t x = 2; x < kW / 2 - 2; ++x) {
+      in_var += sqr(radiance[y * kW + x].x - 0.2f);
+      out_var += sqr(out.pixel(x, y)[0] - 0.2f);
+    }
+  }
+  // ... and the filter did filter: the noise inside a half went down.
+  EXPECT_LT(out_var, 0.25 * in_var);
+}
+
+TEST(Denoise, NoBlurAcrossDepthEdge) {
+  check_no_blur_across_edge(true);
+}
+TEST(Denoise, NoBlurAcrossNormalEdge) {
+  check_no_blur_across_edge(false);
+}
+
+// A background plane (instance 0) and a square (instance 1) in front of it
+// that moves `speed` pixels to the right per frame.
+struct MovingSquare {
+  uint32_t size = 10, speed = 3, y0 = 10;
+  uint32_t x0(int frame) const { return 4 + uint32_t(frame) * speed; }
+  bool inside(int frame, uint32_t x, uint32_t y) const {
+    return x >= x0(frame) && x < x0(frame) + size && y >= y0 && y < y0 + size;
+  }
+  std::vector<PixelFeatures> features(int frame) const {
+    std::vector<PixelFeatures> f(kW * kH);
+    for (uint32_t y = 0; y < kH; ++y) {
+      for (uint32_t x = 0; x < kW; ++x) {
+        if (inside(frame, x, y)) {
+          f[y * kW + x] = plane_pixel(1, 2.0f, make_vec3(0, 0, 1), make_vec3(0.8f));
+          if (frame > 0) f[y * kW + x].motion = make_vec2(-float(speed), 0.0f);
+        } else {
+          f[y * kW + x] = plane_pixel(0, 10.0f, make_vec3(0, 0, 1), make_vec3(0.5f));
+        }
+      }
+    }
+    return f;
+  }
+  ImageRGB radiance(int frame) const {
+    ImageRGB img(kW, kH);
+    for (uint32_t y = 0; y < kH; ++y)
+      for (uint32_t x = 0; x < kW; ++x)
+        for (int c = 0; c < 3; ++c)
+          img.pixel(x, y)[c] = inside(frame, x, y) ? 1.0f : 0.05f;
+    return img;
+  }
+};
+
+TEST(Denoise, HistoryRejectedWhereMovingObjectUncoversBackground) {
+  const MovingSquare sq;
+  TemporalDenoiser denoiser;
+  denoiser.process(sq.features(0), sq.radiance(0));
+  denoiser.process(sq.features(1), sq.radiance(1));
+  const std::vector<Vec4>& m = denoiser.moments();
+  int uncovered = 0;
+  for (uint32_t y = 0; y < kH; ++y) {
+    for (uint32_t x = 0; x < kW; ++x) {
+      const float len = m[y * kW + x].z;
+      if (sq.inside(0, x, y) && !sq.inside(1, x, y)) {
+        EXPECT_EQ(len, 1.0f) << "uncovered background at " << x << "," << y << " kept history";
+        ++uncovered;
+      } else {
+        // The square followed by its motion vector, the rest static.
+        EXPECT_EQ(len, 2.0f) << "pixel " << x << "," << y << " lost its history";
+      }
+    }
+  }
+  EXPECT_EQ(uncovered, int(sq.size * sq.speed));
+}
+
+TEST(Denoise, HistoryRejectedAcrossAMaterialEdgeWithinOneInstance) {
+  // A ceiling (material 0) with a light (material 1, albedo 0) in it, one
+  // instance; the view pans 2.5 pixels per frame, so the bilinear taps of
+  // the ceiling next to the light straddle the edge. They must not take the
+  // light's history.
+  const float shift = 2.5f;
+  auto features = [&](int frame) {
+    std::vector<PixelFeatures> f(kW * kH);
+    for (uint32_t y = 0; y < kH; ++y) {
+      for (uint32_t x = 0; x < kW; ++x) {
+        const float wx = float(x) + 0.5f + float(frame) * shift;  // world column
+        const bool light = wx >= 20.0f && wx < 30.0f && y >= 10 && y < 20;
+        PixelFeatures& p = f[y * kW + x];
+        p = plane_pixel(0, 3.0f, make_vec3(0, 0, 1), light ? make_vec3(0.0f) : make_vec3(0.7f));
+        p.material = light ? 1u : 0u;
+        if (frame > 0) p.motion = make_vec2(shift, 0.0f);
+      }
+    }
+    return f;
+  };
+  auto radiance = [&](const std::vector<PixelFeatures>& f) {
+    ImageRGB img(kW, kH);
+    for (size_t i = 0; i < f.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        img.rgb[3 * i + size_t(c)] = f[i].material == 1 ? 50.0f : 0.35f;
+    return img;
+  };
+  TemporalDenoiser denoiser;
+  ImageRGB out;
+  for (int frame = 0; frame < 3; ++frame) {
+    const std::vector<PixelFeatures> f = features(frame);
+    out = denoiser.process(f, radiance(f));
+  }
+  const std::vector<PixelFeatures> f = features(2);
+  for (uint32_t y = 0; y < kH; ++y) {
+    for (uint32_t x = 0; x + 3 < kW; ++x) {
+      const size_t i = y * kW + x;
+      if (f[i].material != 0) continue;
+      EXPECT_NEAR(out.rgb[3 * i], 0.35f, 0.02f) << "ceiling pixel " << x << "," << y;
+    }
+  }
+}
+
+TEST(Denoise, NoGhostTrailBehindMovingObject) {
+  const MovingSquare sq;
+  TemporalDenoiser denoiser;
+  ImageRGB out;
+  const int frames = 8;
+  for (int f = 0; f < frames; ++f)
+    out = denoiser.process(sq.features(f), sq.radiance(f));
+  // Exact radiance in: every pixel must come out at its own surface's
+  // level. Count pixels off by more than 5%: the trail a ghost would leave.
+  const ImageRGB truth = sq.radiance(frames - 1);
+  int ghost = 0;
+  for (size_t i = 0; i < out.rgb.size(); ++i)
+    if (std::fabs(out.rgb[i] - truth.rgb[i]) > 0.05f * truth.rgb[i]) ++ghost;
+  EXPECT_EQ(ghost, 0) << "pixels (channels) off by more than 5% behind the moving square";
+}
+
+// --- on a rendered scene ----------------------------------------------------
+
+struct Compiled {
+  KernelScene ks;
+  SceneCompiler compiler;
+  EmbreeBackend backend;
+  void compile(Scene& scene, const RenderSettings& settings) {
+    backend.sync(ks, compiler.compile(scene, settings, ks));
+  }
+};
+
+// glm's own projection of world point p by `cam` to film pixels.
+glm::vec2 glm_project(const Camera& cam, const glm::vec3& p, uint32_t w, uint32_t h) {
+  const glm::mat4 view = glm::lookAt(cam.position, cam.position + cam.forward, cam.up);
+  const glm::mat4 proj = glm::perspective(cam.yfov, float(w) / float(h), 0.1f, 100.0f);
+  const glm::vec4 clip = proj * view * glm::vec4(p, 1.0f);
+  const glm::vec2 ndc(clip.x / clip.w, clip.y / clip.w);
+  return {(ndc.x + 1.0f) * 0.5f * float(w), (1.0f - ndc.y) * 0.5f * float(h)};
+}
+glm::vec3 glm_unproject(const Camera& cam, const glm::vec2& film, uint32_t w, uint32_t h) {
+  const glm::mat4 view = glm::lookAt(cam.position, cam.position + cam.forward, cam.up);
+  const glm::mat4 proj = glm::perspective(cam.yfov, float(w) / float(h), 0.1f, 100.0f);
+  const glm::vec3 win(film.x, float(h) - film.y, 0.5f);
+  return glm::unProject(win, view, proj, glm::vec4(0, 0, float(w), float(h)));
+}
+
+TEST(Denoise, MotionVectorsUnderCameraRotationMatchCameraMath) {
+  Scene scene = make_cornell_box();
+  RenderSettings settings;
+  settings.width = 64;
+  settings.height = 48;
+  Compiled c;
+  MotionHistory motion;
+  std::vector<PixelFeatures> before(64 * 48), after(64 * 48);
+  c.compile(scene, settings);
+  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), before.data()));
+  const Camera a = scene.camera();
+  // Yaw by 3 degrees and pitch by 1 about the camera's own position.
+  Camera b = a;
+  const glm::mat4 r =
+      glm::rotate(glm::rotate(glm::mat4(1.0f), 0.052f, a.up), 0.017f, glm::cross(a.forward, a.up));
+  b.forward = glm::normalize(glm::vec3(r * glm::vec4(a.forward, 0.0f)));
+  b.up = glm::normalize(glm::vec3(r * glm::vec4(a.up, 0.0f)));
+  scene.edit_camera() = b;
+  c.compile(scene, settings);
+  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), after.data()));
+  double worst = 0.0;
+  int hits = 0, same_surface = 0;
+  for (uint32_t y = 0; y < 48; ++y) {
+    for (uint32_t x = 0; x < 64; ++x) {
+      const PixelFeatures& f = after[y * 64 + x];
+      const glm::vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
+      const glm::vec2 expected = glm_project(a, glm_unproject(b, centre, 64, 48), 64, 48);
+      const glm::vec2 got = centre + glm::vec2(f.motion.x, f.motion.y);
+      worst = std::max(worst, double(glm::length(got - expected)));
+      if (!features_hit(f)) continue;
+      ++hits;
+      // Where it was, the previous frame saw the same surface at the same depth.
+      const int px = int(std::floor(got.x)), py = int(std::floor(got.y));
+      if (px < 0 || py < 0 || px >= 64 || py >= 48) continue;
+      const PixelFeatures& g = before[size_t(py) * 64 + size_t(px)];
+      if (g.instance == f.instance && std::fabs(g.depth - f.prev_depth) < 0.05f * f.prev_depth)
+        ++same_surface;
+    }
+  }
+  EXPECT_LT(worst, 2e-3) << "pixels from the motion vectors vs glm's projection";
+  EXPECT_GT(hits, 64 * 48 / 2);
+  EXPECT_GT(same_surface, hits * 9 / 10);
+}
+
+TEST(Denoise, FeaturesAreTheSameOnEveryCpuBackendAndStaticWithoutMotion) {
+  Scene scene = make_cornell_spheres();
+  RenderSettings settings;
+  settings.width = 40;
+  settings.height = 30;
+  KernelScene ks;
+  SceneCompiler compiler;
+  SceneDelta delta = compiler.compile(scene, settings, ks);
+  AccelStructure accel;
+  accel.update_and_mark(ks, delta);
+  EmbreeBackend cpu;
+  HostBackend host;
+  cpu.sync(ks, delta);
+  host.sync(ks, delta);
+  MotionHistory motion;
+  const FeaturePass pass = motion.advance(ks.view());
+  std::vector<PixelFeatures> f(40 * 30), g(40 * 30);
+  ASSERT_TRUE(cpu.render_features(pass, f.data()));
+  ASSERT_TRUE(host.render_features(pass, g.data()));
+  int hits = 0, same = 0;
+  for (size_t i = 0; i < f.size(); ++i) {
+    const PixelFeatures& p = f[i];
+    EXPECT_NEAR(p.motion.x, 0.0f, 1e-4f);
+    EXPECT_NEAR(p.motion.y, 0.0f, 1e-4f);
+    if (!features_hit(p)) continue;
+    ++hits;
+    EXPECT_GT(p.depth, 0.0f);
+    EXPECT_NEAR(dot(p.normal, p.normal), 1.0f, 1e-3f);
+    EXPECT_NEAR(p.prev_depth, p.depth, 1e-3f * p.depth);
+    // Embree and Tandem's BVH find the same triangle (up to the odd ray
+    // through a shared edge) and then run the same feature code.
+    if (g[i].instance == p.instance && g[i].prim == p.prim) {
+      ++same;
+      EXPECT_NEAR(g[i].depth, p.depth, 1e-4f * p.depth);
+      EXPECT_EQ(g[i].material, p.material);
+      EXPECT_EQ(g[i].albedo.x, p.albedo.x);
+    }
+  }
+  EXPECT_GT(hits, 600);
+  EXPECT_GE(same, hits - 4);
+}
+
+double rel_mse(const ImageRGB& img, const ImageRGB& ref) {
+  double sum = 0.0;
+  for (size_t i = 0; i < img.rgb.size(); ++i)
+    sum += sqr(img.rgb[i] - ref.rgb[i]) / (sqr(ref.rgb[i]) + 1e-2);
+  return sum / double(img.rgb.size());
+}
+
+TEST(Denoise, AccumulatedAndFilteredOneSampleFramesBeatRawOneSample) {
+  Scene scene = make_cornell_box();
+  RenderSettings settings;
+  settings.width = 64;
+  settings.height = 64;
+  settings.max_depth = 4;
+  Compiled c;
+  c.compile(scene, settings);
+  OfflineRenderOptions ref_options;
+  ref_options.spp = 128;
+  const ImageRGB ref = render_offline(c.backend, 64, 64, ref_options).image;
+  MotionHistory motion;
+  TemporalDenoiser denoiser;
+  std::vector<PixelFeatures> f(64 * 64);
+  ImageRGB raw, denoised;
+  for (uint32_t frame = 0; frame < 8; ++frame) {
+    settings.seed = 1000 + frame;  // a new sample per frame
+    c.compile(scene, settings);
+    OfflineRenderOptions one;
+    one.spp = 1;
+    raw = render_offline(c.backend, 64, 64, one).image;
+    ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), f.data()));
+    denoised = denoiser.process(f, raw);
+  }
+  const double e_raw = rel_mse(raw, ref), e_den = rel_mse(denoised, ref);
+  EXPECT_LT(e_den, 0.25 * e_raw) << "raw " << e_raw << " denoised " << e_den;
+}
+
+}  // namespace
+}  // namespace tandem
