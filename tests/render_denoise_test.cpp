@@ -303,7 +303,7 @@ TEST(Denoise, FeaturesAreTheSameOnEveryCpuBackendAndStaticWithoutMotion) {
   SceneCompiler compiler;
   SceneDelta delta = compiler.compile(scene, settings, ks);
   AccelStructure accel;
-  accel.update_and_mark(ks, delta);
+  delta = delta | accel.update(ks, delta).delta;
   EmbreeBackend cpu;
   HostBackend host;
   cpu.sync(ks, delta);
