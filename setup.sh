@@ -19,7 +19,7 @@ packages=(cmake ninja-build g++ pkg-config
           libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
           xvfb xauth
           libopenmpi-dev openmpi-bin
-          clang libclang-rt-14-dev)
+          clang libclang-rt-14-dev clang-format)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -225,8 +225,8 @@ double embree_kind_mrays(const EmbreeBackend& embree, const std::vector<Ray>& ra
 JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
                              int threads) {
   const uint64_t tris = unique_triangles(ks);
-  std::printf("\naccstruc: %zu meshes, %llu unique triangles, best of %d runs\n",
-              ks.meshes.size(), static_cast<unsigned long long>(tris), kRepeats);
+  std::printf("\naccstruc: %zu meshes, %llu unique triangles, best of %d runs\n", ks.meshes.size(),
+              static_cast<unsigned long long>(tris), kRepeats);
 
   // --- BLAS builds, same meshes, same threads.
   const AccelSettings settings;

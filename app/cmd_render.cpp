@@ -18,9 +18,9 @@
 #include "app/commands.h"
 #include "app/distributed.h"
 #include "app/progress.h"
+#include "app/render_denoise.h"
 #include "app/render_frames.h"
 #include "app/scene_setup.h"
-#include "app/render_denoise.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/scene/kernel_scene.h"
@@ -88,8 +88,7 @@ const std::vector<OptionSpec>& render_options() {
           // Animation frames (see render_frames.h).
           {"frame", true, "render the scene's animation at frame N (time N / fps)", "N"},
           {"frames", true,
-           "render animation frames A..B; --output then needs a #### frame-number pattern",
-           "A..B"},
+           "render animation frames A..B; --output then needs a #### frame-number pattern", "A..B"},
           {"fps", true, "animation frames per second for --frame/--frames", "F", "24"},
       },
       help_options(),

@@ -86,8 +86,7 @@ std::string build_fingerprint() {
   TANDEM_KERNEL_ARRAYS(TANDEM_FINGERPRINT_ARRAY)
 #undef TANDEM_FINGERPRINT_ARRAY
   s += " constants:" + std::to_string(sizeof(KernelConstants)) +
-       " bvh:" + std::to_string(sizeof(KBvhConstants)) +
-       " tile:" + std::to_string(sizeof(Tile));
+       " bvh:" + std::to_string(sizeof(KBvhConstants)) + " tile:" + std::to_string(sizeof(Tile));
   return s;
 }
 

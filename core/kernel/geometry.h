@@ -59,7 +59,8 @@ struct TriangleVertices {
   const KMesh* mesh;
 };
 
-TANDEM_HD TriangleVertices fetch_triangle(const KernelData& kd, uint32_t mesh_index, uint32_t prim) {
+TANDEM_HD TriangleVertices fetch_triangle(const KernelData& kd, uint32_t mesh_index,
+                                          uint32_t prim) {
   TriangleVertices tv;
   tv.mesh = &kd.meshes[mesh_index];
   tv.tri = kd.triangles[tv.mesh->triangle_offset + prim];
@@ -70,7 +71,8 @@ TANDEM_HD TriangleVertices fetch_triangle(const KernelData& kd, uint32_t mesh_in
   return tv;
 }
 
-TANDEM_HD Vec2 interpolate_uv(const Vec2* uvs, uint32_t base, const KTriangle& t, float u, float v) {
+TANDEM_HD Vec2 interpolate_uv(const Vec2* uvs, uint32_t base, const KTriangle& t, float u,
+                              float v) {
   const Vec2 a = uvs[base + t.v0], b = uvs[base + t.v1], c = uvs[base + t.v2];
   const float w = 1.0f - u - v;
   return {a.x * w + b.x * u + c.x * v, a.y * w + b.y * u + c.y * v};
@@ -84,7 +86,8 @@ TANDEM_HD Vec2 material_uv(const KTextureRef& ref, const Vec2 uv[2]) {
 TANDEM_HD Vec4 material_base_color(const KernelData& kd, const KMaterial& m, const Vec2 uv[2]) {
   Vec4 c = m.base_color;
   if (m.base_color_tex.texture >= 0) {
-    const Vec4 t = sample_texture(kd, uint32_t(m.base_color_tex.texture), material_uv(m.base_color_tex, uv));
+    const Vec4 t =
+        sample_texture(kd, uint32_t(m.base_color_tex.texture), material_uv(m.base_color_tex, uv));
     c = {c.x * t.x, c.y * t.y, c.z * t.z, c.w * t.w};
   }
   return c;
@@ -92,16 +95,19 @@ TANDEM_HD Vec4 material_base_color(const KernelData& kd, const KMaterial& m, con
 
 // Texture coordinates of both UV sets at barycentrics (u, v); UV set 1
 // falls back to set 0 when a mesh has only one.
-TANDEM_HD void interpolate_uvs(const KernelData& kd, const KMesh& mesh, const KTriangle& tri, float u,
-                               float v, Vec2 uv[2]) {
-  uv[0] = (mesh.flags & kMeshHasUv0) ? interpolate_uv(kd.uv0, mesh.vertex_offset, tri, u, v) : make_vec2(0, 0);
-  uv[1] = (mesh.flags & kMeshHasUv1) ? interpolate_uv(kd.uv1, mesh.vertex_offset, tri, u, v) : uv[0];
+TANDEM_HD void interpolate_uvs(const KernelData& kd, const KMesh& mesh, const KTriangle& tri,
+                               float u, float v, Vec2 uv[2]) {
+  uv[0] = (mesh.flags & kMeshHasUv0) ? interpolate_uv(kd.uv0, mesh.vertex_offset, tri, u, v)
+                                     : make_vec2(0, 0);
+  uv[1] =
+      (mesh.flags & kMeshHasUv1) ? interpolate_uv(kd.uv1, mesh.vertex_offset, tri, u, v) : uv[0];
 }
 
 // The part of a shading point that light sampling needs: position, front
 // normal, area, material and UVs. Much cheaper than make_surface_point (no
 // normal interpolation, tangents or normal maps).
-TANDEM_HD SurfacePoint make_light_point(const KernelData& kd, uint32_t instance, uint32_t prim, float u, float v) {
+TANDEM_HD SurfacePoint make_light_point(const KernelData& kd, uint32_t instance, uint32_t prim,
+                                        float u, float v) {
   const KInstance& inst = kd.instances[instance];
   const TriangleVertices tv = fetch_triangle(kd, inst.mesh, prim);
   SurfacePoint sp;
@@ -169,7 +175,8 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
     bitangent_sign = t0.w < 0.0f ? -1.0f : 1.0f;
   } else if (mesh.flags & kMeshHasUv0) {
     // Derive the tangent from the UV parameterisation (dp/du).
-    const Vec2 a = kd.uv0[base + tv.tri.v0], b = kd.uv0[base + tv.tri.v1], c = kd.uv0[base + tv.tri.v2];
+    const Vec2 a = kd.uv0[base + tv.tri.v0], b = kd.uv0[base + tv.tri.v1],
+               c = kd.uv0[base + tv.tri.v2];
     const float du1 = b.x - a.x, dv1 = b.y - a.y, du2 = c.x - a.x, dv2 = c.y - a.y;
     const float det = du1 * dv2 - dv1 * du2;
     if (fabsf(det) > 1e-20f) {
@@ -185,7 +192,8 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
 
   const KMaterial& mat = kd.materials[sp.material];
   if (mat.normal_tex.texture >= 0) {
-    const Vec4 t = sample_texture(kd, uint32_t(mat.normal_tex.texture), material_uv(mat.normal_tex, sp.uv));
+    const Vec4 t =
+        sample_texture(kd, uint32_t(mat.normal_tex.texture), material_uv(mat.normal_tex, sp.uv));
     Vec3 nt = {(t.x * 2.0f - 1.0f) * mat.normal_scale, (t.y * 2.0f - 1.0f) * mat.normal_scale,
                t.z * 2.0f - 1.0f};
     const Vec3 bitangent = frame.b * bitangent_sign;

@@ -32,7 +32,8 @@ TANDEM_HD uint32_t alias_sample(const KAliasEntry* table, uint32_t n, float u, f
 TANDEM_HD Vec3 material_emission(const KernelData& kd, const KMaterial& m, const Vec2 uv[2]) {
   Vec3 e = m.emission;
   if (m.emissive_tex.texture >= 0 && !is_black(e)) {
-    const Vec4 t = sample_texture(kd, uint32_t(m.emissive_tex.texture), material_uv(m.emissive_tex, uv));
+    const Vec4 t =
+        sample_texture(kd, uint32_t(m.emissive_tex.texture), material_uv(m.emissive_tex, uv));
     e = e * xyz(t);
   }
   return e;
@@ -56,7 +57,8 @@ TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst,
 // Density (solid angle, including selection) with which sample_light picks
 // the point `sp_light` on an emissive triangle, seen from distance `dist`
 // along direction `wi` (unit, from the shading point to the light).
-TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi, float dist) {
+TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi,
+                                   float dist) {
   const float total = kd.constants.total_light_power;
   if (!(total > 0.0f) || !(sp_light.area_world > 0.0f)) return 0.0f;
   const KMaterial& m = kd.materials[sp_light.material];

@@ -20,40 +20,94 @@ struct alignas(16) Vec4 {
 
 static_assert(sizeof(Vec2) == 8 && sizeof(Vec3) == 12 && sizeof(Vec4) == 16, "GPU layout");
 
-TANDEM_HD Vec2 make_vec2(float x, float y) { return {x, y}; }
-TANDEM_HD Vec3 make_vec3(float x, float y, float z) { return {x, y, z}; }
-TANDEM_HD Vec3 make_vec3(float s) { return {s, s, s}; }
-TANDEM_HD Vec4 make_vec4(float x, float y, float z, float w) { return {x, y, z, w}; }
-TANDEM_HD Vec4 make_vec4(Vec3 v, float w) { return {v.x, v.y, v.z, w}; }
-TANDEM_HD Vec3 xyz(Vec4 v) { return {v.x, v.y, v.z}; }
+TANDEM_HD Vec2 make_vec2(float x, float y) {
+  return {x, y};
+}
+TANDEM_HD Vec3 make_vec3(float x, float y, float z) {
+  return {x, y, z};
+}
+TANDEM_HD Vec3 make_vec3(float s) {
+  return {s, s, s};
+}
+TANDEM_HD Vec4 make_vec4(float x, float y, float z, float w) {
+  return {x, y, z, w};
+}
+TANDEM_HD Vec4 make_vec4(Vec3 v, float w) {
+  return {v.x, v.y, v.z, w};
+}
+TANDEM_HD Vec3 xyz(Vec4 v) {
+  return {v.x, v.y, v.z};
+}
 
 // Scalar helpers. fminf/fmaxf/sqrtf exist on both sides; wrapping them keeps
 // call sites short and lets us change precision policy in one place.
-TANDEM_HD float min_f(float a, float b) { return a < b ? a : b; }
-TANDEM_HD float max_f(float a, float b) { return a > b ? a : b; }
-TANDEM_HD float clamp_f(float x, float lo, float hi) { return min_f(max_f(x, lo), hi); }
-TANDEM_HD float saturate(float x) { return clamp_f(x, 0.0f, 1.0f); }
-TANDEM_HD float lerp_f(float a, float b, float t) { return a + (b - a) * t; }
-TANDEM_HD float sqr(float x) { return x * x; }
-TANDEM_HD float safe_sqrt(float x) { return sqrtf(max_f(x, 0.0f)); }
-TANDEM_HD uint32_t min_u(uint32_t a, uint32_t b) { return a < b ? a : b; }
-TANDEM_HD uint32_t max_u(uint32_t a, uint32_t b) { return a > b ? a : b; }
+TANDEM_HD float min_f(float a, float b) {
+  return a < b ? a : b;
+}
+TANDEM_HD float max_f(float a, float b) {
+  return a > b ? a : b;
+}
+TANDEM_HD float clamp_f(float x, float lo, float hi) {
+  return min_f(max_f(x, lo), hi);
+}
+TANDEM_HD float saturate(float x) {
+  return clamp_f(x, 0.0f, 1.0f);
+}
+TANDEM_HD float lerp_f(float a, float b, float t) {
+  return a + (b - a) * t;
+}
+TANDEM_HD float sqr(float x) {
+  return x * x;
+}
+TANDEM_HD float safe_sqrt(float x) {
+  return sqrtf(max_f(x, 0.0f));
+}
+TANDEM_HD uint32_t min_u(uint32_t a, uint32_t b) {
+  return a < b ? a : b;
+}
+TANDEM_HD uint32_t max_u(uint32_t a, uint32_t b) {
+  return a > b ? a : b;
+}
 
 // Vec2
-TANDEM_HD Vec2 operator+(Vec2 a, Vec2 b) { return {a.x + b.x, a.y + b.y}; }
-TANDEM_HD Vec2 operator-(Vec2 a, Vec2 b) { return {a.x - b.x, a.y - b.y}; }
-TANDEM_HD Vec2 operator*(Vec2 a, float s) { return {a.x * s, a.y * s}; }
-TANDEM_HD Vec2 operator*(float s, Vec2 a) { return {a.x * s, a.y * s}; }
+TANDEM_HD Vec2 operator+(Vec2 a, Vec2 b) {
+  return {a.x + b.x, a.y + b.y};
+}
+TANDEM_HD Vec2 operator-(Vec2 a, Vec2 b) {
+  return {a.x - b.x, a.y - b.y};
+}
+TANDEM_HD Vec2 operator*(Vec2 a, float s) {
+  return {a.x * s, a.y * s};
+}
+TANDEM_HD Vec2 operator*(float s, Vec2 a) {
+  return {a.x * s, a.y * s};
+}
 
 // Vec3
-TANDEM_HD Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-TANDEM_HD Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-TANDEM_HD Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
-TANDEM_HD Vec3 operator*(Vec3 a, Vec3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-TANDEM_HD Vec3 operator*(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-TANDEM_HD Vec3 operator*(float s, Vec3 a) { return {a.x * s, a.y * s, a.z * s}; }
-TANDEM_HD Vec3 operator/(Vec3 a, float s) { return a * (1.0f / s); }
-TANDEM_HD Vec3 operator/(Vec3 a, Vec3 b) { return {a.x / b.x, a.y / b.y, a.z / b.z}; }
+TANDEM_HD Vec3 operator+(Vec3 a, Vec3 b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+TANDEM_HD Vec3 operator-(Vec3 a, Vec3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+TANDEM_HD Vec3 operator-(Vec3 a) {
+  return {-a.x, -a.y, -a.z};
+}
+TANDEM_HD Vec3 operator*(Vec3 a, Vec3 b) {
+  return {a.x * b.x, a.y * b.y, a.z * b.z};
+}
+TANDEM_HD Vec3 operator*(Vec3 a, float s) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+TANDEM_HD Vec3 operator*(float s, Vec3 a) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+TANDEM_HD Vec3 operator/(Vec3 a, float s) {
+  return a * (1.0f / s);
+}
+TANDEM_HD Vec3 operator/(Vec3 a, Vec3 b) {
+  return {a.x / b.x, a.y / b.y, a.z / b.z};
+}
 TANDEM_HD Vec3& operator+=(Vec3& a, Vec3 b) {
   a = a + b;
   return a;
@@ -67,28 +121,56 @@ TANDEM_HD Vec3& operator*=(Vec3& a, float s) {
   return a;
 }
 
-TANDEM_HD float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+TANDEM_HD float dot(Vec3 a, Vec3 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 TANDEM_HD Vec3 cross(Vec3 a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-TANDEM_HD float length_sq(Vec3 a) { return dot(a, a); }
-TANDEM_HD float length(Vec3 a) { return sqrtf(dot(a, a)); }
+TANDEM_HD float length_sq(Vec3 a) {
+  return dot(a, a);
+}
+TANDEM_HD float length(Vec3 a) {
+  return sqrtf(dot(a, a));
+}
 TANDEM_HD Vec3 normalize(Vec3 a) {
   const float len2 = dot(a, a);
   return len2 > 0.0f ? a * (1.0f / sqrtf(len2)) : a;
 }
-TANDEM_HD Vec3 min_v(Vec3 a, Vec3 b) { return {min_f(a.x, b.x), min_f(a.y, b.y), min_f(a.z, b.z)}; }
-TANDEM_HD Vec3 max_v(Vec3 a, Vec3 b) { return {max_f(a.x, b.x), max_f(a.y, b.y), max_f(a.z, b.z)}; }
-TANDEM_HD Vec3 lerp_v(Vec3 a, Vec3 b, float t) { return a + (b - a) * t; }
-TANDEM_HD float max_component(Vec3 a) { return max_f(a.x, max_f(a.y, a.z)); }
-TANDEM_HD float min_component(Vec3 a) { return min_f(a.x, min_f(a.y, a.z)); }
-TANDEM_HD float average(Vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
+TANDEM_HD Vec3 min_v(Vec3 a, Vec3 b) {
+  return {min_f(a.x, b.x), min_f(a.y, b.y), min_f(a.z, b.z)};
+}
+TANDEM_HD Vec3 max_v(Vec3 a, Vec3 b) {
+  return {max_f(a.x, b.x), max_f(a.y, b.y), max_f(a.z, b.z)};
+}
+TANDEM_HD Vec3 lerp_v(Vec3 a, Vec3 b, float t) {
+  return a + (b - a) * t;
+}
+TANDEM_HD float max_component(Vec3 a) {
+  return max_f(a.x, max_f(a.y, a.z));
+}
+TANDEM_HD float min_component(Vec3 a) {
+  return min_f(a.x, min_f(a.y, a.z));
+}
+TANDEM_HD float average(Vec3 a) {
+  return (a.x + a.y + a.z) * (1.0f / 3.0f);
+}
 // Rec. 709 luminance of linear RGB.
-TANDEM_HD float luminance(Vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-TANDEM_HD bool is_black(Vec3 c) { return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f; }
-TANDEM_HD bool is_finite(Vec3 c) { return is_finite(c.x) && is_finite(c.y) && is_finite(c.z); }
-TANDEM_HD float component(Vec3 v, int axis) { return axis == 0 ? v.x : (axis == 1 ? v.y : v.z); }
-TANDEM_HD Vec3 reflect(Vec3 wo, Vec3 n) { return 2.0f * dot(wo, n) * n - wo; }
+TANDEM_HD float luminance(Vec3 c) {
+  return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+}
+TANDEM_HD bool is_black(Vec3 c) {
+  return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f;
+}
+TANDEM_HD bool is_finite(Vec3 c) {
+  return is_finite(c.x) && is_finite(c.y) && is_finite(c.z);
+}
+TANDEM_HD float component(Vec3 v, int axis) {
+  return axis == 0 ? v.x : (axis == 1 ? v.y : v.z);
+}
+TANDEM_HD Vec3 reflect(Vec3 wo, Vec3 n) {
+  return 2.0f * dot(wo, n) * n - wo;
+}
 
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 struct Frame {
@@ -112,8 +194,12 @@ TANDEM_HD Frame make_frame(Vec3 n, Vec3 tangent_hint) {
   t = t * (1.0f / sqrtf(len2));
   return {t, cross(n, t), n};
 }
-TANDEM_HD Vec3 to_local(const Frame& f, Vec3 v) { return {dot(v, f.t), dot(v, f.b), dot(v, f.n)}; }
-TANDEM_HD Vec3 to_world(const Frame& f, Vec3 v) { return f.t * v.x + f.b * v.y + f.n * v.z; }
+TANDEM_HD Vec3 to_local(const Frame& f, Vec3 v) {
+  return {dot(v, f.t), dot(v, f.b), dot(v, f.n)};
+}
+TANDEM_HD Vec3 to_world(const Frame& f, Vec3 v) {
+  return f.t * v.x + f.b * v.y + f.n * v.z;
+}
 
 // Affine 3x4 transform, row-major: rows[i] = (m[i][0..2], translation[i]).
 struct Mat34 {

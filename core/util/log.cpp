@@ -15,8 +15,12 @@ void emit(const char* prefix, const std::string& message) {
 }
 }  // namespace
 
-void set_log_level(LogLevel level) { g_level = int(level); }
-LogLevel log_level() { return LogLevel(g_level.load()); }
+void set_log_level(LogLevel level) {
+  g_level = int(level);
+}
+LogLevel log_level() {
+  return LogLevel(g_level.load());
+}
 void log_warning(const std::string& m) {
   if (g_level >= int(LogLevel::kWarning)) emit("tandem: warning: ", m);
 }
