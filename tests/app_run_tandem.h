@@ -36,6 +36,7 @@ inline RunResult run_command(const std::string& cmd_line) {
   return r;
 }
 
+#ifdef TANDEM_BINARY  // test binaries that run `tandem` itself
 // `env` ("NAME=value ..." or empty) is set for this run only; a non-empty
 // `cwd` is its working directory.
 inline RunResult run_tandem_with_env(const std::string& env, const std::string& args,
@@ -52,5 +53,7 @@ inline RunResult run_tandem(const std::string& args) {
 inline RunResult run_tandem_in(const std::string& cwd, const std::string& args) {
   return run_tandem_with_env("", args, cwd);
 }
+
+#endif
 
 }  // namespace tandem::app_test

@@ -14,34 +14,24 @@
 #include <string>
 
 #include "test_temp_dir.h"
+#include "tests/app_run_tandem.h"
 
 namespace tandem {
 namespace {
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;  // stdout + stderr
-};
+using CommandResult = app_test::RunResult;
 
+// The tests' ENVIRONMENT sets Open MPI's root and container variables
+// (ctest); repeated here for a direct run of the binary.
 CommandResult run_command(const std::string& cmd) {
-  CommandResult r;
-  // The tests' ENVIRONMENT sets these (ctest); repeated for a direct run.
-  const std::string full =
+  return app_test::run_command(
       "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
       "OMPI_MCA_btl_vader_single_copy_mechanism=none " +
-      cmd + " 2>&1";
-  FILE* pipe = popen(full.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe))
-    r.output.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
+      cmd);
 }
 
 std::string tandem() {
-  return std::string("'") + TANDEM_BINARY + "'";
+  return app_test::shell_quote(TANDEM_BINARY);
 }
 
 // `ranks` processes of tandem with `args`; `env` ("NAME=value ...") for all.
