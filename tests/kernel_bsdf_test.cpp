@@ -12,10 +12,15 @@
 
 #include "core/kernel/bsdf.h"
 #include "test_stats.h"
+#include "tests/kernel_bsdf_test_util.h"
 
 namespace tandem {
 namespace {
 
+using bsdf_test::describe;
+using bsdf_test::sample_moments;
+using bsdf_test::upper_normal_quantile;
+using bsdf_test::view_direction;
 using test_stats::MeanAccumulator;
 using test_stats::sidak_alpha;
 using test_stats::TestRng;
@@ -23,22 +28,6 @@ using test_stats::TestRng;
 // Perceptual roughness values; alpha = roughness^2 gives 0.05, 0.25, 0.64, 1.
 constexpr float kRoughness[] = {0.2236068f, 0.5f, 0.8f, 1.0f};
 constexpr float kViewDegrees[] = {0.0f, 30.0f, 60.0f, 85.0f};
-constexpr float kViewPhi = 0.7f;  // keeps wo off the frame's axes
-
-Vec3 view_direction(float degrees) {
-  const float t = degrees * kPi / 180.0f;
-  return make_vec3(sinf(t) * cosf(kViewPhi), sinf(t) * sinf(kViewPhi), cosf(t));
-}
-
-std::string describe(const BsdfParams& p, Vec3 wo) {
-  std::ostringstream s;
-  s << "base=(" << p.base_color.x << "," << p.base_color.y << "," << p.base_color.z
-    << ") metallic=" << p.metallic << " alpha=" << p.alpha << " transmission=" << p.transmission
-    << " eta=" << p.eta << " specular=" << p.specular << " specular_color=(" << p.specular_color.x
-    << "," << p.specular_color.y << "," << p.specular_color.z
-    << ") wo_theta=" << acosf(wo.z) * 180.0f / kPi << "deg";
-  return s.str();
-}
 
 // Every distinct material of the grid metallic {0, .5, 1} x transmission
 // {0, .5, 1} x eta {1.5, 1/1.5} x specular {0, .5, 1} x specular colour
@@ -127,16 +116,6 @@ const std::vector<BsdfCase> kChiSquareCases = chi_square_cases();
 const double kChiSquareAlpha =
     sidak_alpha(test_stats::kFamilySignificance, int(kChiSquareCases.size()));
 
-// One-sided z threshold with tail probability p (bisection on erfc).
-double upper_normal_quantile(double p) {
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
-  }
-  return hi;
-}
-
 // ---------------------------------------------------------------------------
 // (1) bsdf_sample follows bsdf_eval's pdf, including its total mass.
 
@@ -144,16 +123,8 @@ TEST(KernelBsdf, SampledDirectionsFollowEvalPdf) {
   std::vector<test_stats::SphereTestResult> results(kChiSquareCases.size());
   test_stats::parallel_for(int(kChiSquareCases.size()), [&](int index) {
     const BsdfCase& c = kChiSquareCases[size_t(index)];
-    TestRng rng(1000 + index);
-    results[size_t(index)] = test_stats::sphere_chi_square(
-        [&](Vec3* d) {
-          BsdfSample s;
-          const float ul = rng.next(), u1 = rng.next(), u2 = rng.next();
-          if (!bsdf_sample(c.p, c.wo, ul, u1, u2, &s)) return false;
-          *d = s.wi;
-          return true;
-        },
-        [&](Vec3 d) { return bsdf_eval(c.p, c.wo, d).pdf; }, 100000, 32, 32);
+    results[size_t(index)] =
+        bsdf_test::sampled_directions_chi_square(c.p, c.wo, 1000 + uint32_t(index));
   });
   for (size_t i = 0; i < results.size(); ++i) {
     const BsdfCase& c = kChiSquareCases[i];
@@ -178,49 +149,6 @@ bool diffuse_under_specular_layer(const BsdfParams& p) {
   return p.metallic < 1.0f && p.specular > 0.0f && p.transmission < 1.0f && !is_black(p.base_color);
 }
 
-struct MomentResult {
-  MeanAccumulator albedo[3];  // flux albedo per channel
-  std::string error;          // first per-sample inconsistency
-};
-
-// Draws samples for one case, checks each against bsdf_eval and accumulates
-// the directional albedo in flux terms.
-MomentResult sample_moments(const BsdfCase& c, uint32_t seed, int samples) {
-  MomentResult m;
-  TestRng rng(seed);
-  for (int s = 0; s < samples; ++s) {
-    BsdfSample bs;
-    const float ul = rng.next(), u1 = rng.next(), u2 = rng.next();
-    float w[3] = {0.0f, 0.0f, 0.0f};
-    if (bsdf_sample(c.p, c.wo, ul, u1, u2, &bs)) {
-      const BsdfEval e = bsdf_eval(c.p, c.wo, bs.wi);
-      const Vec3 expect = e.f * (fabsf(bs.wi.z) / e.pdf);
-      std::ostringstream err;
-      if (!(fabsf(length(bs.wi) - 1.0f) < 1e-4f)) err << "wi not unit: " << length(bs.wi);
-      if (bs.pdf != e.pdf) err << "sample pdf " << bs.pdf << " != eval pdf " << e.pdf;
-      if (!(e.pdf > 0.0f)) err << "eval pdf " << e.pdf << " for a sampled direction";
-      for (int k = 0; k < 3; ++k) {
-        const float got = component(bs.weight, k), want = component(expect, k);
-        if (!(got >= 0.0f) || !(fabsf(got - want) <= 1e-5f * std::max(1.0f, want))) {
-          err << "weight[" << k << "]=" << got << " but f|cos|/pdf=" << want;
-        }
-      }
-      if (m.error.empty() && !err.str().empty()) {
-        m.error = err.str() + " for " + describe(c.p, c.wo);
-      }
-      // Albedo in flux terms: the BTDF is in radiance form and carries the
-      // (n_wo / n_wi)^2 = 1 / eta^2 factor of radiance crossing the
-      // interface, which is not an energy gain; undo it for transmission.
-      const float scale = bs.wi.z < 0.0f ? c.p.eta * c.p.eta : 1.0f;
-      for (int k = 0; k < 3; ++k)
-        w[k] = component(bs.weight, k) * scale;
-    }
-    for (int k = 0; k < 3; ++k)
-      m.albedo[k].add(w[k]);
-  }
-  return m;
-}
-
 constexpr int kMomentSamples = 4096;
 const std::vector<BsdfCase> kFullGrid = full_grid(/*smooth=*/true);
 // Sidak over every (case, channel) upper bound of the energy tests.
@@ -236,10 +164,11 @@ void check_albedo(bool (*filter)(const BsdfParams&)) {
     if (filter(kFullGrid[i].p)) picked.push_back(i);
   }
   ASSERT_FALSE(picked.empty());
-  std::vector<MomentResult> results(picked.size());
+  std::vector<bsdf_test::SampleMoments> results(picked.size());
   test_stats::parallel_for(int(picked.size()), [&](int k) {
-    results[size_t(k)] = sample_moments(kFullGrid[picked[size_t(k)]],
-                                        50000 + uint32_t(picked[size_t(k)]), kMomentSamples);
+    const BsdfCase& c = kFullGrid[picked[size_t(k)]];
+    results[size_t(k)] =
+        sample_moments(c.p, c.wo, 50000 + uint32_t(picked[size_t(k)]), kMomentSamples);
   });
   int inconsistent = 0, too_bright = 0;
   for (size_t k = 0; k < picked.size(); ++k) {

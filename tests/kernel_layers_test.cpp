@@ -14,31 +14,19 @@
 
 #include "core/kernel/bsdf.h"
 #include "test_stats.h"
+#include "tests/kernel_bsdf_test_util.h"
 
 namespace tandem {
 namespace {
 
+using bsdf_test::describe;
+using bsdf_test::upper_normal_quantile;
+using bsdf_test::view_direction;
 using test_stats::MeanAccumulator;
 using test_stats::sidak_alpha;
 using test_stats::TestRng;
 
 constexpr float kViewDegrees[] = {0.0f, 30.0f, 60.0f, 85.0f};
-
-Vec3 view_direction(float degrees) {
-  const float t = degrees * kPi / 180.0f;
-  return make_vec3(sinf(t) * cosf(0.7f), sinf(t) * sinf(0.7f), cosf(t));
-}
-
-std::string describe(const BsdfParams& p, Vec3 wo) {
-  std::ostringstream s;
-  s << "base=(" << p.base_color.x << "," << p.base_color.y << "," << p.base_color.z
-    << ") metallic=" << p.metallic << " alpha=" << p.alpha << " transmission=" << p.transmission
-    << " eta=" << p.eta << " specular=" << p.specular << " clearcoat=" << p.clearcoat
-    << " coat_alpha=" << p.clearcoat_alpha << " sheen=(" << p.sheen_color.x << ","
-    << p.sheen_color.y << "," << p.sheen_color.z << ") sheen_roughness=" << p.sheen_roughness
-    << " wo_theta=" << acosf(wo.z) * 180.0f / kPi << "deg";
-  return s.str();
-}
 
 BsdfParams base_material(Vec3 base, float metallic, float transmission, float specular,
                          float roughness) {
@@ -125,16 +113,8 @@ TEST(KernelLayers, SampledDirectionsFollowEvalPdf) {
   std::vector<test_stats::SphereTestResult> results(cases.size());
   test_stats::parallel_for(int(cases.size()), [&](int index) {
     const LayerCase& c = cases[size_t(index)];
-    TestRng rng(7000 + index);
-    results[size_t(index)] = test_stats::sphere_chi_square(
-        [&](Vec3* d) {
-          BsdfSample s;
-          const float ul = rng.next(), u1 = rng.next(), u2 = rng.next();
-          if (!bsdf_sample(c.p, c.wo, ul, u1, u2, &s)) return false;
-          *d = s.wi;
-          return true;
-        },
-        [&](Vec3 d) { return bsdf_eval(c.p, c.wo, d).pdf; }, 100000, 32, 32);
+    results[size_t(index)] =
+        bsdf_test::sampled_directions_chi_square(c.p, c.wo, 7000 + uint32_t(index));
   });
   for (size_t i = 0; i < results.size(); ++i) {
     const auto& r = results[i];
@@ -146,58 +126,14 @@ TEST(KernelLayers, SampledDirectionsFollowEvalPdf) {
 // ---------------------------------------------------------------------------
 // Per-sample consistency and the white furnace over the full grid.
 
-struct Moments {
-  MeanAccumulator albedo[3];
-  std::string error;
-};
-
-Moments sample_moments(const LayerCase& c, uint32_t seed, int samples) {
-  Moments m;
-  TestRng rng(seed);
-  for (int s = 0; s < samples; ++s) {
-    BsdfSample bs;
-    const float ul = rng.next(), u1 = rng.next(), u2 = rng.next();
-    float w[3] = {0.0f, 0.0f, 0.0f};
-    if (bsdf_sample(c.p, c.wo, ul, u1, u2, &bs)) {
-      const BsdfEval e = bsdf_eval(c.p, c.wo, bs.wi);
-      const Vec3 expect = e.f * (fabsf(bs.wi.z) / e.pdf);
-      std::ostringstream err;
-      if (bs.pdf != e.pdf) err << "sample pdf " << bs.pdf << " != eval pdf " << e.pdf;
-      for (int k = 0; k < 3; ++k) {
-        const float got = component(bs.weight, k), want = component(expect, k);
-        if (!(got >= 0.0f) || !(fabsf(got - want) <= 1e-5f * std::max(1.0f, want))) {
-          err << " weight[" << k << "]=" << got << " but f|cos|/pdf=" << want;
-        }
-      }
-      if (m.error.empty() && !err.str().empty())
-        m.error = err.str() + " for " + describe(c.p, c.wo);
-      // Flux albedo: undo the radiance-form BTDF's 1 / eta^2 (see kernel_bsdf_test).
-      const float scale = bs.wi.z < 0.0f ? c.p.eta * c.p.eta : 1.0f;
-      for (int k = 0; k < 3; ++k)
-        w[k] = component(bs.weight, k) * scale;
-    }
-    for (int k = 0; k < 3; ++k)
-      m.albedo[k].add(w[k]);
-  }
-  return m;
-}
-
-double upper_normal_quantile(double p) {
-  double lo = 0.0, hi = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
-  }
-  return hi;
-}
-
 TEST(KernelLayers, SampleAgreesWithEvalAndLayeredAlbedoAtMostOne) {
   const std::vector<LayerCase> grid = layer_grid(true);
   const double z =
       upper_normal_quantile(sidak_alpha(test_stats::kFamilySignificance, int(grid.size()) * 3));
-  std::vector<Moments> results(grid.size());
+  std::vector<bsdf_test::SampleMoments> results(grid.size());
   test_stats::parallel_for(int(grid.size()), [&](int i) {
-    results[size_t(i)] = sample_moments(grid[size_t(i)], 90000 + uint32_t(i), 4096);
+    results[size_t(i)] =
+        bsdf_test::sample_moments(grid[size_t(i)].p, grid[size_t(i)].wo, 90000 + uint32_t(i), 4096);
   });
   int inconsistent = 0, too_bright = 0;
   for (size_t i = 0; i < grid.size(); ++i) {
@@ -222,7 +158,7 @@ TEST(KernelLayers, SmoothCoatOverBlackReflectsItsFresnel) {
     p.clearcoat = 1.0f;
     p.clearcoat_alpha = ggx_alpha_from_roughness(0.0f);
     const LayerCase c{p, view_direction(deg)};
-    const Moments m = sample_moments(c, 5, 20000);
+    const bsdf_test::SampleMoments m = bsdf_test::sample_moments(c.p, c.wo, 5, 20000);
     EXPECT_TRUE(m.error.empty()) << m.error;
     const double want = coat_fresnel(c.wo.z);
     // The GGX tail at alpha = 1e-3 loses a little energy to masking.
@@ -241,7 +177,7 @@ TEST(KernelLayers, SheenOverBlackReflectsTheTabulatedAlbedo) {
       p.sheen_color = make_vec3(1.0f, 0.5f, 0.25f);
       p.sheen_roughness = roughness;
       const LayerCase c{p, view_direction(deg)};
-      const Moments m = sample_moments(c, 11, 40000);
+      const bsdf_test::SampleMoments m = bsdf_test::sample_moments(c.p, c.wo, 11, 40000);
       EXPECT_TRUE(m.error.empty()) << m.error;
       const double e = sheen_albedo(c.wo.z, roughness);
       ASSERT_LT(e, 1.0);
