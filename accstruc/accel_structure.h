@@ -27,7 +27,7 @@
 #include "accstruc/bvh_cache.h"
 #include "accstruc/bvh_layouts.h"
 #include "accstruc/partial_refit.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

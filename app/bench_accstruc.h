@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "app/json_writer.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -24,8 +24,8 @@
 #include "backends/cpu/embree_backend.h"
 #include "core/render/renderer.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/scene/motion_history.h"
 #include "core/util/errors.h"
+#include "core/world/motion_history.h"
 #include "scenes/arena_scene.h"
 #include "scenes/scene_loader.h"
 

@@ -10,8 +10,8 @@
 #include "app/bench_accstruc.h"
 #include "app/bench_gpu_report.h"
 #include "backends/kernel_variant.h"
-#include "core/scene/kernel_scene.h"
-#include "core/scene/scene.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

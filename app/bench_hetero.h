@@ -7,8 +7,8 @@
 
 #include "app/json_writer.h"
 #include "backends/backend_factory.h"
-#include "core/scene/kernel_scene.h"
-#include "core/scene/scene.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

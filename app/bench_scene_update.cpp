@@ -19,8 +19,8 @@
 #include "accstruc/accel_structure.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
-#include "core/scene/kernel_scene.h"
 #include "core/util/errors.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/scene_loader.h"
 
 namespace tandem {

@@ -5,8 +5,8 @@
 
 #include "backends/cpu/embree_backend.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/scene/motion_history.h"
 #include "core/util/errors.h"
+#include "core/world/motion_history.h"
 
 namespace tandem {
 

@@ -9,7 +9,7 @@
 
 #include "core/image/image.h"
 #include "core/kernel/features.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -14,7 +14,7 @@
 #include <string>
 
 #include "app/cli_args.h"
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 #include "scenes/scene_loader.h"
 
 namespace tandem {

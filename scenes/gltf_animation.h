@@ -16,7 +16,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -19,7 +19,7 @@
 
 #include <tiny_gltf.h>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 #include "scenes/gltf_animation.h"
 #include "scenes/gltf_loader.h"
 

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

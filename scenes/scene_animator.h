@@ -7,7 +7,7 @@
 
 #include <memory>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 #include "scenes/gltf_animation.h"
 
 namespace tandem {

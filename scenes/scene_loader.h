@@ -4,7 +4,7 @@
 #include <string>
 
 #include "core/image/image.h"
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -22,7 +22,7 @@
 #include "core/kernel/geometry.h"
 #include "core/kernel/rng.h"
 #include "core/kernel/sampling.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/scene_loader.h"
 
 namespace tandem::accstruc_test {

@@ -31,13 +31,6 @@ TEST(CliTest, NoArgumentsIsUsageError) {
   EXPECT_NE(r.output.find("usage"), std::string::npos);
 }
 
-TEST(CliTest, HelpExitsZero) {
-  EXPECT_EQ(run_tandem("--help").exit_code, 0);
-  const RunResult r = run_tandem("render --help");
-  EXPECT_EQ(r.exit_code, 0);
-  EXPECT_NE(r.output.find("--spp"), std::string::npos);
-}
-
 TEST(CliTest, BadUsageExitsTwo) {
   for (const char* args :
        {"frobnicate", "render", "render builtin:cornell --spp", "render builtin:cornell --spp abc",

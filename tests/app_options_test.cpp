@@ -14,8 +14,8 @@
 
 #include "app/cli_args.h"
 #include "app/cli_options.h"
-#include "core/scene/kernel_scene.h"
 #include "core/util/errors.h"
+#include "core/world/kernel_scene.h"
 #include "tests/app_run_tandem.h"
 #include "tests/test_temp_dir.h"
 
@@ -121,6 +121,8 @@ TEST(OptionTables, RenderSettingsCompareEveryField) {
 // --- help, version, usage errors ---------------------------------------------
 
 TEST(CliSurface, EverySubcommandHasHelpWithDashHAndDashDashHelp) {
+  EXPECT_EQ(run_tandem("--help").exit_code, 0);
+  EXPECT_NE(run_tandem("render --help").output.find("--spp"), std::string::npos);
   for (const char* command : {"render", "info", "compare", "bench"}) {
     for (const char* flag : {"-h", "--help"}) {
       const RunResult r = run_tandem(std::string(command) + " " + flag);

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "core/kernel/lights.h"
-#include "core/scene/kernel_scene.h"
-#include "core/scene/light_tables.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/light_tables.h"
 #include "test_stats.h"
 
 namespace tandem {

@@ -9,7 +9,7 @@
 
 #include "core/kernel/lights.h"
 #include "core/kernel/sampling.h"
-#include "core/scene/light_tables.h"
+#include "core/world/light_tables.h"
 #include "test_stats.h"
 
 namespace tandem {

@@ -13,7 +13,7 @@
 #include "backends/host/host_backend.h"
 #include "core/render/renderer.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/scene/motion_history.h"
+#include "core/world/motion_history.h"
 #include "scenes/builtin_scenes.h"
 
 namespace tandem {

@@ -16,7 +16,7 @@
 #include "core/kernel/integrator.h"
 #include "core/render/cpu_wavefront.h"
 #include "core/render/renderer.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
 

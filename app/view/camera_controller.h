@@ -7,7 +7,7 @@
 
 #include <glm/glm.hpp>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -4,7 +4,7 @@
 // the same cameras and, with the fixed frame step, the same scene).
 #pragma once
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "core/render/tiles.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem::mpi {
 

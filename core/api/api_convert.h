@@ -7,7 +7,7 @@
 #include <string>
 
 #include "core/api/tandem/tandem.h"
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem::api_detail {
 

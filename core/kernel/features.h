@@ -10,7 +10,7 @@
 // index and stay the same from frame to frame for a static view.
 //
 // Motion uses the previous frame's camera and instance transforms (captured
-// on the host by MotionHistory, core/scene/motion_history.h): the hit point
+// on the host by MotionHistory, core/world/motion_history.h): the hit point
 // is taken into its instance's object space with the current transform and
 // back out with the previous one, then projected by the previous camera.
 #pragma once

@@ -12,7 +12,7 @@
 namespace tandem {
 
 // X(element type, name). Every array has one writer: TANDEM_SCENE_ARRAYS
-// (and KernelConstants) the SceneCompiler (core/scene), TANDEM_BVH_ARRAYS
+// (and KernelConstants) the SceneCompiler (core/world), TANDEM_BVH_ARRAYS
 // (and KBvhConstants) the BVH updater (accstruc/AccelStructure). Each
 // reports what it rewrote in a SceneDelta of its own; the backends commit
 // the union of the two.

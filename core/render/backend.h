@@ -11,7 +11,7 @@
 
 #include "core/render/film.h"
 #include "core/render/tiles.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -1,7 +1,7 @@
 // The temporal denoiser a frame loop calls once per frame: SVGF
 // (core/kernel/svgf.h) with its history kept between calls.
 //
-//   MotionHistory motion;          // core/scene/motion_history.h
+//   MotionHistory motion;          // core/world/motion_history.h
 //   TemporalDenoiser denoiser;
 //   per frame: render 1 spp -> radiance; features for the same KernelScene
 //   (Backend::render_features(motion.advance(kd), ...) or

@@ -29,10 +29,10 @@
 #include <vector>
 
 #include "core/render/backend.h"
-#include "core/scene/kernel_scene.h"
-#include "core/scene/motion_history.h"
-#include "core/scene/scene.h"
 #include "core/tracer/tile_scheduler.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/motion_history.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

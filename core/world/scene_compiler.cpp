@@ -2,8 +2,8 @@
 // Each step names what it must come after; the per-kind work is in the
 // compile_*.cpp files.
 #include <algorithm>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -1,7 +1,7 @@
 // Constants: the camera, the integrator's settings and the scene's bounds.
 #include <cmath>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -1,8 +1,8 @@
-#include "core/scene/scene_bounds.h"
+#include "core/world/scene_bounds.h"
 
 #include <algorithm>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -1,4 +1,4 @@
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 #include <algorithm>
 #include <iterator>

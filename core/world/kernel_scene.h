@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "core/kernel/kernel_data.h"
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

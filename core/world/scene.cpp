@@ -1,4 +1,4 @@
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 #include <algorithm>
 #include <cmath>

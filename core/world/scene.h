@@ -14,7 +14,7 @@
 
 #include <glm/glm.hpp>
 
-#include "core/scene/scene_bounds.h"
+#include "core/world/scene_bounds.h"
 
 namespace tandem {
 

@@ -1,4 +1,4 @@
-#include "core/scene/light_tables.h"
+#include "core/world/light_tables.h"
 
 #include "core/kernel/environment.h"
 

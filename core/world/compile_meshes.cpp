@@ -2,8 +2,8 @@
 // triangles. Flags read the materials, so materials compile first.
 #include <algorithm>
 #include <vector>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

@@ -1,4 +1,4 @@
-#include "core/scene/motion_history.h"
+#include "core/world/motion_history.h"
 
 namespace tandem {
 

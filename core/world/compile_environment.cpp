@@ -1,8 +1,8 @@
 // The environment: its constants and, for a map, the texels and the
 // sampling CDFs.
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
-#include "core/scene/light_tables.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/light_tables.h"
 
 namespace tandem {
 

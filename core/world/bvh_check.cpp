@@ -1,7 +1,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

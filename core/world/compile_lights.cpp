@@ -6,11 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <vector>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 #include "core/kernel/lights.h"
-#include "core/scene/light_tables.h"
+#include "core/world/light_tables.h"
 
 namespace tandem {
 

@@ -5,7 +5,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 
 namespace tandem {

@@ -1,8 +1,8 @@
 // Instances: transforms (and their inverses) to KInstance.
 #include <algorithm>
 #include <vector>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 #include <glm/glm.hpp>
 

@@ -2,8 +2,8 @@
 // KMaterial. Texture slots must exist first (compile_textures).
 #include <algorithm>
 #include <vector>
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 #include "core/kernel/lights.h"
 #include "core/kernel/microfacet.h"

@@ -3,8 +3,8 @@
 // moves every later texel offset).
 #include "core/kernel/lights.h"
 #include "core/kernel/texture.h"
-#include "core/scene/kernel_conversions.h"
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_conversions.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 

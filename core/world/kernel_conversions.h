@@ -1,11 +1,11 @@
 // Scene-model types to kernel types: the small conversions every per-kind
-// compiler (compile_*.cpp) shares. Internal to core/scene.
+// compiler (compile_*.cpp) shares. Internal to core/world.
 #pragma once
 
 #include <cmath>
 
 #include "core/kernel/types.h"
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 
