@@ -20,8 +20,7 @@
 #include <filesystem>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
@@ -75,9 +74,9 @@ struct BackendPair {
   KernelScene ks;
   SceneCompiler compiler;
   AccelStructure accel;
-  EmbreeBackend cpu;
-  HostBackend host;
-  HostBackend host_wavefront{CudaKernelVariant::kWavefront};
+  CpuBackend cpu{CpuTraversal::kEmbree};
+  CpuBackend host{CpuTraversal::kTandemBvh};
+  CpuBackend host_wavefront{CpuTraversal::kTandemBvh, CudaKernelVariant::kWavefront};
 
   BackendPair(Scene s, KBvhLayout layout) : scene(std::move(s)), accel(accel_settings(layout)) {
     settings.width = kWidth;
@@ -215,9 +214,9 @@ TEST(HostBackendTest, SyncWithoutBvhIsAClearError) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  HostBackend host;
+  CpuBackend host{CpuTraversal::kTandemBvh};
   EXPECT_TRUE(host.traits().needs_bvh);
-  EXPECT_FALSE(EmbreeBackend().traits().needs_bvh);
+  EXPECT_FALSE(CpuBackend(CpuTraversal::kEmbree).traits().needs_bvh);
   try {
     host.sync(ks, delta);
     FAIL() << "sync without a BVH must throw";
