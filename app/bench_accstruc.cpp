@@ -13,7 +13,8 @@
 #include <string>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
+#include "backends/cpu/embree_tracer.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
 
@@ -179,7 +180,7 @@ JsonValue counts_json(const PerRayCounts& c) {
 
 }  // namespace
 
-BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
+BenchRays make_bench_rays(const KernelData& kd, const CpuBackend& embree, uint32_t width,
                           uint32_t height) {
   BenchRays set;
   for (uint32_t y = 0; y < height; ++y) {
@@ -217,12 +218,12 @@ std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set) {
   return by_kind;
 }
 
-double embree_kind_mrays(const EmbreeBackend& embree, const std::vector<Ray>& rays, bool shadow) {
-  const EmbreeTracer tracer{embree.top_level(), &embree.kernel_data()};
+double embree_kind_mrays(const CpuBackend& embree, const std::vector<Ray>& rays, bool shadow) {
+  const EmbreeTracer tracer = embree.embree_tracer();
   return trace_kind(tracer, rays, shadow).mrays;
 }
 
-JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+JsonValue run_accstruc_bench(KernelScene& ks, const CpuBackend& embree, const BenchRays& rays,
                              int threads) {
   const uint64_t tris = unique_triangles(ks);
   std::printf("\naccstruc: %zu meshes, %llu unique triangles, best of %d runs\n", ks.meshes.size(),
@@ -294,7 +295,7 @@ JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const
   const BvhTracer ours_binary{&binary}, ours_wide{&wide};
   // Embree through the backend's own tracer (its alpha filter needs the
   // extended context), the exact query the CPU backend renders with.
-  const EmbreeTracer emb{embree.top_level(), &embree.kernel_data()};
+  const EmbreeTracer emb = embree.embree_tracer();
   const char* kinds[3] = {"primary", "diffuse", "shadow"};
   double embree_mrays[3] = {0.0, 0.0, 0.0};  // of the last (widest) thread count
   for (const int t : {1, threads}) {

@@ -12,7 +12,7 @@
 
 namespace tandem {
 
-class EmbreeBackend;
+class CpuBackend;
 
 enum class BenchRayKind : uint8_t { kPrimary, kDiffuse, kShadow };
 
@@ -23,7 +23,7 @@ struct BenchRays {
   std::vector<Ray> rays;
   std::vector<BenchRayKind> kind;
 };
-BenchRays make_bench_rays(const KernelData& kd, const EmbreeBackend& embree, uint32_t width,
+BenchRays make_bench_rays(const KernelData& kd, const CpuBackend& embree, uint32_t width,
                           uint32_t height);
 
 // The rays of `set` grouped by kind, indexed by BenchRayKind.
@@ -31,14 +31,14 @@ std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set);
 
 // Mrays/s of the CPU backend's Embree tracer over `rays` on all threads
 // (closest hits; any hits with `shadow`), best of a few runs.
-double embree_kind_mrays(const EmbreeBackend& embree, const std::vector<Ray>& rays, bool shadow);
+double embree_kind_mrays(const CpuBackend& embree, const std::vector<Ray>& rays, bool shadow);
 
 // Prints BLAS build throughput (ours vs Embree's builder), the SAH cost of
 // our BLAS (vs a median-split build), and closest-hit / any-hit throughput
 // of our two layouts vs Embree for primary, diffuse and shadow rays, on one
 // thread and on `threads` threads. `embree` must be synced to `ks`, whose
 // BVH arrays this fills. Returns the printed figures for the JSON report.
-JsonValue run_accstruc_bench(KernelScene& ks, const EmbreeBackend& embree, const BenchRays& rays,
+JsonValue run_accstruc_bench(KernelScene& ks, const CpuBackend& embree, const BenchRays& rays,
                              int threads);
 
 }  // namespace tandem

@@ -21,7 +21,7 @@
 #include "app/json_writer.h"
 #include "app/render_denoise.h"
 #include "app/view/scripted_path.h"
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/util/errors.h"
@@ -118,7 +118,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
 
   KernelScene ks;
   SceneCompiler compiler;
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   MotionHistory motion;
   SvgfParams params = svgf_default_params(settings.width, settings.height);
   params.max_history = args.get_u32("max-history", params.max_history, 1, 1u << 16);

@@ -93,7 +93,7 @@ GpuFrameFigures time_frames(CudaBackend& cuda, const GpuBenchConfig& c) {
 }  // namespace
 
 GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, KernelScene& ks,
-                                  const SceneDelta& delta, const EmbreeBackend& embree,
+                                  const SceneDelta& delta, const CpuBackend& embree,
                                   const BenchRays& rays, uint32_t ray_width, uint32_t ray_height,
                                   int embree_threads, bool frame_camera_from_bounds,
                                   const GpuBenchConfig& config) {

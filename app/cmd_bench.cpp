@@ -27,8 +27,8 @@
 #include "app/scene_setup.h"
 #include "app/view/bench_frames.h"
 #include "backends/backend_factory.h"
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
+#include "backends/cpu/embree_tracer.h"
 #include "core/kernel/integrator.h"
 #include "core/render/renderer.h"
 #include "core/util/errors.h"
@@ -82,8 +82,8 @@ double seconds_since(Clock::time_point t) {
 // goes through EmbreeTracer because the CPU backend's alpha-test filter
 // reads the tracer's extended ray context (a bare RTCIntersectContext would
 // hand it garbage on scenes with alpha-tested meshes).
-double embree_loop_mrays(const EmbreeBackend& backend, const BenchRays& set, int repeats) {
-  const EmbreeTracer tracer{backend.top_level(), &backend.kernel_data()};
+double embree_loop_mrays(const CpuBackend& backend, const BenchRays& set, int repeats) {
+  const EmbreeTracer tracer = backend.embree_tracer();
   const auto start = Clock::now();
   for (int r = 0; r < repeats; ++r) {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.rays.size(), 1024),
@@ -172,7 +172,7 @@ int run_bench(const std::vector<std::string>& argv) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   const auto build_start = Clock::now();
   backend.sync(ks, delta);
   const double build_s = seconds_since(build_start);
@@ -232,7 +232,7 @@ int run_bench(const std::vector<std::string>& argv) {
     report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));
     // The same path tracing on the host backend: our BVH (binary layout,
     // filled in by run_accstruc_bench) under the same kernels.
-    HostBackend host;
+    CpuBackend host{CpuTraversal::kTandemBvh};
     host.sync(ks, delta);
     const OfflineRenderResult h = render_offline(host, settings.width, settings.height, options);
     const double host_mrays = double(h.stats.rays) / h.seconds * 1e-6;

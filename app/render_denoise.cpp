@@ -3,7 +3,7 @@
 #include <cmath>
 #include <system_error>
 
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/util/errors.h"
 #include "core/world/motion_history.h"
@@ -16,7 +16,7 @@ std::vector<PixelFeatures> render_scene_features(const Scene& scene,
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(copy, settings, ks);
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   MotionHistory motion;
   std::vector<PixelFeatures> features(size_t(settings.width) * settings.height);

@@ -3,9 +3,8 @@
 #include <atomic>
 #include <mutex>
 
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "backends/cuda/cuda_backend.h"
-#include "backends/host/host_backend.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
 
@@ -121,7 +120,7 @@ class CpuFallbackBackend final : public Backend {
     deferred_failure_.clear();
     fell_back_ = true;
     retired_ = std::move(active_);
-    active_ = std::make_unique<EmbreeBackend>();
+    active_ = std::make_unique<CpuBackend>(CpuTraversal::kEmbree);
   }
 
   mutable std::mutex mutex_;
@@ -185,7 +184,7 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
     }
     case BackendKind::kHost:
       // Our BVH and the shared kernels on the CPU: what the CUDA backend runs.
-      out.push_back(std::make_unique<HostBackend>(options.kernel));
+      out.push_back(std::make_unique<CpuBackend>(CpuTraversal::kTandemBvh, options.kernel));
       return out;
     case BackendKind::kAuto:
     case BackendKind::kHetero: {
@@ -201,7 +200,7 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
     case BackendKind::kCpu:
       break;
   }
-  out.push_back(std::make_unique<EmbreeBackend>(options.kernel));
+  out.push_back(std::make_unique<CpuBackend>(CpuTraversal::kEmbree, options.kernel));
   return out;
 }
 

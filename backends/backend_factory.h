@@ -10,13 +10,15 @@
 
 namespace tandem {
 
+// kCpu (`cpu`) and kHost (`host`) are the one CPU backend with its two
+// traversals, Embree and Tandem's BVH (backends/cpu/cpu_backend.h).
 enum class BackendKind { kAuto, kCpu, kHost, kCuda, kHetero };
 
 // Parses cpu|host|cuda|hetero|auto; throws UsageError otherwise.
 BackendKind parse_backend_kind(const std::string& name);
 
-// How the created backends trace. The kernel applies to the CUDA backend
-// (auto, hetero and cuda) and to the host backend.
+// How the created backends trace. The kernel applies to every backend
+// created: the CUDA backend and the CPU backend in either traversal.
 struct BackendOptions {
   CudaKernelVariant kernel = CudaKernelVariant::kMegakernel;
   // `cuda` as part of a backend list: a device failure while syncing or

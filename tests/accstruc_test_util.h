@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/camera.h"
 #include "core/kernel/geometry.h"
@@ -41,7 +41,7 @@ struct TracedScene {
   SceneCompiler compiler;
   RenderSettings settings;
   AccelStructure accel{test_settings()};
-  EmbreeBackend embree;
+  CpuBackend embree{CpuTraversal::kEmbree};
   SceneBounds bounds;
 
   explicit TracedScene(Scene s) : scene(std::move(s)) {

@@ -25,9 +25,9 @@
 
 #include "accstruc_test_util.h"
 #include "backends/backend_factory.h"
+#include "backends/cpu/cpu_backend.h"
 #include "backends/cuda/commit_plan.h"
 #include "backends/cuda/cuda_backend.h"
-#include "backends/host/host_backend.h"
 #include "core/image/image.h"
 #include "core/kernel/tone_map.h"
 #include "core/render/renderer.h"
@@ -294,13 +294,13 @@ TEST(CudaGpu, ImagesMatchHostTileByTile) {
       FrameScene fs(c.scene(), width, height);
       fs.accel.set_layout(KBvhLayout(layout));
       const SceneDelta delta = fs.next_frame();
-      HostBackend host;
+      CpuBackend host{CpuTraversal::kTandemBvh};
       host.sync(fs.ks, delta);
       CudaBackend cuda(open_device(&reason), CudaKernelVariant::kMegakernel, limits);
       cuda.sync(fs.ks, delta);
       BackendStats host_stats, mega_stats, wave_stats;
       const ImageRGB reference = render_image(host, width, height, spp, 16, &host_stats);
-      HostBackend host_wave(CudaKernelVariant::kWavefront);
+      CpuBackend host_wave(CpuTraversal::kTandemBvh, CudaKernelVariant::kWavefront);
       host_wave.sync(fs.ks, delta);
       EXPECT_EQ(identical_pixels(render_image(host_wave, width, height, spp), reference),
                 size_t(width) * height);
@@ -332,7 +332,7 @@ TEST(CudaGpu, FullHdFrameMatchesHostTileByTile) {
     GTEST_SKIP() << "a full HD frame takes minutes on the simulated device";
   FrameScene fs(load_scene("builtin:cornell"), 1920, 1080);
   const SceneDelta delta = fs.next_frame();
-  HostBackend host;
+  CpuBackend host{CpuTraversal::kTandemBvh};
   host.sync(fs.ks, delta);
   CudaBackend cuda;
   cuda.sync(fs.ks, delta);

@@ -10,12 +10,11 @@
 #include <random>
 
 #include "backends/backend_factory.h"
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "backends/cuda/commit_plan.h"
 #include "backends/cuda/cuda_backend.h"
 #include "backends/cuda/device_faults.h"
 #include "backends/cuda/sim_device.h"
-#include "backends/host/host_backend.h"
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "cuda_test_util.h"
@@ -115,7 +114,7 @@ TEST(CudaSim, RendersTheHostBackendsImageBitForBitWithoutHazards) {
       FrameScene fs(load_scene("builtin:cornell-spheres"), width, height);
       fs.accel.set_layout(KBvhLayout(layout));
       const SceneDelta delta = fs.next_frame();
-      HostBackend host;
+      CpuBackend host{CpuTraversal::kTandemBvh};
       host.sync(fs.ks, delta);
       CudaBackend cuda(sim, CudaKernelVariant::kMegakernel, limits);
       cuda.sync(fs.ks, delta);
@@ -141,7 +140,7 @@ TEST(CudaSim, RendersTheHostBackendsImageBitForBitWithoutHazards) {
 TEST(CudaSim, TileComparisonCatchesASingleWrongTile) {
   FrameScene fs(load_scene("builtin:cornell"), 64, 48);
   const SceneDelta delta = fs.next_frame();
-  HostBackend host;
+  CpuBackend host{CpuTraversal::kTandemBvh};
   host.sync(fs.ks, delta);
   const ImageRGB good = render_image(host, 64, 48, 2);
   ImageRGB bad = good;
@@ -310,8 +309,8 @@ TEST(CudaFaults, EveryFaultFallsBackToTheCpuWithTheRightImage) {
     tracer.render_frame(scene);
     return tracer.image();
   };
-  HostBackend host;
-  EmbreeBackend cpu;
+  CpuBackend host{CpuTraversal::kTandemBvh};
+  CpuBackend cpu{CpuTraversal::kEmbree};
   const ImageRGB on_host = reference(host), on_cpu = reference(cpu);
   const size_t pixels = size_t(width) * height;
   uint32_t runs = 0, fallbacks = 0;
@@ -354,7 +353,7 @@ TEST(CudaFaults, OutOfMemoryLeavesTheBackendUsable) {
   const uint32_t width = 32, height = 24;
   FrameScene fs(load_scene("builtin:cornell"), width, height);
   const SceneDelta delta = fs.next_frame();
-  HostBackend host;
+  CpuBackend host{CpuTraversal::kTandemBvh};
   host.sync(fs.ks, delta);
   const ImageRGB reference = render_image(host, width, height, 3);
   uint32_t failed_syncs = 0, failed_renders = 0;
@@ -436,7 +435,7 @@ TEST(CudaFaults, FallbackForwardsTraitsAndChangesThemWhenItFallsBack) {
   FrameScene fs(load_scene("builtin:cornell"), 16, 16);
   wrapped->sync(fs.ks, fs.next_frame());
   render_image(*wrapped, 16, 16, 1);  // the first launch fails: now the CPU renders
-  EXPECT_EQ(wrapped->traits(), EmbreeBackend().traits());
+  EXPECT_EQ(wrapped->traits(), CpuBackend(CpuTraversal::kEmbree).traits());
   EXPECT_EQ(wrapped->name(), "cpu");
 }
 

@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/builtin_scenes.h"
 
@@ -48,7 +48,7 @@ ImageRGB render_scene(Scene& scene, RenderSettings settings, uint32_t spp) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;
   options.spp = spp;

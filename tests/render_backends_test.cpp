@@ -20,8 +20,11 @@
 #include <filesystem>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/backend_factory.h"
+#include "backends/cpu/cpu_backend.h"
+#include "backends/cpu/embree_tracer.h"
+#include "core/kernel/bvh_traverse.h"
+#include "core/kernel/camera.h"
 #include "core/render/renderer.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
@@ -75,9 +78,9 @@ struct BackendPair {
   KernelScene ks;
   SceneCompiler compiler;
   AccelStructure accel;
-  EmbreeBackend cpu;
-  HostBackend host;
-  HostBackend host_wavefront{CudaKernelVariant::kWavefront};
+  CpuBackend cpu{CpuTraversal::kEmbree};
+  CpuBackend host{CpuTraversal::kTandemBvh};
+  CpuBackend host_wavefront{CpuTraversal::kTandemBvh, CudaKernelVariant::kWavefront};
 
   BackendPair(Scene s, KBvhLayout layout) : scene(std::move(s)), accel(accel_settings(layout)) {
     settings.width = kWidth;
@@ -215,15 +218,82 @@ TEST(HostBackendTest, SyncWithoutBvhIsAClearError) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  HostBackend host;
+  CpuBackend host{CpuTraversal::kTandemBvh};
   EXPECT_TRUE(host.traits().needs_bvh);
-  EXPECT_FALSE(EmbreeBackend().traits().needs_bvh);
+  EXPECT_FALSE(CpuBackend(CpuTraversal::kEmbree).traits().needs_bvh);
   try {
     host.sync(ks, delta);
     FAIL() << "sync without a BVH must throw";
   } catch (const std::logic_error& e) {
     EXPECT_NE(std::string(e.what()).find("AccelStructure"), std::string::npos) << e.what();
   }
+}
+
+// `--backend cpu` and `--backend host` are the one CPU backend with its two
+// traversals; the names, traits and kernel the command line relies on come
+// from the traversal chosen.
+TEST(CpuBackendTest, FactoryNamesChooseTheTraversal) {
+  BackendOptions options;
+  options.kernel = CudaKernelVariant::kWavefront;
+  const struct {
+    BackendKind kind;
+    const char* name;
+    CpuTraversal traversal;
+    bool needs_bvh;
+  } cases[] = {{BackendKind::kCpu, "cpu", CpuTraversal::kEmbree, false},
+               {BackendKind::kHost, "host", CpuTraversal::kTandemBvh, true}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.name);
+    EXPECT_EQ(parse_backend_kind(c.name), c.kind);
+    const auto backends = create_backends(c.kind, options);
+    ASSERT_EQ(backends.size(), 1u);
+    EXPECT_EQ(backends[0]->name(), c.name);
+    EXPECT_EQ(backends[0]->traits().needs_bvh, c.needs_bvh);
+    EXPECT_TRUE(backends[0]->traits().uses_host_cores);
+    const auto* cpu = dynamic_cast<const CpuBackend*>(backends[0].get());
+    ASSERT_NE(cpu, nullptr);
+    EXPECT_EQ(cpu->traversal(), c.traversal);
+    EXPECT_EQ(cpu->kernel(), CudaKernelVariant::kWavefront);
+  }
+}
+
+// The single-ray queries go through the chosen traversal: Embree and our BVH
+// find the same surfaces for the camera rays of a scene, and only the Embree
+// traversal hands out an Embree tracer.
+TEST(CpuBackendTest, BothTraversalsAnswerTheSameQueries) {
+  BackendPair pair(load_case(kScenes[0]), kBvhLayoutWide);
+  EXPECT_THROW(pair.host.embree_tracer(), std::logic_error);
+  const EmbreeTracer embree = pair.cpu.embree_tracer();
+  const KernelData& kd = pair.host.kernel_data();
+  size_t hits = 0, same = 0;
+  for (uint32_t y = 0; y < kHeight; y += 4) {
+    for (uint32_t x = 0; x < kWidth; x += 4) {
+      const Ray ray =
+          generate_camera_ray(kd.constants.camera, float(x) + 0.5f, float(y) + 0.5f, 0.5f, 0.5f);
+      const Hit a = pair.cpu.intersect(ray), b = pair.host.intersect(ray);
+      // Each backend's query is its traversal's tracer's.
+      const Hit e = embree.intersect(ray, 0), o = BvhTracer{&kd}.intersect(ray, 0);
+      EXPECT_EQ(std::memcmp(&a, &e, sizeof a), 0);
+      EXPECT_EQ(std::memcmp(&b, &o, sizeof b), 0);
+      ASSERT_EQ(hit_valid(a), hit_valid(b)) << x << "," << y;
+      if (!hit_valid(a)) continue;
+      ++hits;
+      EXPECT_NEAR(a.t, b.t, 1e-4f * std::max(1.0f, a.t)) << x << "," << y;
+      // A ray through the edge two triangles share may report either.
+      same += a.instance == b.instance && a.prim == b.prim;
+      // A shadow ray to just short of the hit is unblocked for both, one
+      // past it is blocked for both.
+      Ray shorter = ray, longer = ray;
+      shorter.tmax = a.t * 0.99f;
+      longer.tmax = a.t * 1.01f;
+      EXPECT_FALSE(pair.cpu.occluded(shorter));
+      EXPECT_FALSE(pair.host.occluded(shorter));
+      EXPECT_TRUE(pair.cpu.occluded(longer));
+      EXPECT_TRUE(pair.host.occluded(longer));
+    }
+  }
+  EXPECT_GT(hits, size_t(100));
+  EXPECT_GE(double(same), 0.95 * double(hits));
 }
 
 }  // namespace

@@ -9,8 +9,7 @@
 #include <random>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/world/motion_history.h"
@@ -229,7 +228,7 @@ TEST(Denoise, NoGhostTrailBehindMovingObject) {
 struct Compiled {
   KernelScene ks;
   SceneCompiler compiler;
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   void compile(Scene& scene, const RenderSettings& settings) {
     backend.sync(ks, compiler.compile(scene, settings, ks));
   }
@@ -304,8 +303,8 @@ TEST(Denoise, FeaturesAreTheSameOnEveryCpuBackendAndStaticWithoutMotion) {
   SceneDelta delta = compiler.compile(scene, settings, ks);
   AccelStructure accel;
   delta = delta | accel.update(ks, delta).delta;
-  EmbreeBackend cpu;
-  HostBackend host;
+  CpuBackend cpu{CpuTraversal::kEmbree};
+  CpuBackend host{CpuTraversal::kTandemBvh};
   cpu.sync(ks, delta);
   host.sync(ks, delta);
   MotionHistory motion;

@@ -6,7 +6,7 @@
 
 #include <cstring>
 
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/builtin_scenes.h"
 
@@ -23,7 +23,7 @@ ImageRGB render_cornell(uint32_t threads, uint32_t tile_size, uint32_t seed) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;
   options.spp = 4;

@@ -10,11 +10,10 @@
 #include <string>
 
 #include "accstruc/accel_structure.h"
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
+#include "backends/cpu_loops/cpu_wavefront.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
-#include "core/render/cpu_wavefront.h"
 #include "core/render/renderer.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/procedural_scenes.h"
@@ -218,7 +217,8 @@ TEST(RenderIntegrator, HostBackendWavefrontMatchesItsMegakernel) {
   for (const char* spec : {"builtin:cornell", "builtin:sky-plane", "procedural"}) {
     SCOPED_TRACE(spec);
     Compiled c(test_scene(spec), width, height, 9);
-    HostBackend mega, wave(CudaKernelVariant::kWavefront);
+    CpuBackend mega(CpuTraversal::kTandemBvh),
+        wave(CpuTraversal::kTandemBvh, CudaKernelVariant::kWavefront);
     mega.sync(c.ks, SceneDelta::everything());
     wave.sync(c.ks, SceneDelta::everything());
     OfflineRenderOptions options;
@@ -241,7 +241,8 @@ TEST(RenderIntegrator, EmbreePacketWavefrontMatchesItsRayLoop) {
   for (const char* spec : {"builtin:cornell", "procedural"}) {
     SCOPED_TRACE(spec);
     Compiled c(test_scene(spec), width, height, 9);
-    EmbreeBackend rays, packets(CudaKernelVariant::kWavefront);
+    CpuBackend rays(CpuTraversal::kEmbree),
+        packets(CpuTraversal::kEmbree, CudaKernelVariant::kWavefront);
     rays.sync(c.ks, SceneDelta::everything());
     packets.sync(c.ks, SceneDelta::everything());
     OfflineRenderOptions options;

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/scene_loader.h"
 
@@ -38,7 +38,7 @@ TEST_P(ModelRenderTest, RendersFiniteNonBlackImage) {
   KernelScene ks;
   SceneCompiler compiler;
   const SceneDelta delta = compiler.compile(scene, settings, ks);
-  EmbreeBackend backend;
+  CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;
   options.spp = 2;

@@ -6,10 +6,9 @@
 #include <cmath>
 #include <cstring>
 
-#include "backends/cpu/embree_backend.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
+#include "backends/cpu_loops/cpu_tile_loop.h"
 #include "core/kernel/bvh_traverse.h"
-#include "core/render/cpu_tile_loop.h"
 #include "core/render/renderer.h"
 #include "core/tracer/core_tracer.h"
 #include "scenes/builtin_scenes.h"
@@ -70,11 +69,11 @@ std::vector<std::unique_ptr<Backend>> make(const std::vector<std::string>& names
   std::vector<std::unique_ptr<Backend>> out;
   for (const std::string& n : names) {
     if (n == "cpu")
-      out.push_back(std::make_unique<EmbreeBackend>());
+      out.push_back(std::make_unique<CpuBackend>(CpuTraversal::kEmbree));
     else if (n == "snapshot")
       out.push_back(std::make_unique<SnapshotBackend>());
     else
-      out.push_back(std::make_unique<HostBackend>());
+      out.push_back(std::make_unique<CpuBackend>(CpuTraversal::kTandemBvh));
   }
   return out;
 }

@@ -16,9 +16,9 @@
 #include <random>
 #include <thread>
 
+#include "backends/cpu_loops/cpu_wavefront.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
-#include "core/render/cpu_wavefront.h"
 
 namespace tandem {
 

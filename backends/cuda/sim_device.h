@@ -18,7 +18,7 @@
 //   - Fresh memory is filled with a pattern, not zeroes, as on a GPU.
 // The wavefront variant runs the GPU's queue logic (core/kernel/wavefront.h)
 // over the arrays the backend allocated on the device, with the CPU driver
-// of core/render/cpu_wavefront.h.
+// of backends/cpu_loops/cpu_wavefront.h.
 #pragma once
 
 #include <memory>

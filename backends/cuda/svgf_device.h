@@ -1,7 +1,7 @@
 // The denoiser's kernels on the CUDA device: the feature pass
 // (core/kernel/features.h) and one frame of the variance-guided filter
 // (core/kernel/svgf.h), the same per-pixel code the CPU runs
-// (core/render/cpu_features.h, core/render/svgf_cpu.h).
+// (backends/cpu_loops/cpu_features.h, core/render/svgf_cpu.h).
 #pragma once
 
 #include <string>

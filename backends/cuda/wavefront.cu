@@ -1,6 +1,6 @@
 // The wavefront path tracer on the GPU: each stage of core/kernel/wavefront.h
 // is one kernel over its queue, in the order the CPU driver
-// (core/render/cpu_wavefront.h) runs them. extend and connect trace with
+// (backends/cpu_loops/cpu_wavefront.h) runs them. extend and connect trace with
 // persistent threads (Aila & Laine 2009: just enough warps to fill the GPU,
 // each fetching 32 queue entries at a time, so warps that drew short rays
 // take more work instead of idling); shade_miss and shade_hit cover the slots

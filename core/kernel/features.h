@@ -4,7 +4,7 @@
 // previous frame.
 //
 // Written once for every backend: the CPU backends run compute_pixel_features
-// with their Tracer under TBB (core/render/cpu_features.h), the CUDA backend
+// with their Tracer under TBB (backends/cpu_loops/cpu_features.h), the CUDA backend
 // in a small kernel. The camera ray goes through the pixel centre with the
 // lens centre (no jitter), so a pixel's features do not depend on the sample
 // index and stay the same from frame to frame for a static view.

@@ -1,5 +1,6 @@
-// CPU backend: Embree 3 for ray queries, TBB for parallelism, and the shared
-// kernel integrator for everything else.
+// The CPU backend's Embree traversal (CpuTraversal::kEmbree,
+// backends/cpu/cpu_backend.h): the Embree 3 scene it keeps in step with the
+// KernelScene, and the kernel Tracers that query it.
 //
 // One Embree BLAS (RTCScene) per mesh, one instance geometry per scene
 // instance in a top-level scene whose geometry IDs equal instance indices.
@@ -9,47 +10,35 @@
 
 #include <embree3/rtcore.h>
 
-#include <memory>
 #include <vector>
 
-#include "backends/kernel_variant.h"
-#include "core/render/backend.h"
+#include "core/kernel/kernel_data.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 
-class CpuWavefrontStorage;
-
-class EmbreeBackend final : public Backend {
+// An Embree device with the BLAS and the top-level scene of one KernelScene.
+class EmbreeScene {
  public:
-  // kWavefront: the wavefront pipeline with Embree's 16-ray packets instead
-  // of the per-pixel loop with single rays.
-  explicit EmbreeBackend(CudaKernelVariant kernel = CudaKernelVariant::kMegakernel);
-  ~EmbreeBackend() override;
-  EmbreeBackend(const EmbreeBackend&) = delete;
-  EmbreeBackend& operator=(const EmbreeBackend&) = delete;
+  // Throws std::runtime_error when Embree cannot create a device.
+  EmbreeScene();
+  ~EmbreeScene();
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-  std::string name() const override { return "cpu"; }
-  BackendTraits traits() const override { return {.uses_host_cores = true}; }
-  void sync(const KernelScene& scene, const SceneDelta& delta) override;
-  BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
-  bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
-
-  // Single-ray queries, for tests and benchmarks (thread-safe after sync).
-  Hit intersect(const Ray& ray, uint32_t alpha_key = 0) const;
-  bool occluded(const Ray& ray, uint32_t alpha_key = 0) const;
+  // Brings the Embree scene up to date with `scene` for `delta`: a rebuild,
+  // or BLAS refits and instance transform updates.
+  void sync(const KernelScene& scene, const SceneDelta& delta);
+  // Null before the first sync.
   RTCScene top_level() const { return top_; }
-  const KernelData& kernel_data() const { return kd_; }
 
  private:
   void release_scenes();
   void build_all(const KernelScene& scene);
 
-  CudaKernelVariant kernel_;
-  std::unique_ptr<CpuWavefrontStorage> wavefront_;
   RTCDevice device_ = nullptr;
   RTCScene top_ = nullptr;
   std::vector<RTCScene> blas_;
-  KernelData kd_{};
 };
 
 // A triangle geometry over mesh `mesh` of `ks`, sharing its vertex and index
@@ -68,7 +57,7 @@ struct EmbreeTracer {
 };
 
 // The same with packets of up to 16 rays (rtcIntersect16 / rtcOccluded16),
-// for the wavefront pipeline on the CPU (core/render/cpu_wavefront.h). Each
+// for the wavefront pipeline on the CPU (backends/cpu_loops/cpu_wavefront.h). Each
 // ray carries its own alpha key (in the ray id, which the filter reads).
 struct EmbreePacketTracer : EmbreeTracer {
   void intersect_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n, Hit* hits) const;

@@ -1,12 +1,9 @@
-#include "backends/cpu/embree_backend.h"
+#include "backends/cpu/embree_tracer.h"
 
 #include <stdexcept>
 #include <string>
 
 #include "core/kernel/alpha.h"
-#include "core/render/cpu_features.h"
-#include "core/render/cpu_tile_loop.h"
-#include "core/render/cpu_wavefront.h"
 #include "core/util/log.h"
 
 namespace tandem {
@@ -138,7 +135,7 @@ void EmbreePacketTracer::occluded_packet(const Ray* rays, const uint32_t* alpha_
     occluded[j] = r.tfar[j] < 0.0f;
 }
 
-EmbreeBackend::EmbreeBackend(CudaKernelVariant kernel) : kernel_(kernel) {
+EmbreeScene::EmbreeScene() {
   device_ = rtcNewDevice(nullptr);
   if (!device_) {
     throw std::runtime_error("cannot create an Embree device (error " +
@@ -147,7 +144,7 @@ EmbreeBackend::EmbreeBackend(CudaKernelVariant kernel) : kernel_(kernel) {
   rtcSetDeviceErrorFunction(device_, embree_error, nullptr);
 }
 
-EmbreeBackend::~EmbreeBackend() {
+EmbreeScene::~EmbreeScene() {
   release_scenes();
   if (device_) rtcReleaseDevice(device_);
 }
@@ -166,7 +163,7 @@ RTCGeometry new_mesh_geometry(RTCDevice device, const KernelScene& ks, uint32_t 
   return g;
 }
 
-void EmbreeBackend::release_scenes() {
+void EmbreeScene::release_scenes() {
   if (top_) rtcReleaseScene(top_);
   top_ = nullptr;
   for (RTCScene s : blas_)
@@ -174,7 +171,7 @@ void EmbreeBackend::release_scenes() {
   blas_.clear();
 }
 
-void EmbreeBackend::build_all(const KernelScene& ks) {
+void EmbreeScene::build_all(const KernelScene& ks) {
   release_scenes();
   blas_.resize(ks.meshes.size());
   // BLAS builds are independent; Embree parallelises inside each build too.
@@ -210,7 +207,7 @@ void EmbreeBackend::build_all(const KernelScene& ks) {
   rtcCommitScene(top_);
 }
 
-void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
+void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
   // Embree shares our vertex/index memory, so a reallocated array means the
   // BLAS must be rebuilt against the new storage.
   if (delta.full || !top_ || delta.positions.reallocated || delta.triangles.reallocated ||
@@ -239,29 +236,6 @@ void EmbreeBackend::sync(const KernelScene& ks, const SceneDelta& delta) {
       rtcCommitScene(top_);
     }
   }
-  kd_ = ks.view();
-}
-
-bool EmbreeBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
-  render_features_on_cpu(kd_, EmbreeTracer{top_, &kd_}, pass, out);
-  return true;
-}
-
-BackendStats EmbreeBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {
-  if (kernel_ == CudaKernelVariant::kWavefront) {
-    if (!wavefront_) wavefront_ = std::make_unique<CpuWavefrontStorage>();
-    return render_tiles_wavefront_on_cpu(kd_, EmbreePacketTracer{{top_, &kd_}}, pass, tiles, film,
-                                         *wavefront_);
-  }
-  return render_tiles_on_cpu(kd_, EmbreeTracer{top_, &kd_}, pass, tiles, film);
-}
-
-Hit EmbreeBackend::intersect(const Ray& ray, uint32_t alpha_key) const {
-  return EmbreeTracer{top_, &kd_}.intersect(ray, alpha_key);
-}
-
-bool EmbreeBackend::occluded(const Ray& ray, uint32_t alpha_key) const {
-  return EmbreeTracer{top_, &kd_}.occluded(ray, alpha_key);
 }
 
 }  // namespace tandem

@@ -1,6 +1,6 @@
-// The tile loop every CPU-side backend runs: TBB workers pull tiles from a
-// TileSource and trace each pixel's samples with the shared integrator.
-// Backends differ only in their Tracer (Embree, or Tandem's own BVH).
+// The CPU backend's tile loop: TBB workers pull tiles from a TileSource and
+// trace each pixel's samples with the shared integrator. Its traversals
+// differ only in their Tracer (Embree, or Tandem's own BVH).
 #pragma once
 
 #include <tbb/parallel_for.h>

@@ -1,6 +1,6 @@
 // The wavefront pipeline of core/kernel/wavefront.h on the CPU: every stage
 // a TBB loop over its queue, in the order the GPU launches its kernels. The
-// host backend renders with it (--kernel wavefront) and the simulated GPU
+// CPU backend renders with it (--kernel wavefront) and the simulated GPU
 // runs the CUDA backend's wavefront variant with it, so CI runs the GPU's
 // queue logic and checks that it gives the megakernel's bits.
 #pragma once
@@ -93,8 +93,10 @@ uint64_t run_wavefront_on_cpu(const KernelData& kd, const Tracer& tracer, const 
     if constexpr (PacketTracer<Tracer>) {
       detail::parallel_over((n + kPacketSize - 1) / kPacketSize, [&](uint32_t chunk) {
         const uint32_t first = chunk * kPacketSize, m = std::min(kPacketSize, n - first);
-        Ray rays[kPacketSize];
-        uint32_t keys[kPacketSize];
+        // Zeroed although only the first m are read: GCC cannot see that
+        // through a tracer compiled in another file, and warns.
+        Ray rays[kPacketSize]{};
+        uint32_t keys[kPacketSize]{};
         Hit hits[kPacketSize];
         for (uint32_t j = 0; j < m; ++j)
           rays[j] = wavefront_extend_ray(w, round, first + j, &keys[j]);
@@ -115,8 +117,8 @@ uint64_t run_wavefront_on_cpu(const KernelData& kd, const Tracer& tracer, const 
     if constexpr (PacketTracer<Tracer>) {
       detail::parallel_over((shadows + kPacketSize - 1) / kPacketSize, [&](uint32_t chunk) {
         const uint32_t first = chunk * kPacketSize, m = std::min(kPacketSize, shadows - first);
-        Ray rays[kPacketSize];
-        uint32_t keys[kPacketSize];
+        Ray rays[kPacketSize]{};  // zeroed as above
+        uint32_t keys[kPacketSize]{};
         bool occluded[kPacketSize];
         for (uint32_t j = 0; j < m; ++j) {
           const ShadowRay& sr = wavefront_connect_ray(w, first + j);
@@ -145,7 +147,7 @@ uint64_t run_wavefront_on_cpu(const KernelData& kd, const Tracer& tracer, const 
   return run_wavefront_on_cpu(kd, tracer, batch, storage.arrays(slots), radiance);
 }
 
-// The CPU backends' tile loop in wavefront form: tiles are pulled from the
+// The CPU backend's tile loop in wavefront form: tiles are pulled from the
 // frame's source in batches, each batch's samples traced by the pipeline,
 // summed per pixel in sample order and double precision (what the
 // megakernel's tile loop does) and added to the film. A batch of the wavefront pipeline: up to 16
