@@ -13,12 +13,16 @@ namespace tandem {
 namespace {
 
 constexpr uint32_t kTraceThreads = 128;
+// Resident blocks per SM, as for the wavefront's extend and connect
+// (wavefront.cu): 64 registers, 50% occupancy on sm_90, and bench --gpu's ray
+// figures measure the traversal those kernels run.
+constexpr uint32_t kTraceBlocksPerSm = 8;
 
 // Persistent threads (Aila & Laine 2009, "Understanding the efficiency of
 // ray traversal on GPUs"): just enough warps to fill the GPU, each fetching
 // 32 rays at a time from a global counter, so warps that drew short rays
 // take more work instead of idling until the slowest warp of a block ends.
-__global__ void __launch_bounds__(kTraceThreads)
+__global__ void __launch_bounds__(kTraceThreads, kTraceBlocksPerSm)
     trace_rays_kernel(const KernelData* __restrict__ kd_global, const Ray* __restrict__ rays,
                       const uint32_t* __restrict__ alpha_keys, uint32_t n, bool any_hit, Hit* hits,
                       uint32_t* work_counter, uint32_t* hit_queue, uint32_t* miss_queue,

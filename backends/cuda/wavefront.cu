@@ -22,6 +22,15 @@ constexpr uint32_t kWaveThreads = 128;
 // Rounds between two reads of the queue counter by the host: the kernels of
 // rounds after the last path ended exit at once, a read costs a round trip.
 constexpr uint32_t kRoundsPerCheck = 4;
+// Resident blocks per SM the two traversal kernels are compiled for: 8 x 128
+// threads is 50% occupancy on sm_90 and caps them at 64 registers, which the
+// single-loop traversal (bvh_traverse.h) fits without spilling. Traversal is
+// bound by memory latency, which more resident warps hide.
+constexpr uint32_t kTraceBlocksPerSm = 8;
+// And for shade_hit, the BSDF's kernel: left to itself ptxas aims at 5
+// blocks (96 registers) and spills 16 / 24 B since the clear coat and sheen
+// layers; 4 blocks (25% occupancy) give it the 104 registers it needs.
+constexpr uint32_t kShadeBlocksPerSm = 4;
 
 __global__ void __launch_bounds__(kWaveThreads)
     wave_fill_kernel(const KernelData* __restrict__ kd_global, TileBatch batch, WavefrontArrays w) {
@@ -51,7 +60,7 @@ __device__ __forceinline__ void persistent_loop(const WavefrontArrays& w, uint32
   }
 }
 
-__global__ void __launch_bounds__(kWaveThreads)
+__global__ void __launch_bounds__(kWaveThreads, kTraceBlocksPerSm)
     wave_extend_kernel(const KernelData* __restrict__ kd_global, WavefrontArrays w,
                        uint32_t round) {
   __shared__ KernelData kd;
@@ -70,7 +79,7 @@ __global__ void __launch_bounds__(kWaveThreads)
   if (i < w.counters[kWaveMiss]) wavefront_shade_miss(kd, batch, w, round, i, radiance);
 }
 
-__global__ void __launch_bounds__(kWaveThreads)
+__global__ void __launch_bounds__(kWaveThreads, kShadeBlocksPerSm)
     wave_shade_hit_kernel(const KernelData* __restrict__ kd_global, TileBatch batch,
                           WavefrontArrays w, uint32_t round, Vec3* radiance) {
   __shared__ KernelData kd;
@@ -79,7 +88,7 @@ __global__ void __launch_bounds__(kWaveThreads)
   if (i < w.counters[kWaveHit]) wavefront_shade_hit(kd, batch, w, round, i, radiance);
 }
 
-__global__ void __launch_bounds__(kWaveThreads)
+__global__ void __launch_bounds__(kWaveThreads, kTraceBlocksPerSm)
     wave_connect_kernel(const KernelData* __restrict__ kd_global, WavefrontArrays w,
                         uint32_t round) {
   __shared__ KernelData kd;

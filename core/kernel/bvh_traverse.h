@@ -96,65 +96,298 @@ TANDEM_HD void prefetch_readonly(const void* p) {
 }
 
 // ---------------------------------------------------------------------------
-// Generic traversal loops. A Leaf functor is called once per primitive entry
-// of a leaf (an index into the layout's primitive array):
-//   bool leaf(uint32_t entry, float* tmax);
-//   void leaf.prefetch(const uint32_t* entries, uint32_t count);  // hint only
-// It may shrink *tmax (closest hit) and returns true to stop the traversal
-// (any hit found). With kCount, visits and box tests are added to *counters.
+// Two-level traversal in one loop.
+//
+// The TLAS and the BLAS of the instance being visited share one loop and one
+// stack: entering an instance moves the ray into object space and notes the
+// stack depth (blas_sp); once the BLAS's part of the stack is used up, the
+// ray goes back to world space and the TLAS carries on. This is for the GPU:
+// with a loop per level (the BLAS loop inside the TLAS's leaf handler) the
+// TLAS loop's whole state, its ray included, stays live in registers while
+// the BLAS runs, which held the traversal kernels at 89-96 registers. Nodes,
+// instances and triangles are visited in exactly the order of a loop per
+// level (depth first; the instances of a TLAS leaf in order, each BLAS to its
+// end before the next instance), so the hits are the same down to which of
+// two equal-t hits wins (accstruc_two_level_test.cpp checks it against the
+// nested loops).
 
-template <bool kCount, class Leaf>
-TANDEM_HD bool traverse_binary(const KBvhNode* nodes, uint32_t root, const BoxRay& ray, float tmin,
-                               float* tmax, Leaf& leaf, BvhCounters* counters) {
-  uint32_t stack[kBvhStackSize];
-  uint32_t sp = 0;
+// The traversal's memory (its stack frame; on the GPU local memory, which
+// the L1 cache serves) holds, besides the stack entries, what the loop needs
+// only now and then, so that it does not take registers for the whole loop:
+//   - a header: the world ray's direction (read when an instance is entered)
+//     and the hit record (written on each closer hit, read at the end);
+//   - while a BLAS is traversed, an instance record just below its first
+//     stack entry: the world ray's origin (read when the BLAS is left) and
+//     what the leaves need (the shear of the watertight test, the mesh's
+//     triangle and vertex offsets, the instance).
+// The loop itself carries only the box ray, the interval, the stack pointers
+// and the node: the traversal kernels then fit 64 registers without spills.
+enum BvhFrameWord : uint32_t {
+  kFrameWorldDir = 0,  // 3 words
+  kFrameHitU = 3,
+  kFrameHitV,
+  kFrameHitInstance,
+  kFrameHitPrim,
+  kBvhFrameHeaderWords = 8,  // even: the wide stack's entries are word pairs
+};
+enum BvhInstanceRecordWord : uint32_t {
+  kRecordWorldOrigin = 0,  // 3 words
+  kRecordShear = 3,        // sx, sy, sz
+  kRecordTriangleOffset = 6,
+  kRecordVertexOffset,
+  kRecordInstance,
+  kBvhInstanceRecordWords = 10,  // even, as the header
+};
+// Words of the traversal frame: the header, a TLAS and a BLAS path (each
+// under kBvhStackSize levels, up to two words per level), the instance record
+// and what one TLAS node leaves pending while one of its instances is visited.
+constexpr uint32_t kBvhFrameWords =
+    kBvhFrameHeaderWords + 4 * kBvhStackSize + kBvhInstanceRecordWords + 8;
+// blas_sp while the loop is in the TLAS.
+constexpr uint32_t kBvhInTlas = ~0u;
+
+// What the leaves of the current BLAS need, from its instance record.
+struct BlasLeafContext {
+  Vec3 shear;  // sx, sy, sz
+  uint32_t triangle_offset, vertex_offset, instance;
+};
+
+TANDEM_HD BlasLeafContext blas_leaf_context(const uint32_t* record) {
+  BlasLeafContext c;
+  c.shear = make_vec3(uint_as_float(record[kRecordShear]), uint_as_float(record[kRecordShear + 1]),
+                      uint_as_float(record[kRecordShear + 2]));
+  c.triangle_offset = record[kRecordTriangleOffset];
+  c.vertex_offset = record[kRecordVertexOffset];
+  c.instance = record[kRecordInstance];
+  return c;
+}
+
+TANDEM_HD void store_vec3(uint32_t* words, Vec3 v) {
+  words[0] = float_as_uint(v.x);
+  words[1] = float_as_uint(v.y);
+  words[2] = float_as_uint(v.z);
+}
+TANDEM_HD Vec3 load_vec3(const uint32_t* words) {
+  return make_vec3(uint_as_float(words[0]), uint_as_float(words[1]), uint_as_float(words[2]));
+}
+
+// The loop's state besides its stack. `box` is the ray in the space the loop
+// traverses now: the world ray in the TLAS, the object-space ray in a BLAS,
+// where the shear's axes (kx | ky << 2 | kz << 4) ride in bits 8..13 of
+// box.octant (the box test reads bits 0..2 only; the wide loop masks with
+// octant()).
+template <bool kCount>
+struct TwoLevelTrace {
+  const KernelData* kd;
+  uint32_t* frame;  // kBvhFrameWords
+  float tmin, tmax;
+  uint32_t alpha_key;
+  bool any_hit;
+  BoxRay box;
+  BvhCounters* counters;
+
+  TANDEM_HD uint32_t octant() const { return box.octant & 7u; }
+
+  // Moves the ray into the object space of instance `index` and returns its
+  // BLAS root in the layout, or kInvalidIndex when its mesh has nothing to
+  // hit (the ray then stays in world space). Fills the instance record.
+  TANDEM_HD uint32_t enter_instance(uint32_t index, bool wide, uint32_t* record) {
+    const KInstance& inst = kd->instances[index];
+    const KBlasRoot& roots = kd->blas_roots[inst.mesh];
+    const uint32_t root = wide ? roots.wide_root : roots.bvh_root;
+    if (root == kInvalidIndex) return root;
+    if constexpr (kCount) counters->instances += 1;
+    const KMesh& mesh = kd->meshes[inst.mesh];
+    const Vec3 world_origin = box.origin;
+    const Vec3 world_dir = load_vec3(frame + kFrameWorldDir);
+    // Subtract the instance's translation first and then apply the inverse
+    // linear part: far more accurate than world_to_object's own translation
+    // column, which the inversion rounds relative to the (large) world
+    // coordinates.
+    const Vec3 translation = {inst.object_to_world.rows[0].w, inst.object_to_world.rows[1].w,
+                              inst.object_to_world.rows[2].w};
+    const Vec3 o = transform_vector(inst.world_to_object, world_origin - translation);
+    const Vec3 d = transform_vector(inst.world_to_object, world_dir);
+    const ShearRay s = make_shear_ray(o, d);
+    store_vec3(record + kRecordWorldOrigin, world_origin);
+    store_vec3(record + kRecordShear, make_vec3(s.sx, s.sy, s.sz));
+    record[kRecordTriangleOffset] = mesh.triangle_offset;
+    record[kRecordVertexOffset] = mesh.vertex_offset;
+    record[kRecordInstance] = index;
+    box = make_box_ray(o, d);
+    box.octant |= (s.kx | (s.ky << 2) | (s.kz << 4)) << 8;
+    return root;
+  }
+
+  // Back to the world ray, from `record` (enter_instance's) and the header.
+  TANDEM_HD void leave_instance(const uint32_t* record) {
+    box = make_box_ray(load_vec3(record + kRecordWorldOrigin), load_vec3(frame + kFrameWorldDir));
+  }
+
+  // Host only: the triangles of a leaf first, then (once they arrive) their
+  // vertices.
+  TANDEM_HD void prefetch_triangles(const uint32_t* prim_indices, const uint32_t* entries,
+                                    uint32_t count, const BlasLeafContext& leaf) const {
+#if !defined(__CUDA_ARCH__)
+    const KTriangle* tris = kd->triangles + leaf.triangle_offset;
+    const Vec3* pos = kd->positions + leaf.vertex_offset;
+    for (uint32_t i = 0; i < count; ++i)
+      prefetch_readonly(tris + prim_indices[entries[i]]);
+    for (uint32_t i = 0; i < count; ++i) {
+      const KTriangle& t = tris[prim_indices[entries[i]]];
+      prefetch_readonly(pos + t.v0);
+      prefetch_readonly(pos + t.v1);
+      prefetch_readonly(pos + t.v2);
+    }
+#else
+    (void)prim_indices;
+    (void)entries;
+    (void)count;
+    (void)leaf;
+#endif
+  }
+
+  // Tests primitive entry `entry` of the current BLAS, whose instance record
+  // is `record`; true: stop (an any-hit query found a hit). The record is read
+  // for each triangle rather than once per leaf, so that it is not live in
+  // registers during the alpha test, the loop's busiest point.
+  TANDEM_HD bool triangle(const uint32_t* prim_indices, uint32_t entry, const uint32_t* record) {
+    const BlasLeafContext leaf = blas_leaf_context(record);
+    const uint32_t prim = load_readonly(prim_indices + entry);
+    const KTriangle tri = load_readonly(kd->triangles + leaf.triangle_offset + prim);
+    const Vec3* pos = kd->positions + leaf.vertex_offset;
+    if constexpr (kCount) counters->triangles += 1;
+    ShearRay shear;
+    shear.origin = box.origin;
+    shear.kx = (box.octant >> 8) & 3u;
+    shear.ky = (box.octant >> 10) & 3u;
+    shear.kz = box.octant >> 12;
+    shear.sx = leaf.shear.x;
+    shear.sy = leaf.shear.y;
+    shear.sz = leaf.shear.z;
+    TriangleHit th;
+    if (!intersect_triangle_watertight(shear, load_readonly(pos + tri.v0),
+                                       load_readonly(pos + tri.v1), load_readonly(pos + tri.v2),
+                                       tmin, tmax, &th)) {
+      return false;
+    }
+    // The mesh's flags only now: most triangle tests miss.
+    const uint32_t mesh_flags = kd->meshes[kd->instances[leaf.instance].mesh].flags;
+    if ((mesh_flags & kMeshHasAlphaTest) != 0u &&
+        !alpha_test_opaque(*kd, leaf.instance, prim, th.u, th.v, alpha_key))
+      return false;
+    // The hit's t is tmax, put in the hit at the end.
+    tmax = th.t;
+    frame[kFrameHitU] = float_as_uint(th.u);
+    frame[kFrameHitV] = float_as_uint(th.v);
+    frame[kFrameHitInstance] = leaf.instance;
+    frame[kFrameHitPrim] = prim;
+    return any_hit;
+  }
+};
+
+// Binary layout. In a BLAS, leaf triangles are tested as soon as their node
+// is; in the TLAS a hit leaf's instance range goes on the stack (two entries:
+// its count, then kBvhLeafFlag | first entry) above the node's interior
+// children, so its instances come first, in order, as they did when the
+// TLAS's leaf handler traversed them on the spot. Returns true when an
+// any-hit query stopped.
+template <bool kCount>
+TANDEM_HD bool trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNode* nodes,
+                                      uint32_t root) {
+  const uint32_t* prim_indices = tr.kd->bvh_prim_indices;
+  uint32_t* const stack = tr.frame;
+  uint32_t sp = kBvhFrameHeaderWords;
+  uint32_t blas_sp = kBvhInTlas;
   uint32_t node_index = root;
   for (;;) {
     const KBvhNode n = load_readonly_16(nodes + node_index);
+    const bool in_blas = blas_sp != kBvhInTlas;
     if constexpr (kCount) {
-      counters->nodes += 1;
-      counters->boxes += 2;
+      tr.counters->nodes += 1;
+      tr.counters->boxes += 2;
+      if (in_blas) tr.counters->blas_nodes += 1;
     }
     float t0, t1;
-    bool hit0 = intersect_box(ray, make_vec3(n.c0_xy.x, n.c0_xy.z, n.c01_z.x),
-                              make_vec3(n.c0_xy.y, n.c0_xy.w, n.c01_z.y), tmin, *tmax, &t0);
-    bool hit1 = intersect_box(ray, make_vec3(n.c1_xy.x, n.c1_xy.z, n.c01_z.z),
-                              make_vec3(n.c1_xy.y, n.c1_xy.w, n.c01_z.w), tmin, *tmax, &t1);
-    // Leaves are handled right away; only interior children are descended.
-    for (uint32_t c = 0; c < 2; ++c) {
-      const bool hit = c == 0 ? hit0 : hit1;
-      if (!hit || !(n.child[c] & kBvhLeafFlag)) continue;
-      const uint32_t first = n.child[c] & ~kBvhLeafFlag;
+    bool hit0 = intersect_box(tr.box, make_vec3(n.c0_xy.x, n.c0_xy.z, n.c01_z.x),
+                              make_vec3(n.c0_xy.y, n.c0_xy.w, n.c01_z.y), tr.tmin, tr.tmax, &t0);
+    bool hit1 = intersect_box(tr.box, make_vec3(n.c1_xy.x, n.c1_xy.z, n.c01_z.z),
+                              make_vec3(n.c1_xy.y, n.c1_xy.w, n.c01_z.w), tr.tmin, tr.tmax, &t1);
+    bool leaf0 = hit0 && (n.child[0] & kBvhLeafFlag) != 0u;
+    bool leaf1 = hit1 && (n.child[1] & kBvhLeafFlag) != 0u;
+    if (in_blas && (leaf0 || leaf1)) {
+      const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
+      for (uint32_t c = 0; c < 2; ++c) {
+        if (!(c == 0 ? leaf0 : leaf1)) continue;
+        const uint32_t first = n.child[c] & ~kBvhLeafFlag;
 #if !defined(__CUDA_ARCH__)
-      uint32_t entries[kBvhMaxLeafEntries];
-      const uint32_t count = min_u(n.count[c], kBvhMaxLeafEntries);
-      for (uint32_t i = 0; i < count; ++i)
-        entries[i] = first + i;
-      leaf.prefetch(entries, count);
+        uint32_t entries[kBvhMaxLeafEntries];
+        const uint32_t count = min_u(n.count[c], kBvhMaxLeafEntries);
+        for (uint32_t i = 0; i < count; ++i)
+          entries[i] = first + i;
+        tr.prefetch_triangles(prim_indices, entries, count, blas_leaf_context(record));
 #endif
-      for (uint32_t i = 0; i < n.count[c]; ++i) {
-        if (leaf(first + i, tmax)) return true;
+        for (uint32_t i = 0; i < n.count[c]; ++i) {
+          if (tr.triangle(prim_indices, first + i, record)) return true;
+        }
       }
-      if (c == 0)
-        hit0 = false;
-      else
-        hit1 = false;
+      leaf0 = leaf1 = false;
     }
-    if (hit0 && hit1) {
+    const bool inner0 = hit0 && !(n.child[0] & kBvhLeafFlag);
+    const bool inner1 = hit1 && !(n.child[1] & kBvhLeafFlag);
+    uint32_t next = kInvalidIndex;
+    if (inner0 && inner1) {
       // Nearer child first; the other waits on the stack.
       const bool swap = t1 < t0;
-      node_index = swap ? n.child[1] : n.child[0];
+      next = swap ? n.child[1] : n.child[0];
       const uint32_t far_child = swap ? n.child[0] : n.child[1];
       prefetch_readonly(nodes + far_child);
-      if (sp < kBvhStackSize) stack[sp++] = far_child;
-    } else if (hit0) {
-      node_index = n.child[0];
-    } else if (hit1) {
-      node_index = n.child[1];
-    } else {
-      if (sp == 0) return false;
-      node_index = stack[--sp];
+      if (sp < kBvhFrameWords) stack[sp++] = far_child;
+    } else if (inner0) {
+      next = n.child[0];
+    } else if (inner1) {
+      next = n.child[1];
     }
+    if (leaf0 || leaf1) {
+      // TLAS leaves before the interior children.
+      if (next != kInvalidIndex && sp < kBvhFrameWords) stack[sp++] = next;
+      next = kInvalidIndex;
+      for (uint32_t c = 2; c-- > 0;) {
+        if (!(c == 0 ? leaf0 : leaf1) || n.count[c] == 0 || sp + 2 > kBvhFrameWords) continue;
+        stack[sp++] = n.count[c];
+        stack[sp++] = n.child[c];
+      }
+    }
+    while (next == kInvalidIndex) {
+      if (sp == blas_sp) {
+        sp -= kBvhInstanceRecordWords;
+        tr.leave_instance(stack + sp);
+        blas_sp = kBvhInTlas;
+      }
+      if (sp == kBvhFrameHeaderWords) return false;
+      const uint32_t top = stack[sp - 1];
+      if ((top & kBvhLeafFlag) == 0u) {
+        next = top;
+        --sp;
+        continue;
+      }
+      // The next instance of a TLAS leaf.
+      const uint32_t entry = top & ~kBvhLeafFlag;
+      const uint32_t left = stack[sp - 2];
+      if (left > 1) {
+        stack[sp - 1] = (entry + 1) | kBvhLeafFlag;
+        stack[sp - 2] = left - 1;
+      } else {
+        sp -= 2;
+      }
+      if (sp + kBvhInstanceRecordWords > kBvhFrameWords) continue;
+      next = tr.enter_instance(load_readonly(prim_indices + entry), false, stack + sp);
+      if (next != kInvalidIndex) {
+        sp += kBvhInstanceRecordWords;
+        blas_sp = sp;
+      }
+    }
+    node_index = next;
   }
 }
 
@@ -169,188 +402,105 @@ TANDEM_HD void wide_child_box(const KWideBvhNode& n, Vec3 scale, uint32_t slot, 
                   n.origin.z + float(n.qhi[2][slot]) * scale.z);
 }
 
-// Wide traversal after Ylitie et al. 2017: a stack of node groups. A group is
+// Wide layout, after Ylitie et al. 2017: a stack of node groups. A group is
 // (child_base, hits | imask): bits 24..31 of hits are the interior children
 // still to visit, at position (slot ^ octant) so the lowest bit is the
 // (approximately) nearest child; bits 0..7 repeat the node's imask to find
-// the child's index. Leaf primitives are tested as soon as their node is.
-template <bool kCount, class Leaf>
-TANDEM_HD bool traverse_wide(const KWideBvhNode* nodes, uint32_t root, const BoxRay& ray,
-                             float tmin, float* tmax, Leaf& leaf, BvhCounters* counters) {
-  uint32_t stack_base[kBvhStackSize];
-  uint32_t stack_bits[kBvhStackSize];
-  uint32_t sp = 0;
+// the child's index. In a BLAS, leaf triangles are tested as soon as their
+// node is; in the TLAS the hit instances go on the stack as an instance group
+// (prim_base, prim_hits: bits 0..23 only, so its top byte, unlike a node
+// group's, is zero) above the node's group, so they come first, in order.
+// Returns true when an any-hit query stopped.
+template <bool kCount>
+TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
+                                    uint32_t root) {
+  const uint32_t* prim_indices = tr.kd->bvh_wide_prim_indices;
+  // A group is two words, (base, bits).
+  uint32_t* const stack = tr.frame;
+  uint32_t sp = kBvhFrameHeaderWords;
+  uint32_t blas_sp = kBvhInTlas;
   uint32_t node_index = root;
   for (;;) {
     const KWideBvhNode n = load_readonly_16(nodes + node_index);
-    if constexpr (kCount) counters->nodes += 1;
+    const bool in_blas = blas_sp != kBvhInTlas;
+    if constexpr (kCount) {
+      tr.counters->nodes += 1;
+      if (in_blas) tr.counters->blas_nodes += 1;
+    }
     const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
     uint32_t node_hits = 0, prim_hits = 0;
     for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
       const uint32_t meta = n.meta[s];
       if (meta == 0) continue;
-      if constexpr (kCount) counters->boxes += 1;
+      if constexpr (kCount) tr.counters->boxes += 1;
       Vec3 lo, hi;
       wide_child_box(n, scale, s, &lo, &hi);
       float t_entry;
-      if (!intersect_box(ray, lo, hi, tmin, *tmax, &t_entry)) continue;
+      if (!intersect_box(tr.box, lo, hi, tr.tmin, tr.tmax, &t_entry)) continue;
       if ((n.imask >> s) & 1u)
-        node_hits |= 1u << (24u + (s ^ ray.octant));
+        node_hits |= 1u << (24u + (s ^ tr.octant()));
       else
         prim_hits |= (meta >> 5) << (meta & 31u);
     }
-    if (node_hits != 0 && sp < kBvhStackSize) {
-      stack_base[sp] = n.child_base;
-      stack_bits[sp] = node_hits | n.imask;
-      ++sp;
+    if (node_hits != 0 && sp + 2 <= kBvhFrameWords) {
+      stack[sp] = n.child_base;
+      stack[sp + 1] = node_hits | n.imask;
+      sp += 2;
     }
     const uint32_t prim_base = n.prim_base;
+    if (!in_blas) {
+      if (prim_hits != 0 && sp + 2 <= kBvhFrameWords) {
+        stack[sp] = prim_base;
+        stack[sp + 1] = prim_hits;
+        sp += 2;
+      }
+    } else if (prim_hits != 0) {
+      const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
 #if !defined(__CUDA_ARCH__)
-    if (prim_hits != 0) {
       uint32_t entries[32];
       uint32_t count = 0;
       for (uint32_t bits = prim_hits; bits != 0; bits &= bits - 1u)
         entries[count++] = prim_base + count_trailing_zeros(bits);
-      leaf.prefetch(entries, count);
-    }
+      tr.prefetch_triangles(prim_indices, entries, count, blas_leaf_context(record));
 #endif
-    while (prim_hits != 0) {
-      const uint32_t p = count_trailing_zeros(prim_hits);
-      prim_hits &= prim_hits - 1u;
-      if (leaf(prim_base + p, tmax)) return true;
+      while (prim_hits != 0) {
+        const uint32_t p = count_trailing_zeros(prim_hits);
+        prim_hits &= prim_hits - 1u;
+        if (tr.triangle(prim_indices, prim_base + p, record)) return true;
+      }
     }
-    // Next node: the nearest remaining child of the innermost group.
-    if (sp == 0) return false;
-    uint32_t& bits = stack_bits[sp - 1];
-    const uint32_t pos = count_trailing_zeros(bits >> 24);
-    bits &= ~(1u << (24u + pos));
-    const uint32_t slot = pos ^ ray.octant;
-    const uint32_t imask = bits & 0xffu;
-    node_index = stack_base[sp - 1] + popcount(imask & ((1u << slot) - 1u));
-    if ((bits >> 24) == 0) --sp;
+    // Next node: the nearest remaining child of the innermost group, or the
+    // BLAS root of the next instance of an instance group.
+    for (;;) {
+      if (sp == blas_sp) {
+        sp -= kBvhInstanceRecordWords;
+        tr.leave_instance(stack + sp);
+        blas_sp = kBvhInTlas;
+      }
+      if (sp == kBvhFrameHeaderWords) return false;
+      uint32_t& bits = stack[sp - 1];
+      const uint32_t base = stack[sp - 2];
+      if ((bits >> 24) == 0) {
+        const uint32_t p = count_trailing_zeros(bits);
+        bits &= bits - 1u;
+        if (bits == 0) sp -= 2;
+        if (sp + kBvhInstanceRecordWords > kBvhFrameWords) continue;
+        node_index = tr.enter_instance(load_readonly(prim_indices + base + p), true, stack + sp);
+        if (node_index == kInvalidIndex) continue;
+        sp += kBvhInstanceRecordWords;
+        blas_sp = sp;
+        break;
+      }
+      const uint32_t pos = count_trailing_zeros(bits >> 24);
+      bits &= ~(1u << (24u + pos));
+      const uint32_t slot = pos ^ tr.octant();
+      const uint32_t imask = bits & 0xffu;
+      node_index = base + popcount(imask & ((1u << slot) - 1u));
+      if ((bits >> 24) == 0) sp -= 2;
+      break;
+    }
   }
 }
-
-// ---------------------------------------------------------------------------
-// Leaf functors.
-
-// Triangles of one instance's mesh, ray in object space.
-template <bool kCount>
-struct BvhTriangleLeaf {
-  const KernelData* kd;
-  const uint32_t* prim_indices;
-  const KMesh* mesh;
-  uint32_t instance;
-  uint32_t alpha_key;
-  bool any_hit;
-  bool alpha_test;
-  ShearRay ray;
-  float tmin;
-  Hit* hit;
-  BvhCounters* counters;
-
-  // The triangles first, then (once they arrive) their vertices.
-  TANDEM_HD void prefetch(const uint32_t* entries, uint32_t count) const {
-#if !defined(__CUDA_ARCH__)
-    const KTriangle* tris = kd->triangles + mesh->triangle_offset;
-    const Vec3* pos = kd->positions + mesh->vertex_offset;
-    for (uint32_t i = 0; i < count; ++i)
-      prefetch_readonly(tris + prim_indices[entries[i]]);
-    for (uint32_t i = 0; i < count; ++i) {
-      const KTriangle& t = tris[prim_indices[entries[i]]];
-      prefetch_readonly(pos + t.v0);
-      prefetch_readonly(pos + t.v1);
-      prefetch_readonly(pos + t.v2);
-    }
-#else
-    (void)entries;
-    (void)count;
-#endif
-  }
-
-  TANDEM_HD bool operator()(uint32_t entry, float* tmax) {
-    const uint32_t prim = load_readonly(prim_indices + entry);
-    const KTriangle tri = load_readonly(kd->triangles + mesh->triangle_offset + prim);
-    const Vec3* pos = kd->positions + mesh->vertex_offset;
-    if constexpr (kCount) counters->triangles += 1;
-    TriangleHit th;
-    if (!intersect_triangle_watertight(ray, load_readonly(pos + tri.v0),
-                                       load_readonly(pos + tri.v1), load_readonly(pos + tri.v2),
-                                       tmin, *tmax, &th)) {
-      return false;
-    }
-    if (alpha_test && !alpha_test_opaque(*kd, instance, prim, th.u, th.v, alpha_key)) return false;
-    *tmax = th.t;
-    hit->t = th.t;
-    hit->u = th.u;
-    hit->v = th.v;
-    hit->instance = instance;
-    hit->prim = prim;
-    return any_hit;
-  }
-};
-
-// Instances of the TLAS, ray in world space: descends into the BLAS.
-template <bool kCount>
-struct BvhInstanceLeaf {
-  const KernelData* kd;
-  const uint32_t* prim_indices;
-  uint32_t layout;
-  uint32_t alpha_key;
-  bool any_hit;
-  Ray world_ray;
-  Hit* hit;
-  BvhCounters* counters;
-
-  TANDEM_HD void prefetch(const uint32_t* entries, uint32_t count) const {
-    (void)entries;
-    (void)count;
-  }
-
-  TANDEM_HD bool operator()(uint32_t entry, float* tmax) {
-    const uint32_t instance = load_readonly(prim_indices + entry);
-    const KInstance& inst = kd->instances[instance];
-    const KMesh& mesh = kd->meshes[inst.mesh];
-    const KBlasRoot& roots = kd->blas_roots[inst.mesh];
-    const uint32_t root = layout == kBvhLayoutWide ? roots.wide_root : roots.bvh_root;
-    if (root == kInvalidIndex) return false;
-    if constexpr (kCount) counters->instances += 1;
-    // Subtract the instance's translation first and then apply the inverse
-    // linear part: far more accurate than world_to_object's own translation
-    // column, which the inversion rounds relative to the (large) world
-    // coordinates.
-    const Vec3 translation = {inst.object_to_world.rows[0].w, inst.object_to_world.rows[1].w,
-                              inst.object_to_world.rows[2].w};
-    const Vec3 o = transform_vector(inst.world_to_object, world_ray.origin - translation);
-    const Vec3 d = transform_vector(inst.world_to_object, world_ray.dir);
-    const BoxRay box_ray = make_box_ray(o, d);
-    BvhTriangleLeaf<kCount> tri_leaf{kd,
-                                     nullptr,
-                                     &mesh,
-                                     instance,
-                                     alpha_key,
-                                     any_hit,
-                                     (mesh.flags & kMeshHasAlphaTest) != 0u,
-                                     make_shear_ray(o, d),
-                                     world_ray.tmin,
-                                     hit,
-                                     counters};
-    uint64_t nodes_before = 0;
-    if constexpr (kCount) nodes_before = counters->nodes;
-    bool stop;
-    if (layout == kBvhLayoutWide) {
-      tri_leaf.prim_indices = kd->bvh_wide_prim_indices;
-      stop = traverse_wide<kCount>(kd->bvh_wide_nodes, root, box_ray, world_ray.tmin, tmax,
-                                   tri_leaf, counters);
-    } else {
-      tri_leaf.prim_indices = kd->bvh_prim_indices;
-      stop = traverse_binary<kCount>(kd->bvh_nodes, root, box_ray, world_ray.tmin, tmax, tri_leaf,
-                                     counters);
-    }
-    if constexpr (kCount) counters->blas_nodes += counters->nodes - nodes_before;
-    return stop;
-  }
-};
 
 // ---------------------------------------------------------------------------
 // Queries.
@@ -361,20 +511,34 @@ struct BvhInstanceLeaf {
 template <bool kCount>
 TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t alpha_key,
                                 uint32_t layout, bool any_hit, BvhCounters* counters) {
-  Hit hit = make_miss();
   const bool wide = layout == kBvhLayoutWide;
   const uint32_t root = wide ? kd.bvh.tlas_wide_root : kd.bvh.tlas_root;
-  if (root >= (wide ? kd.bvh_wide_nodes_count : kd.bvh_nodes_count)) return hit;
-  float tmax = ray.tmax;
-  BvhInstanceLeaf<kCount> leaf{&kd,     wide ? kd.bvh_wide_prim_indices : kd.bvh_prim_indices,
-                               layout,  alpha_key,
-                               any_hit, ray,
-                               &hit,    counters};
-  const BoxRay box_ray = make_box_ray(ray.origin, ray.dir);
+  if (root >= (wide ? kd.bvh_wide_nodes_count : kd.bvh_nodes_count)) return make_miss();
+  uint32_t frame[kBvhFrameWords];
+  store_vec3(frame + kFrameWorldDir, ray.dir);
+  frame[kFrameHitU] = frame[kFrameHitV] = 0;
+  frame[kFrameHitInstance] = frame[kFrameHitPrim] = kInvalidIndex;
+  TwoLevelTrace<kCount> tr;
+  tr.kd = &kd;
+  tr.frame = frame;
+  tr.tmin = ray.tmin;
+  tr.tmax = ray.tmax;
+  tr.alpha_key = alpha_key;
+  tr.any_hit = any_hit;
+  tr.box = make_box_ray(ray.origin, ray.dir);
+  tr.counters = counters;
   if (wide)
-    traverse_wide<kCount>(kd.bvh_wide_nodes, root, box_ray, ray.tmin, &tmax, leaf, counters);
+    trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
   else
-    traverse_binary<kCount>(kd.bvh_nodes, root, box_ray, ray.tmin, &tmax, leaf, counters);
+    trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+  Hit hit = make_miss();
+  hit.instance = frame[kFrameHitInstance];
+  if (hit_valid(hit)) {
+    hit.t = tr.tmax;
+    hit.u = uint_as_float(frame[kFrameHitU]);
+    hit.v = uint_as_float(frame[kFrameHitV]);
+    hit.prim = frame[kFrameHitPrim];
+  }
   return hit;
 }
 

@@ -3,16 +3,20 @@
 # sm_90: registers, spill stores/loads, stack frame, shared memory, and the
 # theoretical occupancy that follows from registers and shared memory (64K
 # registers and 2048 threads per SM, 128-thread blocks). Runs here, without a
-# GPU, from the project root: tools/gpu/kernel_resources.sh [BUILD_DIR]
+# GPU, from the project root: tools/gpu/kernel_resources.sh [BUILD_DIR [FILE.cu...]]
 # (default build/release, which must have been configured with CUDA; the
-# compile flags are taken from its compile_commands.json).
+# compile flags are taken from its compile_commands.json). Naming .cu files
+# reports only their kernels, which saves minutes when iterating on one.
 set -euo pipefail
 build=${1:-build/release}
+shift || true
+files=("$@")
+[ ${#files[@]} -gt 0 ] || files=(backends/cuda/*.cu)
 db="$build/compile_commands.json"
 [ -f "$db" ] || { echo "no $db: configure $build with CUDA first" >&2; exit 1; }
 export PATH=/usr/local/cuda/bin:$PATH
 printf '%-34s %5s %8s %8s %7s %7s %9s\n' kernel regs spill_st spill_ld stack smem occupancy
-for cu in backends/cuda/*.cu; do
+for cu in "${files[@]}"; do
   cmd=$(python3 - "$db" "$cu" <<'PY'
 import json, sys
 for e in json.load(open(sys.argv[1])):

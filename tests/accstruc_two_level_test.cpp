@@ -1,0 +1,96 @@
+// The single-loop two-level traversal (core/kernel/bvh_traverse.h) against
+// the loop-per-level traversal it replaced (accstruc_nested_traversal.h):
+// the GPU needs the single loop for its registers, but it must change
+// nothing else. Every hit must be the same bits (t, u, v, instance, prim),
+// every occlusion answer the same, and the traversal counters equal, which
+// shows that the nodes, instances and triangles were visited in the same
+// order and number.
+#include <cstring>
+#include <filesystem>
+
+#include "accstruc_nested_traversal.h"
+#include "accstruc_test_util.h"
+#include "scenes/builtin_scenes.h"
+
+namespace tandem {
+namespace {
+
+using namespace accstruc_test;
+
+constexpr uint32_t kRaysPerKind = 3000;
+
+bool same_bits(const Hit& a, const Hit& b) {
+  return std::memcmp(&a, &b, sizeof(Hit)) == 0;
+}
+
+bool same_counters(const BvhCounters& a, const BvhCounters& b) {
+  return a.nodes == b.nodes && a.boxes == b.boxes && a.triangles == b.triangles &&
+         a.instances == b.instances && a.blas_nodes == b.blas_nodes;
+}
+
+// Rays of every kind through `s`, both layouts, closest and any hit.
+void expect_same_traversal(const TracedScene& s, const std::string& name) {
+  const KernelData kd = s.kd();
+  std::vector<RaySample> rays = primary_rays(s, kRaysPerKind, 11);
+  for (const auto& list : {diffuse_rays(s, kRaysPerKind, 12), shadow_rays(s, kRaysPerKind, 13)})
+    rays.insert(rays.end(), list.begin(), list.end());
+  for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
+    uint32_t hits = 0, mismatches = 0;
+    for (const bool any_hit : {false, true}) {
+      for (const RaySample& r : rays) {
+        BvhCounters ours, reference;
+        const Hit a = bvh_trace_counted<true>(kd, r.ray, r.alpha_key, layout, any_hit, &ours);
+        const Hit b = nested_reference::nested_trace_counted<true>(kd, r.ray, r.alpha_key, layout,
+                                                                   any_hit, &reference);
+        // The renderer's (uncounted) instantiation too.
+        const Hit c = bvh_trace(kd, r.ray, r.alpha_key, layout, any_hit);
+        hits += hit_valid(a) ? 1u : 0u;
+        if (!same_bits(a, b) || !same_bits(a, c) || !same_counters(ours, reference)) {
+          if (++mismatches <= 5) {
+            ADD_FAILURE() << name << " " << layout_name(layout) << (any_hit ? " any" : " closest")
+                          << ": t " << a.t << " vs " << b.t << ", prim " << a.prim << " vs "
+                          << b.prim << ", instance " << a.instance << " vs " << b.instance
+                          << ", nodes " << ours.nodes << " vs " << reference.nodes << ", triangles "
+                          << ours.triangles << " vs " << reference.triangles;
+          }
+        }
+      }
+    }
+    EXPECT_EQ(mismatches, 0u) << name << " " << layout_name(layout);
+    // A comparison where nothing is hit proves nothing.
+    EXPECT_GT(hits, 0u) << name << " " << layout_name(layout);
+  }
+}
+
+class TwoLevelTraversal : public ::testing::TestWithParam<std::string> {};
+
+// The built-in scenes: one instance (cornell), several instanced spheres
+// (cornell-spheres) and the arena's many instances.
+TEST_P(TwoLevelTraversal, BuiltinSceneSameAsLoopPerLevel) {
+  const TracedScene s(make_builtin_scene(GetParam()));
+  expect_same_traversal(s, GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Builtin, TwoLevelTraversal,
+                         ::testing::Values("cornell", "cornell-spheres", "arena"),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& ch : n)
+                             if (ch == '-') ch = '_';
+                           return n;
+                         });
+
+// glTF models with instancing (SimpleInstancing) and alpha-tested materials
+// (FlightHelmet, ToyCar), where the any-hit path skips cut-out texels.
+TEST(TwoLevelTraversalGltf, ModelsSameAsLoopPerLevel) {
+  const std::filesystem::path dir = std::filesystem::path(TANDEM_SHARED_DIR) / "scenes" / "gltf";
+  for (const char* model : {"SimpleInstancing", "FlightHelmet", "ToyCar"}) {
+    const std::filesystem::path file = dir / model / "glTF" / (std::string(model) + ".gltf");
+    ASSERT_TRUE(std::filesystem::exists(file)) << file;
+    const TracedScene s(load_scene(file.string()));
+    expect_same_traversal(s, model);
+  }
+}
+
+}  // namespace
+}  // namespace tandem
