@@ -10,6 +10,7 @@
 #include "scenes/builtin_scenes.h"
 #include "scenes/gltf_animation.h"
 #include "scenes/gltf_loader.h"
+#include "scenes/procedural_rigs.h"
 
 namespace tandem {
 namespace {
@@ -33,7 +34,7 @@ TEST(ViewArena, IsABuiltinSceneWithLightsAndMovingBodies) {
   const auto names = builtin_scene_names();
   EXPECT_NE(std::find(names.begin(), names.end(), "arena"), names.end());
   const Scene s = make_builtin_scene("arena");
-  EXPECT_EQ(s.instances().size(), 1 + arena_bodies().size());
+  EXPECT_EQ(s.instances().size(), 1 + arena_bodies().size() + arena_walker_paths().size());
   EXPECT_TRUE(s.has_camera());
   bool emissive = false, glossy = false;
   for (const Material& m : s.materials()) {
