@@ -110,7 +110,8 @@ int run_deform_bench(const std::vector<std::string>& argv) {
     KernelScene ks;
     SceneCompiler compiler;
     AccelStructure accel;
-    std::vector<double> skin_ms, update_ms, total_ms, bytes, skin_cpu, update_cpu;
+    std::vector<double> skin_ms, update_ms, total_ms, bytes, skin_cpu, update_cpu, sync_ms,
+        accstruc_ms;
     size_t vertices = 0;
     for (uint32_t f = 0; f <= frames; ++f) {
       const double c0 = cpu_ms_now();
@@ -121,13 +122,18 @@ int run_deform_bench(const std::vector<std::string>& argv) {
       vertices = std::max(vertices, deformed_vertices(scene));
       const auto t1 = Clock::now();
       const SceneDelta delta = compiler.compile(scene, settings, ks);
+      const double compile = ms_since(t1);
+      const auto t2 = Clock::now();
       const AccelUpdate update = accel.update(ks, delta);
-      const double sync = ms_since(t1);
+      const double refit = ms_since(t2);
+      const double sync = compile + refit;
       const double c2 = cpu_ms_now();
       const size_t frame_bytes = (delta | update.delta).bytes(ks);
       if (f == 0) continue;  // the first frame builds everything
       skin_ms.push_back(pose);
       update_ms.push_back(sync);
+      sync_ms.push_back(compile);
+      accstruc_ms.push_back(refit);
       total_ms.push_back(pose + sync);
       bytes.push_back(double(frame_bytes));
       skin_cpu.push_back(c1 - c0);
@@ -142,6 +148,8 @@ int run_deform_bench(const std::vector<std::string>& argv) {
                   .set("deformed_vertices", uint64_t(vertices))
                   .set("skinning_ms", skin)
                   .set("update_ms", upd)
+                  .set("sync_scene_ms", median(sync_ms))
+                  .set("update_accstruc_ms", median(accstruc_ms))
                   .set("total_ms", total)
                   .set("delta_bytes", delta_bytes)
                   .set("skinning_cpu_ms", median(skin_cpu))

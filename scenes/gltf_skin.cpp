@@ -221,7 +221,8 @@ void load_deformers(Context& ctx, AccessorCache& cache, const std::vector<Deform
         out.skins.push_back(std::move(skin));
       }
       dm.skin = it->second;
-      const uint32_t sets = influence_sets(ctx, m.meshes[size_t(node.mesh)], "mesh");
+      const uint32_t sets =
+          influence_sets(ctx, m.meshes[size_t(node.mesh)], "mesh " + std::to_string(node.mesh));
       d.influences = 4 * std::max(sets, 1u);
       d.palette_size = uint32_t(gs.joints.size()) + 1;
       ctx.charge(Budget::kGeometryBytes,

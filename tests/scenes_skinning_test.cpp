@@ -402,11 +402,29 @@ struct SkinCase {
   std::vector<uint8_t> joints = {0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0};
   std::vector<float> weights = {1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 1, 0, 0, 0};
   size_t ibm_count = 2;
+  bool u16_weights = false;  // WEIGHTS_0 as normalized UNSIGNED_SHORT, JOINTS_0 as UNSIGNED_SHORT
+  // A second set (JOINTS_1/WEIGHTS_1) when non-empty.
+  std::vector<uint8_t> joints1;
+  std::vector<float> weights1;
   std::string build() const {
     FileBuilder f;
     const int pos = f.add(kTriangle, 5126, "VEC3", 3);
-    const int j = f.add(joints, 5121, "VEC4", 3);
-    const int w = f.add(weights, 5126, "VEC4", 3);
+    int j = 0, w = 0;
+    if (u16_weights) {
+      j = f.add(std::vector<uint16_t>(joints.begin(), joints.end()), 5123, "VEC4", 3);
+      std::vector<uint16_t> q;
+      for (float x : weights)
+        q.push_back(uint16_t(std::lround(x * 65535.0f)));
+      w = f.add(q, 5123, "VEC4", 3, true);
+    } else {
+      j = f.add(joints, 5121, "VEC4", 3);
+      w = f.add(weights, 5126, "VEC4", 3);
+    }
+    std::string second;
+    if (!joints1.empty()) {
+      second = R"(,"JOINTS_1":)" + std::to_string(f.add(joints1, 5121, "VEC4", 3)) +
+               R"(,"WEIGHTS_1":)" + std::to_string(f.add(weights1, 5126, "VEC4", 3));
+    }
     std::vector<float> ibm;
     for (size_t i = 0; i < ibm_count; ++i) {
       const glm::mat4 m = glm::translate(glm::mat4(1.0f), glm::vec3(i == 1 ? -2.0f : 0.0f, 0, 0));
@@ -415,7 +433,8 @@ struct SkinCase {
     const int b = f.add(ibm, 5126, "MAT4", ibm_count);
     return f.file(R"("meshes":[{"primitives":[{"attributes":{"POSITION":)" + std::to_string(pos) +
                   R"(,"JOINTS_0":)" + std::to_string(j) + R"(,"WEIGHTS_0":)" + std::to_string(w) +
-                  R"(}}]}],"skins":[{"joints":[1,2],"inverseBindMatrices":)" + std::to_string(b) +
+                  second + R"(}}]}],"skins":[{"joints":[1,2],"inverseBindMatrices":)" +
+                  std::to_string(b) +
                   R"(}],"nodes":[{"mesh":0,"skin":0,"translation":[0,0,7]},{},)" +
                   R"({"translation":[2,1,0]}],"scenes":[{"nodes":[0,1,2]}])");
   }
@@ -432,6 +451,25 @@ TEST(GltfSkinning, SmallSkinIsPosedByItsJoints) {
   EXPECT_NEAR(glm::length(p[0] - glm::vec3(0, 0, 0)), 0.0f, 1e-6f);
   EXPECT_NEAR(glm::length(p[1] - glm::vec3(1, 0.5f, 0)), 0.0f, 1e-6f);
   EXPECT_NEAR(glm::length(p[2] - glm::vec3(0, 2, 0)), 0.0f, 1e-6f);
+}
+
+TEST(GltfSkinning, SixteenBitJointsAndNormalizedWeights) {
+  SkinCase c;
+  c.u16_weights = true;
+  const Scene s = load_text(c.build());
+  const std::vector<glm::vec3>& p = s.meshes()[0].positions;
+  EXPECT_NEAR(glm::length(p[1] - glm::vec3(1, 0.5f, 0)), 0.0f, 1e-4f);
+  EXPECT_NEAR(glm::length(p[2] - glm::vec3(0, 2, 0)), 0.0f, 1e-6f);
+}
+
+TEST(GltfSkinning, EverySetOfJointsAndWeightsCounts) {
+  // Vertex 2's only influence is in the second set: joint 1 (up by 1).
+  SkinCase c;
+  c.weights = {1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 0, 0, 0, 0};
+  c.joints1 = {0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0};
+  c.weights1 = {0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0};
+  const Scene s = load_text(c.build());
+  EXPECT_NEAR(glm::length(s.meshes()[0].positions[2] - glm::vec3(0, 2, 0)), 0.0f, 1e-6f);
 }
 
 TEST(GltfSkinningBadInput, JointIndexOutOfRange) {
