@@ -16,6 +16,7 @@
 
 #include "app/backend_list.h"
 #include "app/bench_accstruc.h"
+#include "app/bench_deform.h"
 #include "app/bench_denoise.h"
 #include "app/bench_hetero.h"
 #include "app/bench_report.h"
@@ -106,6 +107,8 @@ int run_bench(const std::vector<std::string>& argv) {
   if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
     return run_distributed_bench(argv);
   if (is_denoise_quality_bench(argv)) return run_denoise_quality_bench(argv);
+  // Before the frame loop: --deform takes --frames too.
+  if (is_deform_bench(argv)) return run_deform_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
   if (is_scene_update_bench(argv)) return run_scene_update_bench(argv);
   const ParsedArgs args("bench", bench_options(), argv);
@@ -115,6 +118,7 @@ int run_bench(const std::vector<std::string>& argv) {
         "       tandem bench --gpu [SCENE] [options]\n"
         "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n"
         "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n"
+        "       tandem bench [SCENE...] --deform [options]  (see --deform --help)\n"
         "       mpirun -np N tandem bench --distributed [SCENE] [options]  (see bench "
         "--distributed --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "

@@ -8,6 +8,7 @@
 
 #include "core/util/errors.h"
 #include "scenes/builtin_scenes.h"
+#include "scenes/procedural_rigs.h"
 
 namespace tandem {
 
@@ -175,6 +176,21 @@ Scene make_arena_scene() {
       mesh.name = "arena.sphere." + std::to_string(i);
     }
     scene.add_instance({body_name(i), scene.add_mesh(std::move(mesh)), glm::mat4(1.0f)});
+  }
+
+  // Figures walking round the pedestal, each its own skinned mesh (posed
+  // into world space by its joints, so the instance stays at identity).
+  const uint32_t walker_mat =
+      scene.add_material(make_material("walker", {0.2f, 0.35f, 0.75f}, 0.0f, 0.45f));
+  const std::vector<WalkerPath>& walkers = arena_walker_paths();
+  for (size_t i = 0; i < walkers.size(); ++i) {
+    ProceduralRig rig = make_walker_rig(walker_mat);
+    rig.mesh.name = "rig.walker." + std::to_string(i);
+    JointMatrix palette[kWalkerJoints];
+    walker_palette(0.0, walkers[i], palette);
+    deform_mesh(rig.deformation, palette, nullptr, rig.mesh);
+    scene.add_instance({"arena.walker." + std::to_string(i), scene.add_mesh(std::move(rig.mesh)),
+                        glm::mat4(1.0f)});
   }
 
   // A low sun and a pale sky; the orbs add moving coloured light.

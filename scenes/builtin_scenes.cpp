@@ -5,6 +5,7 @@
 
 #include "core/util/errors.h"
 #include "scenes/arena_scene.h"
+#include "scenes/procedural_rigs.h"
 #include "scenes/procedural_scenes.h"
 
 namespace tandem {
@@ -231,7 +232,8 @@ Scene make_sky_plane_scene(float albedo, float sky) {
 }
 
 std::vector<std::string> builtin_scene_names() {
-  return {"cornell", "cornell-spheres", "furnace", "sky-plane", "procedural", "arena"};
+  return {"cornell",    "cornell-spheres", "furnace",     "sky-plane",
+          "procedural", "arena",           "skinned-grid"};
 }
 
 Scene make_builtin_scene(const std::string& name) {
@@ -241,6 +243,7 @@ Scene make_builtin_scene(const std::string& name) {
   if (name == "sky-plane") return make_sky_plane_scene(0.5f, 1.0f);
   if (name == "procedural") return make_procedural_scene(1000000, 1);
   if (name == "arena") return make_arena_scene();
+  if (name == "skinned-grid") return make_skinned_grid_scene();
   std::string known;
   for (const std::string& n : builtin_scene_names())
     known += (known.empty() ? "" : ", ") + n;

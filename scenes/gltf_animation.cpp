@@ -74,14 +74,15 @@ void sample_gltf_channel(const GltfAnimationChannel& ch, double t, float* out) {
   }
 }
 
-std::vector<glm::mat4> pose_gltf_nodes(const GltfAnimations& anims, double t) {
+std::vector<GltfAnimNode> pose_gltf_local(const GltfAnimations& anims, double t) {
   std::vector<GltfAnimNode> local = anims.nodes;
+  std::vector<float> v;
   for (const GltfAnimation& a : anims.animations) {
     const double lt = a.duration > 0.0 ? std::fmod(std::max(t, 0.0), a.duration) : 0.0;
     for (const GltfAnimationChannel& ch : a.channels) {
       GltfAnimNode& node = local[ch.node];
-      float v[4];
-      sample_gltf_channel(ch, lt, v);
+      v.resize(std::max<size_t>(4, ch.components()));
+      sample_gltf_channel(ch, lt, v.data());
       switch (ch.path) {
         case GltfAnimatedPath::kTranslation:
           node.translation = {v[0], v[1], v[2]};
@@ -92,9 +93,19 @@ std::vector<glm::mat4> pose_gltf_nodes(const GltfAnimations& anims, double t) {
         case GltfAnimatedPath::kScale:
           node.scale = {v[0], v[1], v[2]};
           break;
+        case GltfAnimatedPath::kWeights:
+          // The loader only keeps channels whose count matches the mesh.
+          if (node.weights.size() == ch.weight_count)
+            std::copy(v.begin(), v.begin() + ch.weight_count, node.weights.begin());
+          break;
       }
     }
   }
+  return local;
+}
+
+std::vector<glm::mat4> gltf_world_transforms(const GltfAnimations& anims,
+                                             const std::vector<GltfAnimNode>& local) {
   std::vector<glm::mat4> world(local.size(), glm::mat4(1.0f));
   for (uint32_t i : anims.order) {
     const GltfAnimNode& node = local[i];
@@ -108,26 +119,70 @@ std::vector<glm::mat4> pose_gltf_nodes(const GltfAnimations& anims, double t) {
   return world;
 }
 
+std::vector<glm::mat4> pose_gltf_nodes(const GltfAnimations& anims, double t) {
+  return gltf_world_transforms(anims, pose_gltf_local(anims, t));
+}
+
+size_t deform_gltf_meshes(const GltfAnimations& anims, const std::vector<GltfAnimNode>& local,
+                          const std::vector<glm::mat4>& world, Scene& scene) {
+  std::vector<JointMatrix> palette;
+  size_t written = 0;
+  for (const GltfDeformedMesh& dm : anims.deformed) {
+    const MeshDeformation& d = dm.deformation;
+    palette.clear();
+    if (dm.skin >= 0) {
+      // The palette once per mesh and frame; per vertex only blends of it.
+      const GltfSkin& skin = anims.skins[size_t(dm.skin)];
+      for (size_t j = 0; j < skin.joints.size(); ++j)
+        palette.push_back(joint_matrix(world[skin.joints[j]] * skin.inverse_bind[j]));
+      palette.push_back(joint_matrix(world[dm.node]));  // the all-zero-weights slot
+    }
+    const std::vector<float>& weights = local[dm.node].weights;
+    deform_scene_mesh(d, palette.empty() ? nullptr : palette.data(),
+                      weights.size() == d.targets && !weights.empty() ? weights.data() : nullptr,
+                      scene);
+    ++written;
+  }
+  return written;
+}
+
 size_t apply_gltf_animations(const GltfAnimations& anims, double t, Scene& scene) {
   if (anims.empty()) return 0;
-  const std::vector<glm::mat4> world = pose_gltf_nodes(anims, t);
+  const std::vector<GltfAnimNode> local = pose_gltf_local(anims, t);
+  const std::vector<glm::mat4> world = gltf_world_transforms(anims, local);
   size_t updated = 0;
   for (const GltfInstanceBinding& b : anims.instances) {
-    if (!anims.nodes[b.node].animated || b.instance >= scene.instances().size()) continue;
+    if (b.skinned || !anims.nodes[b.node].animated || b.instance >= scene.instances().size())
+      continue;
     const glm::mat4 m = world[b.node] * b.local;
     if (m == scene.instances()[b.instance].transform) continue;  // unchanged: no delta
     scene.set_instance_transform(b.instance, m);
     ++updated;
   }
+  deform_gltf_meshes(anims, local, world, scene);
   return updated;
 }
 
 namespace gltf {
 
+std::vector<float> gltf_default_weights(const tinygltf::Model& m, const tinygltf::Node& n) {
+  if (n.mesh < 0) return {};
+  const tinygltf::Mesh& mesh = m.meshes[size_t(n.mesh)];
+  // The validator has checked that every primitive has this many targets
+  // and that node.weights and mesh.weights, when present, match it.
+  const size_t targets = mesh.primitives.front().targets.size();
+  const std::vector<double>& given = !n.weights.empty() ? n.weights : mesh.weights;
+  std::vector<float> w(targets, 0.0f);
+  for (size_t k = 0; k < targets && k < given.size(); ++k)
+    w[k] = float(given[k]);
+  return w;
+}
+
 namespace {
 
-GltfAnimNode rest_pose(const tinygltf::Node& n) {
+GltfAnimNode rest_pose(const tinygltf::Model& m, const tinygltf::Node& n) {
   GltfAnimNode r;
+  r.weights = gltf_default_weights(m, n);
   if (n.matrix.size() == 16) {
     r.has_matrix = true;
     for (int i = 0; i < 16; ++i)
@@ -153,14 +208,23 @@ bool convert_channel(Context& ctx, AccessorCache& cache, const tinygltf::Animati
     ctx.warn(who + " targets no valid node; it is ignored");
     return false;
   }
+  uint32_t want_components = 3;
   if (gc.target_path == "weights") {
-    ctx.warn_once("anim-weights", "morph-target weight animations are not supported; ignored");
-    return false;
-  }
-  if (gc.target_path == "translation") {
+    out.path = GltfAnimatedPath::kWeights;
+    const tinygltf::Node& node = m.nodes[size_t(gc.target_node)];
+    const size_t targets =
+        node.mesh >= 0 ? m.meshes[size_t(node.mesh)].primitives.front().targets.size() : 0;
+    if (targets == 0) {
+      ctx.warn(who + " animates the morph weights of a node without morph targets; it is ignored");
+      return false;
+    }
+    out.weight_count = uint32_t(targets);
+    want_components = uint32_t(targets);
+  } else if (gc.target_path == "translation") {
     out.path = GltfAnimatedPath::kTranslation;
   } else if (gc.target_path == "rotation") {
     out.path = GltfAnimatedPath::kRotation;
+    want_components = 4;
   } else if (gc.target_path == "scale") {
     out.path = GltfAnimatedPath::kScale;
   } else {
@@ -189,15 +253,19 @@ bool convert_channel(Context& ctx, AccessorCache& cache, const tinygltf::Animati
   }
   const tinygltf::Accessor& in = m.accessors[size_t(s.input)];
   const tinygltf::Accessor& outa = m.accessors[size_t(s.output)];
-  const int want_type =
-      out.path == GltfAnimatedPath::kRotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3;
+  const bool weights = out.path == GltfAnimatedPath::kWeights;
+  const int want_type = weights                                   ? TINYGLTF_TYPE_SCALAR
+                        : out.path == GltfAnimatedPath::kRotation ? TINYGLTF_TYPE_VEC4
+                                                                  : TINYGLTF_TYPE_VEC3;
   if (in.type != TINYGLTF_TYPE_SCALAR || in.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT ||
       outa.type != want_type) {
     ctx.warn(who + " has accessors of the wrong type; it is ignored");
     return false;
   }
-  const size_t per_key = out.interpolation == GltfInterpolation::kCubicSpline ? 3 : 1;
-  if (in.count == 0 || outa.count != in.count * per_key) {
+  // A weights output holds one scalar per morph target per key.
+  const size_t per_key = (out.interpolation == GltfInterpolation::kCubicSpline ? 3 : 1) *
+                         (weights ? want_components : 1);
+  if (in.count == 0 || outa.count / per_key != in.count || outa.count % per_key != 0) {
     ctx.warn(who + " has " + std::to_string(outa.count) + " output values for " +
              std::to_string(in.count) + " key times; it is ignored");
     return false;
@@ -217,20 +285,21 @@ bool convert_channel(Context& ctx, AccessorCache& cache, const tinygltf::Animati
 }  // namespace
 
 void load_animations(Context& ctx, AccessorCache& cache, const std::vector<WalkedNode>& walked,
-                     std::vector<GltfInstanceBinding> bindings, GltfAnimations& out) {
+                     std::vector<GltfInstanceBinding> bindings, GltfAnimations& out,
+                     bool channels) {
   const tinygltf::Model& m = ctx.model;
   out = GltfAnimations{};
   out.nodes.resize(m.nodes.size());
   for (const WalkedNode& w : walked) {
     GltfAnimNode& n = out.nodes[size_t(w.node)];
-    n = rest_pose(m.nodes[size_t(w.node)]);
+    n = rest_pose(m, m.nodes[size_t(w.node)]);
     n.parent = w.parent;
     n.visited = true;
     out.order.push_back(uint32_t(w.node));
   }
   out.instances = std::move(bindings);
   std::vector<bool> targeted(m.nodes.size(), false);
-  for (size_t ai = 0; ai < m.animations.size(); ++ai) {
+  for (size_t ai = 0; channels && ai < m.animations.size(); ++ai) {
     const tinygltf::Animation& ga = m.animations[ai];
     GltfAnimation a;
     a.name = ga.name.empty() ? "animation " + std::to_string(ai) : ga.name;
@@ -238,12 +307,13 @@ void load_animations(Context& ctx, AccessorCache& cache, const std::vector<Walke
       const std::string who = "animation " + std::to_string(ai) + " channel " + std::to_string(ci);
       GltfAnimationChannel ch;
       if (!convert_channel(ctx, cache, ga, ga.channels[ci], who, ch)) continue;
-      if (out.nodes[ch.node].has_matrix) {
+      const bool weights = ch.path == GltfAnimatedPath::kWeights;
+      if (out.nodes[ch.node].has_matrix && !weights) {
         ctx.warn(who + " animates a node with a matrix, which glTF forbids; it is ignored");
         continue;
       }
       if (!out.nodes[ch.node].visited) continue;  // node not in the loaded scene
-      targeted[ch.node] = true;
+      if (!weights) targeted[ch.node] = true;     // weights move vertices, not the node
       a.duration = std::max(a.duration, double(ch.times.back()));
       a.channels.push_back(std::move(ch));
     }

@@ -188,7 +188,26 @@ struct WalkedNode {
 // Converts the file's node animations for the walked hierarchy; `bindings`
 // say which scene instance shows which node. Unusable channels are dropped
 // with a warning.
+// `channels` false: only the hierarchy and rest pose (what the deformers
+// need to pose a static scene), no animation channels.
 void load_animations(Context& ctx, AccessorCache& cache, const std::vector<WalkedNode>& walked,
-                     std::vector<GltfInstanceBinding> bindings, GltfAnimations& out);
+                     std::vector<GltfInstanceBinding> bindings, GltfAnimations& out,
+                     bool channels = true);
+// Default morph weights of node `n`'s mesh: node.weights, else mesh.weights,
+// else zeros; one per morph target (empty without a mesh or targets).
+std::vector<float> gltf_default_weights(const tinygltf::Model& m, const tinygltf::Node& n);
+
+// --- gltf_skin.cpp ------------------------------------------------------------------
+// One node of the walked scene whose mesh deforms (it has a skin, or its
+// mesh has morph targets), and the Scene mesh made for it alone.
+struct DeformedNode {
+  int node;
+  uint32_t scene_mesh;
+};
+// Checks the skin data of every skinned mesh of the file (joint indices in
+// range, weights not negative) and builds the skins and deformations of
+// `nodes` into `out` (whose hierarchy load_animations has filled).
+void load_deformers(Context& ctx, AccessorCache& cache, const std::vector<DeformedNode>& nodes,
+                    const std::vector<Mesh>& scene_meshes, GltfAnimations& out);
 
 }  // namespace tandem::gltf

@@ -145,7 +145,17 @@ bool finite(const glm::mat4& m) {
 class SceneBuilder {
  public:
   SceneBuilder(Context& ctx, gltf::AccessorCache& cache, gltf::DecodedMeshes& meshes)
-      : ctx_(ctx), cache_(cache), meshes_(meshes), mesh_ids_(meshes.meshes.size(), kNotAdded) {}
+      : ctx_(ctx),
+        cache_(cache),
+        meshes_(meshes),
+        mesh_ids_(meshes.meshes.size(), kNotAdded),
+        deformed_use_(meshes.meshes.size(), false) {
+    // Meshes that some node deforms are copied, never moved, out of the
+    // decoded list: every deforming node gets a copy of its own.
+    for (const tinygltf::Node& n : ctx.model.nodes) {
+      if (n.mesh >= 0 && deforms(n)) deformed_use_[size_t(n.mesh)] = true;
+    }
+  }
 
   // Walks the tree under each root depth-first, children in file order (so
   // "the first camera" is the first in that order). Iterative: a hostile
@@ -180,12 +190,19 @@ class SceneBuilder {
   const Camera& camera() const { return camera_; }
   const std::vector<gltf::WalkedNode>& walked() const { return walked_; }
   const std::vector<GltfInstanceBinding>& bindings() const { return bindings_; }
+  const std::vector<gltf::DeformedNode>& deformed() const { return deformed_; }
 
  private:
   static constexpr int kNotAdded = -2;
 
   std::string node_name(int index, const tinygltf::Node& node) const {
     return node.name.empty() ? "node " + std::to_string(index) : node.name;
+  }
+
+  // A node whose mesh changes shape over time: skinned, or morph targets.
+  bool deforms(const tinygltf::Node& n) const {
+    return n.skin >= 0 ||
+           (n.mesh >= 0 && !ctx_.model.meshes[size_t(n.mesh)].primitives.front().targets.empty());
   }
 
   // Tandem mesh for glTF mesh `mi`; -1 if it has no triangles. glTF meshes
@@ -201,19 +218,45 @@ class SceneBuilder {
     const auto [it, inserted] =
         mesh_by_key_.emplace(meshes_.keys[size_t(mi)], int(new_meshes_.size()));
     if (inserted) {
-      new_meshes_.push_back(std::move(mesh));
+      new_meshes_.push_back(deformed_use_[size_t(mi)] ? mesh : std::move(mesh));
       if (meshes_.uses_default_material[size_t(mi)]) needs_default_material_ = true;
     }
     return id = it->second;
   }
 
+  // A copy of glTF mesh `mi` for deforming node `node` alone; -1 if the
+  // mesh has no triangles.
+  int deformed_mesh_id(int mi, int node) {
+    const Mesh& mesh = meshes_.meshes[size_t(mi)];
+    if (mesh.triangles.empty()) {
+      ctx_.warn_once("no-triangles" + std::to_string(mi),
+                     "mesh " + std::to_string(mi) + " has no triangles and is not shown");
+      return -1;
+    }
+    constexpr uint64_t kVertexBytes =
+        sizeof(glm::vec3) * 2 + sizeof(glm::vec4) + sizeof(glm::vec2) * 2;
+    ctx_.charge(
+        gltf::Budget::kGeometryBytes,
+        uint64_t(mesh.positions.size()) * kVertexBytes * 2 +
+            uint64_t(mesh.triangles.size()) * (sizeof(glm::uvec3) + sizeof(uint32_t)),
+        "deforming copy of mesh " + std::to_string(mi) + " for node " + std::to_string(node));
+    const int id = int(new_meshes_.size());
+    new_meshes_.push_back(mesh);
+    if (meshes_.uses_default_material[size_t(mi)]) needs_default_material_ = true;
+    deformed_.push_back({node, uint32_t(id)});
+    return id;
+  }
+
   // `local`: an EXT_mesh_gpu_instancing entry's transform under the node.
+  // A skinned node's instance has no `world`: its joints place it.
   void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index,
                     const glm::dmat4& local = glm::dmat4(1.0), bool charge = true) {
     if (charge)
       ctx_.charge(gltf::Budget::kInstances, 1, "node " + std::to_string(node_index) + " instance");
-    const glm::mat4 transform(world * local);
-    bindings_.push_back({uint32_t(instances_.size()), uint32_t(node_index), glm::mat4(local)});
+    const bool skinned = ctx_.model.nodes[size_t(node_index)].skin >= 0;
+    const glm::mat4 transform(skinned ? local : world * local);
+    bindings_.push_back(
+        {uint32_t(instances_.size()), uint32_t(node_index), glm::mat4(local), skinned});
     if (!finite(transform)) {
       ctx_.fail("node " + std::to_string(node_index) + " has a world transform that is not finite");
     }
@@ -221,12 +264,8 @@ class SceneBuilder {
   }
 
   void visit(int index, const tinygltf::Node& node, const glm::dmat4& world) {
-    if (node.skin >= 0) {
-      ctx_.warn_once("skin",
-                     "skinning is not supported; skinned meshes are shown in their bind pose");
-    }
     if (node.mesh >= 0) {
-      const int mesh = mesh_id(node.mesh);
+      const int mesh = deforms(node) ? deformed_mesh_id(node.mesh, index) : mesh_id(node.mesh);
       const auto gpu = node.extensions.find("EXT_mesh_gpu_instancing");
       if (mesh < 0) {
         // nothing to show
@@ -363,6 +402,8 @@ class SceneBuilder {
   gltf::AccessorCache& cache_;
   gltf::DecodedMeshes& meshes_;
   std::vector<int> mesh_ids_;
+  std::vector<bool> deformed_use_;  // by glTF mesh: some node deforms it
+  std::vector<gltf::DeformedNode> deformed_;
   std::map<std::string, int> mesh_by_key_;
   std::vector<Mesh> new_meshes_;
   std::vector<Instance> instances_;
@@ -540,8 +581,15 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
   }
   SceneBuilder builder(ctx, cache, meshes);
   builder.walk(roots);
-  if (options.animations != nullptr) {
-    gltf::load_animations(ctx, cache, builder.walked(), builder.bindings(), *options.animations);
+  // The hierarchy is needed to pose skins and morphs even when the caller
+  // does not play animations: the static scene shows their rest pose.
+  GltfAnimations local_animations;
+  GltfAnimations& animations =
+      options.animations != nullptr ? *options.animations : local_animations;
+  if (options.animations != nullptr || !builder.deformed().empty()) {
+    gltf::load_animations(ctx, cache, builder.walked(), builder.bindings(), animations,
+                          options.animations != nullptr);
+    gltf::load_deformers(ctx, cache, builder.deformed(), builder.new_meshes(), animations);
   }
 
   Scene scene;
@@ -560,6 +608,10 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     scene.add_instance(i);
   for (const Light& l : builder.lights())
     scene.add_light(l);
+  if (!animations.deformed.empty()) {
+    deform_gltf_meshes(animations, animations.nodes,
+                       gltf_world_transforms(animations, animations.nodes), scene);
+  }
   if (builder.has_camera()) {
     Camera cam = builder.camera();
     const SceneBounds bounds = scene.bounds();

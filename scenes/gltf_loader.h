@@ -5,7 +5,9 @@
 // out of range, views past their buffer, node cycles, ...). Every problem
 // that would make the scene wrong or the renderer misbehave is an InputError;
 // things we can degrade gracefully (a missing texture image, an unsupported
-// optional extension, skins, morph targets, animations) are warnings.
+// optional extension, animations when they are not asked for) are warnings.
+// Skinned and morphing meshes are shown in their rest pose; with
+// GltfOptions::animations they move (GltfAnimations::deformed).
 #pragma once
 
 #include <cstddef>
@@ -73,7 +75,7 @@ struct GltfSummary {
   size_t cameras = 0;
   size_t lights = 0;      // KHR_lights_punctual lights defined in the file
   size_t animations = 0;  // loaded only when GltfOptions::animations is set
-  size_t skins = 0;       // ignored by the loader
+  size_t skins = 0;       // skins in the file
   std::vector<std::string> extensions_used;
   std::vector<std::string> extensions_required;
 };

@@ -97,9 +97,6 @@ DecodedMeshes decode_meshes(Context& ctx, AccessorCache& cache, uint32_t default
       key += std::to_string(p.mode) + "," + std::to_string(pos) + "," + std::to_string(nrm) + "," +
              std::to_string(tan) + "," + std::to_string(uv0) + "," + std::to_string(uv1) + "," +
              std::to_string(p.indices) + "," + std::to_string(material) + ";";
-      if (!p.targets.empty()) {
-        ctx.warn_once("morph", "morph targets are not supported; meshes keep their base shape");
-      }
 
       const size_t vertex_count = m.accessors[size_t(pos)].count;
       // Points and lines are not rendered: nothing of them is decoded (the

@@ -286,16 +286,35 @@ void validate_meshes(const Context& ctx) {
                    format_name(a));
         }
       }
+      // Morph weights are one list per mesh, so every primitive needs the
+      // same number of targets.
+      if (p.targets.size() != mesh.primitives.front().targets.size()) {
+        ctx.fail(who + " has " + str(p.targets.size()) + " morph targets but primitive 0 has " +
+                 str(mesh.primitives.front().targets.size()) +
+                 " (all primitives of a mesh must have the same number)");
+      }
       for (size_t t = 0; t < p.targets.size(); ++t) {
         for (const auto& [semantic, index] : p.targets[t]) {
           const std::string twho = who + " morph target " + str(t) + " " + semantic;
           check_ref(ctx, index, m.accessors.size(), false, twho, "accessor");
-          if (m.accessors[size_t(index)].count != vertex_count) {
+          const tinygltf::Accessor& a = m.accessors[size_t(index)];
+          if (a.count != vertex_count) {
             ctx.fail(twho + " has a different count than POSITION");
+          }
+          // Deltas of the attributes that are deformed; others are ignored.
+          if ((semantic == "POSITION" || semantic == "NORMAL" || semantic == "TANGENT") &&
+              a.type != TINYGLTF_TYPE_VEC3) {
+            ctx.fail(twho + " must be VEC3, but is " + format_name(a));
           }
         }
       }
     }
+    const size_t targets = mesh.primitives.front().targets.size();
+    if (!mesh.weights.empty() && mesh.weights.size() != targets) {
+      ctx.fail("mesh " + str(mi) + " has " + str(mesh.weights.size()) + " weights but " +
+               str(targets) + " morph targets");
+    }
+    if (!finite_all(mesh.weights)) ctx.fail("mesh " + str(mi) + " has a weight that is not finite");
   }
 }
 
@@ -598,6 +617,31 @@ void validate_nodes_and_scenes(const Context& ctx) {
     check_ref(ctx, skin.skeleton, n, true, who + " skeleton", "node");
     for (int j : skin.joints)
       check_ref(ctx, j, n, false, who + " joint", "node");
+    if (skin.joints.empty()) ctx.fail(who + " has no joints");
+    // Palette slots are 16-bit, one kept for the mesh node itself.
+    if (skin.joints.size() >= 65535) {
+      ctx.fail(who + " has " + str(skin.joints.size()) + " joints (at most 65534 are supported)");
+    }
+    if (skin.inverseBindMatrices >= 0) {
+      const tinygltf::Accessor& a = m.accessors[size_t(skin.inverseBindMatrices)];
+      if (a.type != TINYGLTF_TYPE_MAT4 || a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT) {
+        ctx.fail(who + " inverseBindMatrices must be MAT4 FLOAT, but is " + format_name(a));
+      }
+      if (a.count != skin.joints.size()) {
+        ctx.fail(who + " has " + str(a.count) + " inverse bind matrices for " +
+                 str(skin.joints.size()) + " joints (there must be one per joint)");
+      }
+    }
+  }
+  for (size_t i = 0; i < m.nodes.size(); ++i) {
+    const tinygltf::Node& node = m.nodes[i];
+    if (node.weights.empty() || node.mesh < 0) continue;
+    const size_t targets = m.meshes[size_t(node.mesh)].primitives.front().targets.size();
+    if (node.weights.size() != targets) {
+      ctx.fail("node " + str(i) + " has " + str(node.weights.size()) + " weights but its mesh " +
+               str(node.mesh) + " has " + str(targets) + " morph targets");
+    }
+    if (!finite_all(node.weights)) ctx.fail("node " + str(i) + " has a weight that is not finite");
   }
 }
 

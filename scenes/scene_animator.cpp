@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "scenes/arena_scene.h"
+#include "scenes/procedural_rigs.h"
 
 namespace tandem {
 
@@ -15,15 +16,32 @@ class StaticAnimator final : public SceneAnimator {
   double duration() const override { return 0.0; }
 };
 
+// The arena's bodies and its walking figures.
 class ArenaAnimator final : public SceneAnimator {
  public:
-  explicit ArenaAnimator(const Scene& scene) : simulation_(scene) {}
+  explicit ArenaAnimator(const Scene& scene) : simulation_(scene), rigs_(scene) {}
   bool animated() const override { return true; }
-  void pose(double t, Scene& scene) override { simulation_.advance_to(std::max(t, 0.0), scene); }
+  void pose(double t, Scene& scene) override {
+    simulation_.advance_to(std::max(t, 0.0), scene);
+    rigs_.pose(std::max(t, 0.0), scene);
+  }
   double duration() const override { return 0.0; }
 
  private:
   ArenaSimulation simulation_;
+  ProceduralRigPlayer rigs_;
+};
+
+// Skinned meshes built in code (builtin:skinned-grid).
+class ProceduralRigAnimator final : public SceneAnimator {
+ public:
+  explicit ProceduralRigAnimator(ProceduralRigPlayer rigs) : rigs_(std::move(rigs)) {}
+  bool animated() const override { return true; }
+  void pose(double t, Scene& scene) override { rigs_.pose(std::max(t, 0.0), scene); }
+  double duration() const override { return 0.0; }
+
+ private:
+  ProceduralRigPlayer rigs_;
 };
 
 class GltfNodeAnimator final : public SceneAnimator {
@@ -55,6 +73,8 @@ bool holds_arena_bodies(const Scene& scene) {
 std::unique_ptr<SceneAnimator> make_scene_animator(const Scene& scene, GltfAnimations animations) {
   if (holds_arena_bodies(scene)) return std::make_unique<ArenaAnimator>(scene);
   if (!animations.empty()) return std::make_unique<GltfNodeAnimator>(std::move(animations));
+  ProceduralRigPlayer rigs(scene);
+  if (!rigs.empty()) return std::make_unique<ProceduralRigAnimator>(std::move(rigs));
   return std::make_unique<StaticAnimator>();
 }
 

@@ -1,0 +1,226 @@
+#include "scenes/mesh_deformer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
+namespace tandem {
+
+JointMatrix joint_matrix(const glm::mat4& a) {
+  JointMatrix j;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c)
+      j.m[4 * r + c] = a[c][r];  // glm is column-major
+  }
+  return j;
+}
+
+glm::mat4 to_mat4(const JointMatrix& j) {
+  glm::mat4 a(1.0f);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c)
+      a[c][r] = j.m[4 * r + c];
+  }
+  return a;
+}
+
+namespace {
+
+// Vertices per task: large enough that a task is a few microseconds of
+// work, small enough that two cores balance on a 10 k vertex mesh.
+constexpr size_t kBlock = 4096;
+
+// Four floats in one SSE/NEON register (GCC/Clang vector extension): a
+// column of a joint matrix. Blending and transforming column-wise needs no
+// horizontal sums, so each influence is four multiply-adds of registers.
+typedef float v4 __attribute__((vector_size(16)));
+struct alignas(16) Columns {
+  v4 c[4];  // x, y, z axes and translation; lane 3 unused
+};
+
+Columns columns_of(const JointMatrix& j) {
+  Columns k;
+  for (int c = 0; c < 4; ++c)
+    k.c[c] = v4{j.m[c], j.m[4 + c], j.m[8 + c], 0.0f};
+  return k;
+}
+
+inline v4 splat(float x) {
+  return v4{x, x, x, x};
+}
+inline v4 load3(const glm::vec3& v) {
+  return v4{v.x, v.y, v.z, 0.0f};
+}
+inline glm::vec3 store3(v4 v) {
+  return {v[0], v[1], v[2]};
+}
+inline v4 cross(v4 a, v4 b) {
+  const v4 a_yzx = __builtin_shufflevector(a, a, 1, 2, 0, 3);
+  const v4 b_yzx = __builtin_shufflevector(b, b, 1, 2, 0, 3);
+  const v4 c = a * b_yzx - a_yzx * b;
+  return __builtin_shufflevector(c, c, 1, 2, 0, 3);
+}
+inline float dot3(v4 a, v4 b) {
+  const v4 p = a * b;
+  return p[0] + p[1] + p[2];
+}
+
+// Unit `v`, or `fallback` when it is (nearly) zero or not finite: a zero
+// tangent marks "no tangent here" and must stay zero; a collapsed normal
+// keeps its input.
+inline glm::vec3 normalised_or_kept(const glm::vec3& v, const glm::vec3& fallback) {
+  const float len2 = glm::dot(v, v);
+  if (!(len2 > 1e-30f) || !std::isfinite(len2)) return fallback;
+  return v * (1.0f / std::sqrt(len2));
+}
+// 1 / sqrt(x): the hardware estimate and one Newton step (relative error
+// about 1e-7, a unit vector to float precision) costs a fraction of a
+// square root and a division, which were a third of the skinning time.
+inline float inverse_sqrt(float x) {
+#if defined(__SSE__)
+  float r = _mm_cvtss_f32(_mm_rsqrt_ss(_mm_set_ss(x)));
+  return r * (1.5f - 0.5f * x * r * r);
+#else
+  return 1.0f / std::sqrt(x);
+#endif
+}
+inline glm::vec3 normalised_or_kept(v4 v, const glm::vec3& fallback) {
+  const float len2 = dot3(v, v);
+  // One comparison pair rejects zero, infinity and NaN alike.
+  if (!(len2 > 1e-30f && len2 < 1e30f)) return fallback;
+  return store3(v * splat(inverse_sqrt(len2)));
+}
+
+struct ActiveTarget {
+  uint32_t index;
+  float weight;
+};
+
+struct Job {
+  const MeshDeformation& d;
+  const Columns* palette;  // null: not skinned
+  const std::vector<ActiveTarget>& active;
+  bool morph_p, morph_n, morph_t;
+  Mesh& out;
+};
+
+// One block of vertices; the template flags take every per-mesh decision
+// out of the vertex loop.
+template <bool kSkin, bool kMorph, bool kNormals, bool kTangents>
+void deform_block(const Job& job, size_t begin, size_t end) {
+  const MeshDeformation& d = job.d;
+  const size_t vertices = d.vertex_count();
+  const uint32_t influences = d.influences;
+  for (size_t v = begin; v != end; ++v) {
+    glm::vec3 p = d.base_positions[v];
+    glm::vec3 n = kNormals ? d.base_normals[v] : glm::vec3(0.0f);
+    glm::vec4 t = kTangents ? d.base_tangents[v] : glm::vec4(0.0f);
+    if (kMorph) {
+      for (const ActiveTarget& a : job.active) {
+        const size_t at = size_t(a.index) * vertices + v;
+        if (job.morph_p) p += a.weight * d.position_deltas[at];
+        if (kNormals && job.morph_n) n += a.weight * d.normal_deltas[at];
+        if (kTangents && job.morph_t) t += glm::vec4(a.weight * d.tangent_deltas[at], 0.0f);
+      }
+    }
+    if (!kSkin) {
+      job.out.positions[v] = p;
+      if (kNormals) job.out.normals[v] = kMorph ? normalised_or_kept(n, n) : n;
+      if (kTangents) {
+        const glm::vec3 tx(t);
+        job.out.tangents[v] = glm::vec4(kMorph ? normalised_or_kept(tx, tx) : tx, t.w);
+      }
+      continue;
+    }
+    // The blended matrix: a weighted sum of the palette entries (zero
+    // weights are multiplied too: cheaper than a branch that mispredicts).
+    const uint16_t* joint = &d.joints[v * influences];
+    const float* weight = &d.weights[v * influences];
+    v4 c0 = splat(0.0f), c1 = c0, c2 = c0, c3 = c0;
+    for (uint32_t i = 0; i < influences; ++i) {
+      const v4 w = splat(weight[i]);
+      const Columns& k = job.palette[joint[i]];
+      c0 += w * k.c[0];
+      c1 += w * k.c[1];
+      c2 += w * k.c[2];
+      c3 += w * k.c[3];
+    }
+    job.out.positions[v] = store3(c0 * splat(p.x) + c1 * splat(p.y) + c2 * splat(p.z) + c3);
+    if (kNormals) {
+      // Cofactor matrix (columns c1 x c2, c2 x c0, c0 x c1) = det * A^-T.
+      const v4 k0 = cross(c1, c2), k1 = cross(c2, c0), k2 = cross(c0, c1);
+      const float sign = dot3(c0, k0) < 0.0f ? -1.0f : 1.0f;
+      const v4 sn = splat(sign) * (k0 * splat(n.x) + k1 * splat(n.y) + k2 * splat(n.z));
+      job.out.normals[v] = normalised_or_kept(sn, kMorph ? normalised_or_kept(n, n) : n);
+    }
+    if (kTangents) {
+      const v4 st = c0 * splat(t.x) + c1 * splat(t.y) + c2 * splat(t.z);
+      job.out.tangents[v] = glm::vec4(normalised_or_kept(st, glm::vec3(t)), t.w);
+    }
+  }
+}
+
+using BlockFn = void (*)(const Job&, size_t, size_t);
+
+template <bool kSkin, bool kMorph>
+BlockFn pick(bool normals, bool tangents) {
+  if (normals) {
+    return tangents ? &deform_block<kSkin, kMorph, true, true>
+                    : &deform_block<kSkin, kMorph, true, false>;
+  }
+  return tangents ? &deform_block<kSkin, kMorph, false, true>
+                  : &deform_block<kSkin, kMorph, false, false>;
+}
+
+}  // namespace
+
+void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
+                 Mesh& out) {
+  const size_t vertices = d.vertex_count();
+  if (out.positions.size() != vertices) return;  // not the mesh it was made for
+  const bool normals = !d.base_normals.empty() && out.normals.size() == vertices;
+  const bool tangents = !d.base_tangents.empty() && out.tangents.size() == vertices;
+  // Only targets with a non-zero weight cost anything per vertex.
+  std::vector<ActiveTarget> active;
+  if (morph_weights != nullptr) {
+    for (uint32_t k = 0; k < d.targets; ++k) {
+      if (morph_weights[k] != 0.0f && std::isfinite(morph_weights[k]))
+        active.push_back({k, morph_weights[k]});
+    }
+  }
+  const bool skinned = d.skinned() && palette != nullptr;
+  // The palette in column form, once per mesh and frame.
+  std::vector<Columns> columns;
+  if (skinned) {
+    columns.resize(d.palette_size);
+    for (uint32_t j = 0; j < d.palette_size; ++j)
+      columns[j] = columns_of(palette[j]);
+  }
+  const Job job{d,
+                skinned ? columns.data() : nullptr,
+                active,
+                !d.position_deltas.empty(),
+                normals && !d.normal_deltas.empty(),
+                tangents && !d.tangent_deltas.empty(),
+                out};
+  const bool morph = !active.empty();
+  const BlockFn fn =
+      skinned
+          ? (morph ? pick<true, true>(normals, tangents) : pick<true, false>(normals, tangents))
+          : (morph ? pick<false, true>(normals, tangents) : pick<false, false>(normals, tangents));
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices, kBlock),
+                    [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end()); });
+}
+
+void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene) {
+  if (d.mesh >= scene.meshes().size()) return;
+  deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
+}
+
+}  // namespace tandem
