@@ -173,3 +173,44 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
 
 }  // namespace
 }  // namespace tandem
+
+namespace tandem {
+namespace {
+
+TEST(SceneDeform, ArrayChangeKeepsRangesApartAndMergesTheClosest) {
+  ArrayChange c;
+  c.mark(100, 110);
+  c.mark(500, 520);
+  c.mark(108, 130);  // overlaps the first
+  c.mark(130, 140);  // touches it
+  EXPECT_EQ(c.begin, 100u);
+  EXPECT_EQ(c.end, 520u);
+  ASSERT_EQ(c.range_count, 2u);
+  EXPECT_EQ(c.ranges[0].end, 140u);
+  EXPECT_EQ(c.element_count(), 40u + 20u);
+  // Past kMaxRanges the two closest ranges merge: never an element lost.
+  ArrayChange many;
+  for (uint32_t i = 0; i < ArrayChange::kMaxRanges + 3; ++i)
+    many.mark(1000 * i, 1000 * i + 10 + i);
+  EXPECT_EQ(many.range_count, ArrayChange::kMaxRanges);
+  std::vector<uint8_t> covered(20000, 0);
+  many.for_each_range([&](uint32_t b, uint32_t e) {
+    for (uint32_t i = b; i < e; ++i)
+      covered[i] = 1;
+  });
+  for (uint32_t i = 0; i < ArrayChange::kMaxRanges + 3; ++i)
+    for (uint32_t k = 1000 * i; k < 1000 * i + 10 + i; ++k)
+      ASSERT_TRUE(covered[k]) << k;
+  // Merging deltas keeps the ranges.
+  SceneDelta a, b;
+  a.positions.mark(0, 10);
+  b.positions.mark(90, 100);
+  a.merge(b);
+  EXPECT_EQ(a.positions.element_count(), 20u);
+  KernelScene ks;
+  ks.positions.resize(100);
+  EXPECT_EQ(a.bytes(ks), 20u * sizeof(Vec3));
+}
+
+}  // namespace
+}  // namespace tandem

@@ -43,13 +43,39 @@ class KernelScene {
 // the TLAS root is missing or out of range.
 void check_bvh_present(const KernelScene& ks, const char* backend);
 
-// Elements [begin, end) of one array were rewritten; `reallocated` means the
-// array changed size (or was rebuilt) and must be re-sent as a whole.
+// Elements of one array were rewritten: up to kMaxRanges disjoint ascending
+// ranges, and [begin, end) their bounding range (what a reader that wants
+// one range uses: it re-sends unchanged elements in between, never misses
+// one). Separate ranges keep, say, a deformed mesh's BLAS nodes and the
+// TLAS at the end of the same array from being sent as everything between
+// them. `reallocated` means the array changed size (or was rebuilt) and
+// must be re-sent as a whole.
 struct ArrayChange {
+  static constexpr uint32_t kMaxRanges = 8;
+  struct Range {
+    uint32_t begin = 0, end = 0;
+  };
   uint32_t begin = 0, end = 0;
   bool reallocated = false;
+  uint32_t range_count = 0;  // 0 with end > begin: the bounding range is the one range
+  Range ranges[kMaxRanges] = {};
+  // Adds [b, e): merged with the ranges it overlaps or touches; past
+  // kMaxRanges the two ranges with the smallest gap merge.
   void mark(uint32_t b, uint32_t e);
   bool any() const { return reallocated || end > begin; }
+  // The changed ranges, ascending (the bounding range when none were kept).
+  template <class F>
+  void for_each_range(F&& f) const {
+    if (end <= begin) return;
+    if (range_count == 0) {
+      f(begin, end);
+      return;
+    }
+    for (uint32_t i = 0; i < range_count; ++i)
+      f(ranges[i].begin, ranges[i].end);
+  }
+  // Elements in the ranges.
+  size_t element_count() const;
 };
 
 struct SceneDelta {
