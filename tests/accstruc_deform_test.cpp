@@ -231,3 +231,58 @@ TEST(AccelDeform, VertexRangeRewritesOnlyTheNodesAboveIt) {
 
 }  // namespace
 }  // namespace tandem
+
+namespace tandem {
+namespace {
+
+// Not a test: the per-frame cost of a deforming mesh of a million vertices
+// (run with --gtest_also_run_disabled_tests
+// --gtest_filter=*MillionVertexFrameTimes). Prints the median over 20
+// frames of each step: the deformation itself (standing in for skinning),
+// SceneCompiler (vertex conversion), AccelStructure (BLAS refit + TLAS) and
+// the Embree backend's refit commit.
+TEST(AccelDeform, DISABLED_MillionVertexFrameTimes) {
+  using Clock = std::chrono::steady_clock;
+  const auto ms = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  WaveGrid g{.cells = 999, .size = 40.0f, .amplitude = 0.3f, .wavelength = 5.0f};
+  Scene scene;
+  scene.add_material(Material{});
+  scene.add_mesh(make_wave_grid(g));
+  scene.add_instance({"wave", 0, glm::mat4(1.0f)});
+  TracedScene s(std::move(scene));
+  std::vector<double> deform, compile, refit, embree, total, bytes;
+  for (uint32_t frame = 1; frame <= 20; ++frame) {
+    const auto t0 = Clock::now();
+    deform_wave_grid(s.scene.edit_mesh_vertices(0), g, 0.01f * float(frame));
+    const auto t1 = Clock::now();
+    SceneDelta delta = s.compiler.compile(s.scene, s.settings, s.ks);
+    const auto t2 = Clock::now();
+    const AccelUpdate up = s.accel.update(s.ks, delta);
+    const auto t3 = Clock::now();
+    delta = delta | up.delta;
+    s.embree.sync(s.ks, delta);
+    const auto t4 = Clock::now();
+    deform.push_back(ms(t0, t1));
+    compile.push_back(ms(t1, t2));
+    refit.push_back(ms(t2, t3));
+    embree.push_back(ms(t3, t4));
+    total.push_back(ms(t0, t3));
+    bytes.push_back(double(delta.bytes(s.ks)) / (1024.0 * 1024.0));
+    EXPECT_EQ(up.blas_refit, 1u);
+  }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "[accstruc] %u vertices, %u triangles, median of 20 frames: deform %.2f ms, compile "
+      "(vertex conversion) %.2f ms, BVH refit + TLAS %.2f ms (deform + compile + refit %.2f ms); "
+      "Embree refit %.2f ms; delta %.2f MiB/frame\n",
+      g.vertex_count(), 2 * g.cells * g.cells, median(deform), median(compile), median(refit),
+      median(total), median(embree), median(bytes));
+}
+
+}  // namespace
+}  // namespace tandem
