@@ -1,10 +1,14 @@
 #include "accstruc/accel_structure.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <functional>
+#include <iterator>
+#include <limits>
 #include <stdexcept>
 
 #include "core/util/log.h"
@@ -22,6 +26,9 @@ double seconds_since(Clock::time_point t0) {
 // Wide leaf slots hold up to three triangles, or one instance.
 constexpr uint32_t kBlasWideLeafPrims = kWideMaxLeafPrims;
 constexpr uint32_t kTlasWideLeafPrims = 1;
+
+// A BLAS's refit_quality() as built, before its first refit measures it.
+constexpr double kQualityUnknown = std::numeric_limits<double>::quiet_NaN();
 
 void mark_all(ArrayChange& c) {
   c.reallocated = true;
@@ -102,13 +109,16 @@ AccelStructure::AccelStructure(AccelSettings settings) : settings_(std::move(set
 AccelStructure::~AccelStructure() = default;
 
 void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes,
-                                AccelUpdate& up) {
+                                AccelUpdate& up, bool allow_cache) {
   std::atomic<uint32_t> built{0}, loaded{0};
   const BuildSettings& bs = settings_.blas;
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     const MeshGeometry g = mesh_geometry(ks, m);
-    const bool use_cache = cache_ && g.triangle_count >= settings_.cache.min_triangles;
+    // Measured before the first refit of the new tree (refit_blas).
+    blas_built_quality_[m] = kQualityUnknown;
+    const bool use_cache =
+        allow_cache && cache_ && g.triangle_count >= settings_.cache.min_triangles;
     uint64_t key = 0;
     if (use_cache) {
       key = blas_cache_key(g, bs, kBlasWideLeafPrims);
@@ -131,12 +141,38 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
   up.blas_loaded += loaded.load();
 }
 
-void AccelStructure::refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes) {
+std::vector<uint32_t> AccelStructure::refit_blas(const KernelScene& ks,
+                                                 const std::vector<uint32_t>& meshes) {
+  std::vector<uint8_t> poor(meshes.size(), 0);
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
+    BvhLayouts& l = blas_[m];
+    if (std::isnan(blas_built_quality_[m])) blas_built_quality_[m] = refit_quality(l);
     const std::vector<Aabb> boxes = triangle_boxes(mesh_geometry(ks, m));
-    refit_layouts(blas_[m], boxes);
+    // A triangle whose box became valid or invalid (a vertex went to or
+    // came back from NaN) joins or leaves the hierarchy: only a build
+    // does that. Equal counts with a swapped member go unnoticed; the
+    // swapped-out triangle is then left out (leaf_box skips it) and the
+    // new one missed until the next rebuild.
+    const size_t valid = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, boxes.size(), 65536), size_t(0),
+        [&](const tbb::blocked_range<size_t>& r, size_t n) {
+          for (size_t b = r.begin(); b < r.end(); ++b)
+            n += aabb_valid(boxes[b]) ? 1 : 0;
+          return n;
+        },
+        std::plus<size_t>());
+    if (valid != l.prims.size()) {
+      poor[i] = 1;
+      return;
+    }
+    poor[i] = refit_too_poor(refit_layouts(l, boxes), blas_built_quality_[m]);
   });
+  std::vector<uint32_t> rebuild;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (poor[i]) rebuild.push_back(meshes[i]);
+  }
+  return rebuild;
 }
 
 void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
@@ -199,28 +235,6 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   laid_out_ = true;
 }
 
-namespace {
-
-// How many times worse than right after its build a refit TLAS may get
-// before it is rebuilt.
-constexpr double kTlasRefitQualityLimit = 1.3;
-
-// Expected traversal work of a binary layout, relative to its root: the sum
-// of all child-box surface areas over the root's (the SAH's node term).
-double tlas_quality(const BvhLayouts& l) {
-  const double root = l.bounds.half_area();
-  if (l.empty() || !(root > 0.0)) return 0.0;
-  double sum = 0.0;
-  for (const KBvhNode& n : l.nodes) {
-    const Aabb c0{{n.c0_xy.x, n.c0_xy.z, n.c01_z.x}, {n.c0_xy.y, n.c0_xy.w, n.c01_z.y}};
-    const Aabb c1{{n.c1_xy.x, n.c1_xy.z, n.c01_z.z}, {n.c1_xy.y, n.c1_xy.w, n.c01_z.w}};
-    sum += double(c0.half_area()) + double(c1.half_area());
-  }
-  return sum / root;
-}
-
-}  // namespace
-
 void AccelStructure::compute_tlas_boxes(const KernelScene& ks) {
   const uint32_t instances = uint32_t(ks.instances.size());
   tlas_boxes_.resize(instances);
@@ -257,7 +271,7 @@ void AccelStructure::rebuild_tlas(KernelScene& ks, AccelUpdate& up) {
   tlas_members_.resize(instances);
   for (uint32_t i = 0; i < instances; ++i)
     tlas_members_[i] = aabb_valid(tlas_boxes_[i]);
-  tlas_built_quality_ = tlas_quality(tlas_);
+  tlas_built_quality_ = refit_quality(tlas_);
   tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/true);
   up.tlas_rebuilt = true;
@@ -279,10 +293,10 @@ bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up,
       if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
     }
     tlas_partial_.refit(tlas_, tlas_boxes_, *moved);
-    // tlas_quality(), from the refit's running sum of child areas.
+    // refit_quality(), from the refit's running sum of child areas.
     const double root = tlas_.bounds.half_area();
     const double quality = root > 0.0 ? tlas_partial_.child_area_sum() / root : 0.0;
-    if (quality > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+    if (refit_too_poor(quality, tlas_built_quality_)) return false;
     const std::vector<uint32_t>& nodes = tlas_partial_.changed_nodes();
     const std::vector<uint32_t>& wide = tlas_partial_.changed_wide_nodes();
     emit_layout_nodes(tlas_, tlas_base_, nodes, wide, ks.bvh_nodes.data() + tlas_base_.node,
@@ -302,8 +316,7 @@ bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up,
   }
   // In place: when the refit turns out too poor, rebuild_tlas starts from
   // the boxes alone.
-  refit_layouts(tlas_, tlas_boxes_);
-  if (tlas_quality(tlas_) > kTlasRefitQualityLimit * tlas_built_quality_) return false;
+  if (refit_too_poor(refit_layouts(tlas_, tlas_boxes_), tlas_built_quality_)) return false;
   tlas_partial_.index(tlas_, tlas_boxes_, instances);
   emit_tlas(ks, up, /*prims_changed=*/false);
   up.tlas_refit = true;
@@ -340,6 +353,7 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   bool relayout = false;
   if (delta.full || !laid_out_ || blas_.size() != n) {
     blas_.assign(n, BvhLayouts{});
+    blas_built_quality_.assign(n, kQualityUnknown);
     rebuild.resize(n);
     for (uint32_t m = 0; m < n; ++m)
       rebuild[m] = m;
@@ -359,25 +373,41 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   std::sort(refit.begin(), refit.end());
   refit.erase(std::unique(refit.begin(), refit.end()), refit.end());
 
+  // Refit first: a BLAS whose refit tree got too poor (refit_too_poor())
+  // is rebuilt instead, which lays the arrays out anew.
   auto t0 = Clock::now();
-  if (!rebuild.empty()) build_blas(ks, rebuild, up);
-  up.blas_seconds = seconds_since(t0);
-  t0 = Clock::now();
+  std::vector<uint32_t> poor;
   if (!refit.empty()) {
-    refit_blas(ks, refit);
+    poor = refit_blas(ks, refit);
+    if (!poor.empty()) {
+      std::vector<uint32_t> kept;
+      std::set_difference(refit.begin(), refit.end(), poor.begin(), poor.end(),
+                          std::back_inserter(kept));
+      refit = std::move(kept);
+      up.blas_refit_rebuilt = uint32_t(poor.size());
+      relayout = true;
+    }
     up.blas_refit = uint32_t(refit.size());
   }
   up.refit_seconds = seconds_since(t0);
+  t0 = Clock::now();
+  if (!rebuild.empty()) build_blas(ks, rebuild, up, /*allow_cache=*/true);
+  // Deformed geometry never recurs: not worth a disk cache entry.
+  if (!poor.empty()) build_blas(ks, poor, up, /*allow_cache=*/false);
+  up.blas_seconds = seconds_since(t0);
 
   if (relayout) {
     layout_arrays(ks, up);
   } else {
-    // A refit keeps every array's size: rewrite the meshes' node ranges.
+    // A refit keeps every array's size: rewrite the meshes' nodes and
+    // report the span of those that changed.
     for (uint32_t m : refit) {
-      emit_blas(ks, m);
       const LayoutBases& b = blas_bases_[m];
-      up.delta.bvh_nodes.mark(b.node, b.node + uint32_t(blas_[m].nodes.size()));
-      up.delta.bvh_wide_nodes.mark(b.wide_node, b.wide_node + uint32_t(blas_[m].wide_nodes.size()));
+      const NodeSpans spans = emit_refit_nodes(blas_[m], b, ks.bvh_nodes.data() + b.node,
+                                               ks.bvh_wide_nodes.data() + b.wide_node);
+      up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
+      up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
+                                   b.wide_node + spans.wide_nodes.end);
     }
   }
 

@@ -9,7 +9,9 @@
 // or its delta:
 //   - BLAS of delta.meshes_rebuilt (all meshes on delta.full) are built (or
 //     read from the disk cache), in parallel across and within meshes;
-//   - BLAS of delta.meshes_refit are refit in place (same size, same place);
+//   - BLAS of delta.meshes_refit are refit in place (same size, same place),
+//     and rebuilt when the refit tree got too poor (refit_too_poor(), the
+//     policy the TLAS follows too);
 //   - the TLAS is rebuilt from scratch when instances changed (or any BLAS).
 // Each concatenated array holds every BLAS (in mesh order) and then the
 // TLAS, whose region is sized from the instance count alone, so a frame that
@@ -45,6 +47,10 @@ struct AccelUpdate {
   // ever marked), to be united with the compiler's delta for the backends.
   SceneDelta delta;
   uint32_t blas_built = 0, blas_loaded = 0, blas_refit = 0;
+  // Of delta.meshes_refit, the BLAS whose refit tree got too poor (or whose
+  // set of valid triangles changed) and were rebuilt instead (counted in
+  // blas_built too, not in blas_refit).
+  uint32_t blas_refit_rebuilt = 0;
   bool tlas_rebuilt = false;
   // Instances only moved: the TLAS kept its topology and had its boxes refit
   // (far cheaper than a rebuild), until its quality drops too far.
@@ -75,8 +81,10 @@ class AccelStructure {
   const BvhCache* cache() const { return cache_.get(); }
 
  private:
-  void build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes, AccelUpdate& up);
-  void refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes);
+  void build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes, AccelUpdate& up,
+                  bool allow_cache);
+  // Refits the meshes' BLAS; returns those (ascending) to rebuild instead.
+  std::vector<uint32_t> refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes);
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
@@ -90,6 +98,7 @@ class AccelStructure {
   AccelSettings settings_;
   std::unique_ptr<BvhCache> cache_;
   std::vector<BvhLayouts> blas_;
+  std::vector<double> blas_built_quality_;  // refit_quality() right after each BLAS's build
   std::vector<LayoutBases> blas_bases_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;

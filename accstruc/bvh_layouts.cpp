@@ -6,8 +6,11 @@
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cstring>
+#include <functional>
 
 namespace tandem {
 
@@ -105,16 +108,24 @@ Aabb leaf_box(std::span<const uint32_t> prims, uint32_t first, uint32_t count,
   return b;
 }
 
-// Returns the node's box; `parallel_depth` levels below spawn tasks.
-Aabb refit_binary(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
-                  uint32_t parallel_depth) {
+// The box of a refit subtree and the sum of its nodes' child-box half areas
+// (refit_quality()'s numerator), summed in tree order so the result does not
+// depend on how the tasks ran.
+struct RefitResult {
+  Aabb box;
+  double child_area_sum = 0.0;
+};
+
+// `parallel_depth` levels below spawn tasks.
+RefitResult refit_binary(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxes,
+                         uint32_t parallel_depth) {
   KBvhNode& n = l.nodes[index];
-  Aabb boxes[2];
+  RefitResult r[2];
   auto child = [&](uint32_t c) {
     if (n.child[c] & kBvhLeafFlag) {
-      boxes[c] = leaf_box(l.prims, n.child[c] & ~kBvhLeafFlag, n.count[c], prim_boxes);
+      r[c].box = leaf_box(l.prims, n.child[c] & ~kBvhLeafFlag, n.count[c], prim_boxes);
     } else {
-      boxes[c] = refit_binary(l, n.child[c], prim_boxes, parallel_depth ? parallel_depth - 1 : 0);
+      r[c] = refit_binary(l, n.child[c], prim_boxes, parallel_depth ? parallel_depth - 1 : 0);
     }
   };
   if (parallel_depth > 0) {
@@ -123,10 +134,13 @@ Aabb refit_binary(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim_boxe
     child(0);
     child(1);
   }
-  set_child_box(n, 0, boxes[0]);
-  set_child_box(n, 1, boxes[1]);
-  Aabb all = boxes[0];
-  all.grow(boxes[1]);
+  set_child_box(n, 0, r[0].box);
+  set_child_box(n, 1, r[1].box);
+  RefitResult all;
+  all.box = r[0].box;
+  all.box.grow(r[1].box);
+  all.child_area_sum = double(r[0].box.half_area()) + double(r[1].box.half_area()) +
+                       r[0].child_area_sum + r[1].child_area_sum;
   return all;
 }
 
@@ -270,14 +284,84 @@ void emit_layout_nodes(const BvhLayouts& l, const LayoutBases& base,
   }
 }
 
-void refit_layouts(BvhLayouts& l, std::span<const Aabb> prim_boxes) {
-  if (l.empty()) return;
+double refit_layouts(BvhLayouts& l, std::span<const Aabb> prim_boxes) {
+  if (l.empty()) return 0.0;
   // Task-parallel over the top levels of large hierarchies only.
   const uint32_t parallel_depth = l.prims.size() >= 4 * kParallelSubtree ? 6 : 0;
-  Aabb bounds;
-  tbb::parallel_invoke([&] { bounds = refit_binary(l, 0, prim_boxes, parallel_depth); },
+  RefitResult r;
+  tbb::parallel_invoke([&] { r = refit_binary(l, 0, prim_boxes, parallel_depth); },
                        [&] { refit_wide(l, prim_boxes, parallel_depth); });
-  l.bounds = bounds;
+  l.bounds = r.box;
+  const double root = r.box.half_area();
+  return root > 0.0 ? r.child_area_sum / root : 0.0;
+}
+
+double refit_quality(const BvhLayouts& l) {
+  const double root = l.bounds.half_area();
+  if (l.empty() || !(root > 0.0)) return 0.0;
+  const size_t grain = 16384;
+  const double sum = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<size_t>(0, l.nodes.size(), grain), 0.0,
+      [&](const tbb::blocked_range<size_t>& r, double acc) {
+        for (size_t i = r.begin(); i < r.end(); ++i) {
+          acc += double(binary_child_box(l.nodes[i], 0).half_area()) +
+                 double(binary_child_box(l.nodes[i], 1).half_area());
+        }
+        return acc;
+      },
+      std::plus<double>());
+  return sum / root;
+}
+
+bool refit_too_poor(double quality, double built_quality) {
+  return quality > kRefitQualityLimit * built_quality;
+}
+
+NodeSpans emit_refit_nodes(const BvhLayouts& l, const LayoutBases& base, KBvhNode* nodes,
+                           KWideBvhNode* wide_nodes) {
+  // Each block writes its nodes and reports the span of those that differ
+  // from what the kernel array held; spans join by min/max.
+  struct Span {
+    uint32_t begin = kInvalidIndex, end = 0;
+    void join(const Span& o) {
+      begin = std::min(begin, o.begin);
+      end = std::max(end, o.end);
+    }
+  };
+  auto emit = [](auto* dst, const auto& src, auto convert) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<uint32_t>(0, uint32_t(src.size()), 8192), Span{},
+        [&](const tbb::blocked_range<uint32_t>& r, Span s) {
+          for (uint32_t i = r.begin(); i < r.end(); ++i) {
+            const auto n = convert(src[i]);
+            if (std::memcmp(&n, dst + i, sizeof(n)) != 0) {
+              dst[i] = n;
+              s.begin = std::min(s.begin, i);
+              s.end = i + 1;
+            }
+          }
+          return s;
+        },
+        [](Span a, const Span& b) {
+          a.join(b);
+          return a;
+        });
+  };
+  const Span bin = emit(nodes, l.nodes, [&](KBvhNode n) {
+    for (uint32_t c = 0; c < 2; ++c)
+      n.child[c] =
+          (n.child[c] & kBvhLeafFlag) ? (n.child[c] + base.prim) : (n.child[c] + base.node);
+    return n;
+  });
+  const Span wide = emit(wide_nodes, l.wide_nodes, [&](KWideBvhNode n) {
+    n.child_base += base.wide_node;
+    n.prim_base += base.wide_prim;
+    return n;
+  });
+  NodeSpans out;
+  if (bin.end > 0) out.nodes = {bin.begin, bin.end};
+  if (wide.end > 0) out.wide_nodes = {wide.begin, wide.end};
+  return out;
 }
 
 bool validate_layouts(const BvhLayouts& l, uint32_t prim_count) {

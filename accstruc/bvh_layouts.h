@@ -51,8 +51,35 @@ void collapse_wide(const BuildTree& tree, std::span<const Aabb> prim_boxes,
 
 // Recomputes every box of both layouts bottom-up from the primitives' current
 // boxes (topology unchanged), in O(n), in parallel for large hierarchies.
-// Invalid primitive boxes count as empty. Updates `bounds`.
-void refit_layouts(BvhLayouts& layouts, std::span<const Aabb> prim_boxes);
+// Invalid primitive boxes count as empty. Updates `bounds`. Returns the
+// refit tree's refit_quality() (up to summation order).
+double refit_layouts(BvhLayouts& layouts, std::span<const Aabb> prim_boxes);
+
+// When a refit tree is rebuilt (the TLAS and every BLAS alike): a refit
+// keeps the topology while the primitives move, so boxes grow and overlap.
+// refit_quality() is the SAH's node term of the binary layout, the sum of
+// both child boxes' half areas over all nodes relative to the root's (the
+// expected number of box tests of a ray through the root, up to constants);
+// a refit tree whose quality exceeds kRefitQualityLimit times its quality
+// right after its build traces that much slower than a rebuild would, and is
+// rebuilt.
+constexpr double kRefitQualityLimit = 1.3;
+double refit_quality(const BvhLayouts& layouts);
+bool refit_too_poor(double quality, double built_quality);
+
+// Element ranges [begin, end) rewritten in a kernel array.
+struct NodeSpan {
+  uint32_t begin = 0, end = 0;
+};
+struct NodeSpans {
+  NodeSpan nodes, wide_nodes;  // relative to the hierarchy's bases
+};
+// emit_layouts() of a refit hierarchy's nodes (a refit keeps the primitive
+// arrays): writes only the nodes that differ from what the kernel arrays
+// hold and returns the span of them, so an upload skips the subtrees a
+// deformation left alone.
+NodeSpans emit_refit_nodes(const BvhLayouts& layouts, const LayoutBases& bases, KBvhNode* nodes,
+                           KWideBvhNode* wide_nodes);
 
 // One node's boxes from its children, for refits of a few paths
 // (partial_refit.h). Binary: interior children's boxes are read from the

@@ -34,6 +34,8 @@
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "cuda_test_util.h"
+#include "scenes/builtin_scenes.h"
+#include "scenes/deforming_grid.h"
 #include "scenes/procedural_scenes.h"
 
 namespace tandem {
@@ -234,6 +236,61 @@ TEST(CudaCommit, GrowthKeepsHeadroomAndSizeChangesResendWholeArrays) {
             (c.array == kArray_instances && c.resize && c.begin == 0 && c.end == instances + 1);
   EXPECT_TRUE(whole);
   EXPECT_TRUE(p.view_changed);
+}
+
+// A deformed vertex range reaches each set as exactly that range (and the
+// BVH nodes above it), not the whole vertex arrays: the bytes planned equal
+// the delta's own count, one copy per range, and both sets stay exact.
+TEST(CudaCommit, VertexRangeDeltaCommitsExactlyItsBytes) {
+  WaveGrid g{.cells = 64, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+  Scene scene;
+  scene.add_material(Material{});
+  scene.add_mesh(make_wave_grid(g));
+  scene.add_mesh(make_uv_sphere(1.0f, 16, 32, 0, false));  // static, after the grid
+  scene.add_instance({"wave", 0, glm::mat4(1.0f)});
+  scene.add_instance({"ball", 1, glm::translate(glm::mat4(1.0f), glm::vec3(0, 2, 0))});
+  FrameScene fs(std::move(scene), 32, 32);
+  DoubleBufferedCommits commits;
+  MirrorDevice device;
+  for (int i = 0; i < 2; ++i) {
+    const CommitPlan p = commits.plan(fs.ks, fs.next_frame());
+    device.apply(p, fs.ks);
+  }
+  for (uint32_t frame = 1; frame <= 4; ++frame) {
+    // A short run of one row: a compact patch away from the grid's halves
+    // and quarters, where the top splits of its BLAS lie (a range across a
+    // split or a row's end touches subtrees far apart in the node array).
+    const uint32_t row = 10 + frame, first = row * (g.cells + 1) + 3, count = 12;
+    Mesh& m = fs.scene.edit_mesh_vertices(0, first, count);
+    for (uint32_t v = first; v < first + count; ++v)
+      m.positions[v].y *= 0.5f;
+    const SceneDelta delta = fs.next_frame();
+    ASSERT_EQ(delta.positions.element_count(), count);
+    const CommitPlan plan = commits.plan(fs.ks, delta);
+    device.apply(plan, fs.ks);
+    ASSERT_EQ(device.mismatch(plan.set, fs.ks), "") << "frame " << frame;
+    size_t position_bytes = 0;
+    for (const ArrayCopy& c : plan.copies) {
+      EXPECT_FALSE(c.resize);
+      if (c.array == kArray_positions) position_bytes += c.bytes();
+    }
+    // This set missed the previous frame's range too (it went to the other
+    // set), so it receives both: the union of the two frames' deltas.
+    SceneDelta both = delta;
+    if (frame > 1) {
+      const uint32_t before = first - (g.cells + 1);
+      both.positions.mark(fs.ks.meshes[0].vertex_offset + before,
+                          fs.ks.meshes[0].vertex_offset + before + count);
+    }
+    EXPECT_EQ(position_bytes, both.positions.element_count() * sizeof(Vec3)) << "frame " << frame;
+    EXPECT_LT(plan.array_bytes(), fs.ks.byte_size() / 10) << "frame " << frame;
+    if (frame == 1) {
+      // The first set to see a change gets just this frame's delta.
+      EXPECT_EQ(plan.total_bytes() - (plan.view_changed ? sizeof(KernelData) : 0),
+                delta.bytes(fs.ks) - (delta.constants ? sizeof(KernelConstants) : 0) -
+                    (delta.bvh_constants ? sizeof(KBvhConstants) : 0));
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------

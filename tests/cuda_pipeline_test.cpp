@@ -208,8 +208,10 @@ TEST(CudaCommit, EveryChangeReachesEachSetExactlyOnce) {
       const size_t n = kernel_array_host_count(fs.ks, a);
       version[a].resize(n, f);
       if (delta.full || c.reallocated) std::fill(version[a].begin(), version[a].end(), f);
-      for (uint32_t i = c.begin; i < std::min<size_t>(c.end, n); ++i)
-        version[a][i] = f;
+      c.for_each_range([&](uint32_t b, uint32_t e) {
+        for (uint32_t i = b; i < std::min<size_t>(e, n); ++i)
+          version[a][i] = f;
+      });
     }
     // Amend (same set) a third of the time, as the tracer does for edits
     // that arrive after the prepared commit.

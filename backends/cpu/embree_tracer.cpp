@@ -215,7 +215,19 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
     build_all(ks);
   } else {
     for (uint32_t m : delta.meshes_refit) {
+      if (m >= blas_.size() || ks.meshes[m].triangle_count == 0) continue;  // no geometry
+      // Deforming meshes get Embree's refit: per-geometry build quality
+      // only counts in a two-level (LOW quality) scene, where REFIT keeps
+      // the topology and only recomputes the boxes after the first build.
+      // Switched once (the geometry's user data, unused otherwise, marks
+      // it): a change of quality makes Embree build the BVH anew.
       RTCGeometry g = rtcGetGeometry(blas_[m], 0);
+      static int refitting = 0;
+      if (rtcGetGeometryUserData(g) != &refitting) {
+        rtcSetSceneBuildQuality(blas_[m], RTC_BUILD_QUALITY_LOW);
+        rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+        rtcSetGeometryUserData(g, &refitting);
+      }
       rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
       rtcCommitGeometry(g);
       rtcCommitScene(blas_[m]);

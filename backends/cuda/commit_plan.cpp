@@ -29,8 +29,8 @@ void DoubleBufferedCommits::add_delta(SetState& s, const SceneDelta& delta) {
     ArrayChange& p = s.pending[a];
     if (delta.full || c.reallocated) {
       p.reallocated = true;
-    } else if (c.end > c.begin) {
-      p.mark(c.begin, c.end);
+    } else {
+      c.for_each_range([&](uint32_t b, uint32_t e) { p.mark(b, e); });
     }
   }
   // KernelData carries both writers' constants by value (the compiler's
@@ -70,16 +70,18 @@ CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, uint32_t target) c
       if (n != s.count[a] || c.new_capacity != 0) plan.view_changed = true;
       // Pushed even when empty: the copy also carries the new count.
       plan.copies.push_back(c);
-    } else if (p.end > p.begin) {
-      const uint32_t end = std::min(p.end, n);
-      if (end > p.begin) {
+    } else {
+      // One copy per pending range: the gaps between them stay on the device.
+      p.for_each_range([&](uint32_t b, uint32_t e) {
+        const uint32_t end = std::min(e, n);
+        if (end <= b) return;
         ArrayCopy c;
         c.array = a;
-        c.begin = p.begin;
+        c.begin = b;
         c.end = end;
         c.count = n;
         plan.copies.push_back(c);
-      }
+      });
     }
   }
   return plan;

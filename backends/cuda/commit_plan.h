@@ -10,9 +10,10 @@
 // B when B is next committed (frame N+1), even if frame N+1 did not touch it.
 // Each set therefore keeps its own pending list of changes that it has not
 // received yet; a commit adds the frame's delta to both lists and then
-// empties the target set's list by uploading it. Ranges of one array merge
-// into their bounding range, which at worst re-sends unchanged elements in
-// between (never misses one).
+// empties the target set's list by uploading it. Ranges of one array are
+// kept apart (ArrayChange::kMaxRanges of them, one copy each); beyond that
+// the closest merge, which at worst re-sends unchanged elements in between
+// (never misses one).
 #pragma once
 
 #include <array>

@@ -3,6 +3,9 @@
 // by power. A full build walks the emissive triangles; a change of punctual
 // lights or of the scene's size (which scales directional and environment
 // powers) only recomputes those powers and the alias table.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -105,9 +108,14 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   // Emissive triangles, one light per (instance, triangle). Power comes from
   // the same kernel function the integrator uses for MIS.
   const KernelData kd = out.view();
+  instance_lights_.assign(out.instances.size() + 1, 0);
+  emissive_mesh_instances_.assign(out.meshes.size(), {});
   for (uint32_t i = 0; i < out.instances.size(); ++i) {
     const uint32_t mesh_index = out.instances[i].mesh;
+    instance_lights_[i] = uint32_t(out.lights.size());
+    instance_lights_[i + 1] = uint32_t(out.lights.size());
     if (!mesh_emissive_[mesh_index]) continue;
+    emissive_mesh_instances_[mesh_index].push_back(i);
     const KMesh& km = out.meshes[mesh_index];
     for (uint32_t p = 0; p < km.triangle_count; ++p) {
       const KMaterial& m = out.materials[out.triangles[km.triangle_offset + p].material];
@@ -121,6 +129,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
       out.lights.push_back(k);
       power.push_back(pw);
     }
+    instance_lights_[i + 1] = uint32_t(out.lights.size());
   }
   finish_light_tables(power, out, delta);
   delta.lights.reallocated = true;
@@ -146,6 +155,55 @@ void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, Sc
   }
   finish_light_tables(light_power_, out, delta);
   delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
+}
+
+bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene& out,
+                                                 SceneDelta& delta,
+                                                 const std::vector<uint32_t>& meshes,
+                                                 bool punctual_too) {
+  // Rigid moves since the last build changed powers in the last bits: only
+  // a full build then gives what a fresh compile would.
+  if (triangle_powers_stale_ || instance_lights_.size() != out.instances.size() + 1 ||
+      emissive_mesh_instances_.size() != out.meshes.size() ||
+      light_power_.size() != out.lights.size()) {
+    return false;
+  }
+  const KernelData kd = out.view();
+  std::vector<float> power;
+  for (uint32_t m : meshes) {
+    const KMesh& km = out.meshes[m];
+    power.resize(km.triangle_count);
+    for (uint32_t i : emissive_mesh_instances_[m]) {
+      // The same computation as compile_lights(), so the powers (and the
+      // alias table built from them) are bit for bit a fresh compile's.
+      const KInstance& inst = out.instances[i];
+      tbb::parallel_for(tbb::blocked_range<uint32_t>(0, km.triangle_count, 16384), [&](auto r) {
+        for (uint32_t p = r.begin(); p < r.end(); ++p) {
+          const KMaterial& mat = out.materials[out.triangles[km.triangle_offset + p].material];
+          power[p] = is_black(mat.emission)
+                         ? 0.0f
+                         : triangle_light_power(mat, triangle_world_area(kd, inst, p));
+        }
+      });
+      // The lights of this instance are its triangles of positive power, in
+      // order; a triangle that gained or lost all its area changes the list.
+      uint32_t light = instance_lights_[i];
+      const uint32_t end = instance_lights_[i + 1];
+      for (uint32_t p = 0; p < km.triangle_count; ++p) {
+        if (!(power[p] > 0.0f)) continue;
+        if (light == end || out.lights[light].prim != p) return false;
+        light_power_[light++] = power[p];
+      }
+      if (light != end) return false;
+    }
+  }
+  if (punctual_too) {
+    update_light_powers(scene, out, delta);
+  } else {
+    finish_light_tables(light_power_, out, delta);
+    delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
+  }
+  return true;
 }
 
 // Directional and environment light powers scale with the scene's size,

@@ -1,5 +1,8 @@
 // Meshes: the mesh table (offsets, flags), the per-vertex arrays and the
 // triangles. Flags read the materials, so materials compile first.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <vector>
 #include "core/world/kernel_conversions.h"
@@ -46,7 +49,7 @@ void SceneCompiler::compile_meshes(const Scene& scene, KernelScene& out, SceneDe
   out.triangles.resize(triangle_total);
   for (size_t i = 0; i < scene.meshes().size(); ++i) {
     const Mesh& m = scene.meshes()[i];
-    write_mesh_vertices(m, uint32_t(i), out);
+    write_mesh_vertices(m, uint32_t(i), out, 0, out.meshes[i].vertex_count);
     const uint32_t toff = out.meshes[i].triangle_offset;
     for (size_t t = 0; t < m.triangles.size(); ++t) {
       const uint32_t mat = t < m.triangle_materials.size() ? m.triangle_materials[t] : 0u;
@@ -57,22 +60,50 @@ void SceneCompiler::compile_meshes(const Scene& scene, KernelScene& out, SceneDe
   }
 }
 
-void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out) {
-  const KMesh& km = out.meshes[mesh_index];
-  const uint32_t base = km.vertex_offset;
-  for (uint32_t v = 0; v < km.vertex_count; ++v) {
-    out.positions[base + v] = to_vec3(mesh.positions[v]);
-    if (!out.normals.empty())
-      out.normals[base + v] = mesh.normals.empty() ? Vec3{0, 0, 0} : to_vec3(mesh.normals[v]);
-    if (!out.tangents.empty()) {
-      const glm::vec4 t = mesh.tangents.empty() ? glm::vec4(0.0f) : mesh.tangents[v];
-      out.tangents[base + v] = {t.x, t.y, t.z, t.w};
-    }
-    if (!out.uv0.empty())
-      out.uv0[base + v] = mesh.uv0.empty() ? Vec2{0, 0} : Vec2{mesh.uv0[v].x, mesh.uv0[v].y};
-    if (!out.uv1.empty())
-      out.uv1[base + v] = mesh.uv1.empty() ? Vec2{0, 0} : Vec2{mesh.uv1[v].x, mesh.uv1[v].y};
+namespace {
+
+// Vertices converted per task: large enough that a deformed mesh of a
+// million vertices is a few dozen tasks, small enough to spread over cores.
+constexpr uint32_t kVertexGrain = 32768;
+
+// out[base + v] = convert(in[v]) for v in [begin, end); a missing attribute
+// (empty `in`) is written as zeros, as the kernels expect of a mesh without it.
+template <class Out, class In, class Convert>
+void convert_range(std::vector<Out>& out, const std::vector<In>& in, uint32_t base, uint32_t begin,
+                   uint32_t end, Convert convert) {
+  if (out.empty()) return;
+  Out* dst = out.data() + base;
+  if (in.empty()) {
+    std::fill(dst + begin, dst + end, Out{});
+    return;
   }
+  for (uint32_t v = begin; v < end; ++v)
+    dst[v] = convert(in[v]);
+}
+
+}  // namespace
+
+void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out,
+                                        uint32_t begin, uint32_t end) {
+  const uint32_t base = out.meshes[mesh_index].vertex_offset;
+  // One attribute at a time over a block: straight copies the compiler can
+  // vectorise, instead of a branch per attribute per vertex.
+  auto block = [&](uint32_t b, uint32_t e) {
+    convert_range(out.positions, mesh.positions, base, b, e, to_vec3);
+    convert_range(out.normals, mesh.normals, base, b, e, to_vec3);
+    convert_range(out.tangents, mesh.tangents, base, b, e, [](const glm::vec4& t) {
+      return Vec4{t.x, t.y, t.z, t.w};
+    });
+    const auto uv = [](const glm::vec2& t) { return Vec2{t.x, t.y}; };
+    convert_range(out.uv0, mesh.uv0, base, b, e, uv);
+    convert_range(out.uv1, mesh.uv1, base, b, e, uv);
+  };
+  if (end - begin <= kVertexGrain) {
+    block(begin, end);
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(begin, end, kVertexGrain),
+                    [&](const tbb::blocked_range<uint32_t>& r) { block(r.begin(), r.end()); });
 }
 
 void SceneCompiler::update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta,
@@ -81,18 +112,23 @@ void SceneCompiler::update_meshes(const Scene& scene, KernelScene& out, SceneDel
   std::sort(dirty.begin(), dirty.end());
   for (uint32_t i : dirty) {
     if (!(scene.mesh_dirty()[i] & kDirtyVertices)) continue;
-    write_mesh_vertices(scene.meshes()[i], i, out);
+    const Mesh& mesh = scene.meshes()[i];
     const KMesh& km = out.meshes[i];
-    delta.positions.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-    if (!out.normals.empty())
-      delta.normals.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-    if (!out.tangents.empty())
-      delta.tangents.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-    if (!out.uv0.empty()) delta.uv0.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
-    if (!out.uv1.empty()) delta.uv1.mark(km.vertex_offset, km.vertex_offset + km.vertex_count);
+    // Only the edited vertices (Scene::edit_mesh_vertices with a range),
+    // never past what the mesh was compiled with.
+    const Scene::VertexRange r = scene.mesh_dirty_vertices(i);
+    const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(mesh.positions.size())});
+    if (end <= r.begin) continue;
+    write_mesh_vertices(mesh, i, out, r.begin, end);
+    const uint32_t b = km.vertex_offset + r.begin, e = km.vertex_offset + end;
+    delta.positions.mark(b, e);
+    if (!out.normals.empty()) delta.normals.mark(b, e);
+    if (!out.tangents.empty()) delta.tangents.mark(b, e);
+    if (!out.uv0.empty()) delta.uv0.mark(b, e);
+    if (!out.uv1.empty()) delta.uv1.mark(b, e);
     delta.meshes_refit.push_back(i);
     delta.instances_changed = true;  // TLAS bounds change with the BLAS
-    needs.light_list |= mesh_emissive_[i];
+    if (mesh_emissive_[i]) needs.emissive_deformed.push_back(i);
   }
 }
 

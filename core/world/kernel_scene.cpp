@@ -44,7 +44,7 @@ SceneDelta SceneDelta::everything() {
 void SceneDelta::merge(const SceneDelta& later) {
 #define TANDEM_MERGE_CHANGE(T, name)                             \
   name.reallocated = name.reallocated || later.name.reallocated; \
-  name.mark(later.name.begin, later.name.end);
+  later.name.for_each_range([&](uint32_t b, uint32_t e) { name.mark(b, e); });
   TANDEM_KERNEL_ARRAYS(TANDEM_MERGE_CHANGE)
 #undef TANDEM_MERGE_CHANGE
   full = full || later.full;
@@ -75,10 +75,51 @@ void ArrayChange::mark(uint32_t b, uint32_t e) {
   if (end <= begin) {
     begin = b;
     end = e;
-  } else {
-    begin = std::min(begin, b);
-    end = std::max(end, e);
+    range_count = 1;
+    ranges[0] = {b, e};
+    return;
   }
+  if (range_count == 0) {  // only a bounding range was set: it is the one range
+    range_count = 1;
+    ranges[0] = {begin, end};
+  }
+  begin = std::min(begin, b);
+  end = std::max(end, e);
+  // Insert in order, absorbing every range that overlaps or touches [b, e).
+  Range merged[kMaxRanges + 1];
+  uint32_t n = 0;
+  bool placed = false;
+  for (uint32_t i = 0; i < range_count; ++i) {
+    const Range r = ranges[i];
+    if (r.end < b) {
+      merged[n++] = r;
+    } else if (r.begin > e) {
+      if (!placed) merged[n++] = {b, e}, placed = true;
+      merged[n++] = r;
+    } else {
+      b = std::min(b, r.begin);
+      e = std::max(e, r.end);
+    }
+  }
+  if (!placed) merged[n++] = {b, e};
+  if (n > kMaxRanges) {
+    uint32_t best = 0;
+    for (uint32_t i = 1; i + 1 < n; ++i) {
+      if (merged[i + 1].begin - merged[i].end < merged[best + 1].begin - merged[best].end) best = i;
+    }
+    merged[best].end = merged[best + 1].end;
+    for (uint32_t i = best + 1; i + 1 < n; ++i)
+      merged[i] = merged[i + 1];
+    --n;
+  }
+  range_count = n;
+  std::copy(merged, merged + n, ranges);
+}
+
+size_t ArrayChange::element_count() const {
+  size_t n = 0;
+  for_each_range([&](uint32_t b, uint32_t e) { n += e - b; });
+  return n;
 }
 
 bool SceneDelta::any() const {
@@ -95,8 +136,8 @@ size_t SceneDelta::bytes(const KernelScene& ks) const {
 #define TANDEM_CHANGE_BYTES(T, name)     \
   if (name.reallocated)                  \
     total += ks.name.size() * sizeof(T); \
-  else if (name.end > name.begin)        \
-    total += size_t(name.end - name.begin) * sizeof(T);
+  else                                   \
+    total += name.element_count() * sizeof(T);
   TANDEM_KERNEL_ARRAYS(TANDEM_CHANGE_BYTES)
 #undef TANDEM_CHANGE_BYTES
   return total;

@@ -43,13 +43,39 @@ class KernelScene {
 // the TLAS root is missing or out of range.
 void check_bvh_present(const KernelScene& ks, const char* backend);
 
-// Elements [begin, end) of one array were rewritten; `reallocated` means the
-// array changed size (or was rebuilt) and must be re-sent as a whole.
+// Elements of one array were rewritten: up to kMaxRanges disjoint ascending
+// ranges, and [begin, end) their bounding range (what a reader that wants
+// one range uses: it re-sends unchanged elements in between, never misses
+// one). Separate ranges keep, say, a deformed mesh's BLAS nodes and the
+// TLAS at the end of the same array from being sent as everything between
+// them. `reallocated` means the array changed size (or was rebuilt) and
+// must be re-sent as a whole.
 struct ArrayChange {
+  static constexpr uint32_t kMaxRanges = 8;
+  struct Range {
+    uint32_t begin = 0, end = 0;
+  };
   uint32_t begin = 0, end = 0;
   bool reallocated = false;
+  uint32_t range_count = 0;  // 0 with end > begin: the bounding range is the one range
+  Range ranges[kMaxRanges] = {};
+  // Adds [b, e): merged with the ranges it overlaps or touches; past
+  // kMaxRanges the two ranges with the smallest gap merge.
   void mark(uint32_t b, uint32_t e);
   bool any() const { return reallocated || end > begin; }
+  // The changed ranges, ascending (the bounding range when none were kept).
+  template <class F>
+  void for_each_range(F&& f) const {
+    if (end <= begin) return;
+    if (range_count == 0) {
+      f(begin, end);
+      return;
+    }
+    for (uint32_t i = 0; i < range_count; ++i)
+      f(ranges[i].begin, ranges[i].end);
+  }
+  // Elements in the ranges.
+  size_t element_count() const;
 };
 
 struct SceneDelta {
@@ -110,6 +136,9 @@ class SceneCompiler {
     bool full = false;          // an edit only a full build handles (alpha mode)
     bool light_list = false;    // triangle lights or the environment light changed
     bool light_powers = false;  // punctual light parameters or the scene size changed
+    // Emissive meshes whose vertices moved: their triangle lights' powers
+    // (areas) change, the light list does not (unless an area reaches 0).
+    std::vector<uint32_t> emissive_deformed;
   };
   bool needs_full_build(const Scene& scene) const;
   void compile_full(const Scene& scene, KernelScene& out, SceneDelta& delta);
@@ -123,7 +152,9 @@ class SceneCompiler {
   void update_materials(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
   // compile_meshes.cpp
   void compile_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  void write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out);
+  // Converts vertices [begin, end) of one mesh into the kernel arrays.
+  void write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out, uint32_t begin,
+                           uint32_t end);
   void update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
   // compile_instances.cpp
   void compile_instances(const Scene& scene, KernelScene& out);
@@ -134,6 +165,12 @@ class SceneCompiler {
   // compile_lights.cpp
   void compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta);
   void update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  // The triangle lights of deformed emissive meshes: their powers for the
+  // moved vertices, O(those meshes' triangles) plus the alias table. False
+  // (nothing changed) when the light list itself would change, which only
+  // compile_lights() handles.
+  bool update_triangle_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta,
+                                    const std::vector<uint32_t>& meshes, bool punctual_too);
   bool scene_size_changed(const Scene& scene) const;
   // compile_constants.cpp
   void compile_constants(const Scene& scene, const RenderSettings& settings, KernelScene& out);
@@ -149,6 +186,11 @@ class SceneCompiler {
   // (punctual lights, the environment, triangles): a punctual light's
   // change rebuilds the alias table from these without revisiting triangles.
   std::vector<double> light_power_;
+  // Where each instance's triangle lights are in out.lights (and
+  // light_power_): [instance_lights_[i], instance_lights_[i + 1]); and the
+  // instances of each emissive mesh, so a deformed mesh finds its lights.
+  std::vector<uint32_t> instance_lights_;
+  std::vector<std::vector<uint32_t>> emissive_mesh_instances_;
   // An emissive instance moved rigidly since the light tables were built:
   // its triangle powers may differ in the last bits, so the next light
   // change rebuilds the tables in full, as if nothing were cached.

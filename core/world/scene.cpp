@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace tandem {
 
@@ -36,6 +38,7 @@ uint32_t Scene::add_material(Material m) {
 uint32_t Scene::add_mesh(Mesh m) {
   meshes_.push_back(std::move(m));
   bounds_cache_.mesh_added();
+  mesh_vertex_ranges_.push_back({0, uint32_t(meshes_.back().positions.size())});
   return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
@@ -75,10 +78,38 @@ Light& Scene::edit_light(uint32_t light) {
   return lights_[light];
 }
 
-Mesh& Scene::edit_mesh_vertices(uint32_t mesh) {
+void Scene::mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end) {
+  VertexRange& r = mesh_vertex_ranges_[mesh];
+  if (!(meshes_dirty_.mask[mesh] & kDirtyVertices) || r.empty()) {
+    r = {begin, end};
+  } else {
+    r = {std::min(r.begin, begin), std::max(r.end, end)};
+  }
   meshes_dirty_.mark(mesh, kDirtyVertices);
   bounds_cache_.mesh_changed(mesh);
-  return meshes_[mesh];
+}
+
+Mesh& Scene::edit_mesh_vertices(uint32_t mesh) {
+  Mesh& m = meshes_.at(mesh);
+  mark_vertices(mesh, 0, uint32_t(m.positions.size()));
+  return m;
+}
+
+Mesh& Scene::edit_mesh_vertices(uint32_t mesh, uint32_t first_vertex, uint32_t count) {
+  Mesh& m = meshes_.at(mesh);
+  if (uint64_t(first_vertex) + count > m.positions.size()) {
+    throw std::out_of_range("edit_mesh_vertices: vertices [" + std::to_string(first_vertex) + ", " +
+                            std::to_string(uint64_t(first_vertex) + count) + ") of mesh " +
+                            std::to_string(mesh) + " (\"" + m.name + "\"), which has " +
+                            std::to_string(m.positions.size()));
+  }
+  if (count > 0) mark_vertices(mesh, first_vertex, first_vertex + count);
+  return m;
+}
+
+Scene::VertexRange Scene::mesh_dirty_vertices(uint32_t mesh) const {
+  if (mesh >= mesh_vertex_ranges_.size() || !(meshes_dirty_.mask[mesh] & kDirtyVertices)) return {};
+  return mesh_vertex_ranges_[mesh];
 }
 
 Camera& Scene::edit_camera() {

@@ -159,6 +159,12 @@ class Scene {
   Light& edit_light(uint32_t light);
   // Caller may change vertex attributes in place but not the vertex count.
   Mesh& edit_mesh_vertices(uint32_t mesh);
+  // The same for vertices [first_vertex, first_vertex + count) only: the
+  // caller changes no attribute outside that range, so the compiler converts
+  // and uploads just those vertices. Ranges edited before the next compile
+  // merge into their bounding range. Throws std::out_of_range when the range
+  // does not fit the mesh; count 0 marks nothing.
+  Mesh& edit_mesh_vertices(uint32_t mesh, uint32_t first_vertex, uint32_t count);
   Camera& edit_camera();
   Environment& edit_environment();
 
@@ -195,6 +201,14 @@ class Scene {
   const std::vector<uint32_t>& dirty_meshes() const { return meshes_dirty_.list; }
   const std::vector<uint32_t>& dirty_instances() const { return instances_dirty_.list; }
   const std::vector<uint32_t>& dirty_lights() const { return lights_dirty_.list; }
+  // The vertices of a mesh edited since the last compile: [begin, end), the
+  // whole mesh for a new mesh or a whole-mesh edit, empty when it has no
+  // kDirtyVertices.
+  struct VertexRange {
+    uint32_t begin = 0, end = 0;
+    bool empty() const { return end <= begin; }
+  };
+  VertexRange mesh_dirty_vertices(uint32_t mesh) const;
   bool any_dirty() const;
   void clear_dirty();
 
@@ -219,6 +233,10 @@ class Scene {
     void clear();
   };
   DirtySet textures_dirty_, materials_dirty_, meshes_dirty_, instances_dirty_, lights_dirty_;
+  // Per mesh, its edited vertex range; valid where meshes_dirty_ has
+  // kDirtyVertices, reset with the dirty list.
+  std::vector<VertexRange> mesh_vertex_ranges_;
+  void mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end);
   mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;
   bool environment_dirty_ = true;

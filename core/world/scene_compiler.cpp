@@ -66,6 +66,13 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
       compile_full(scene, out, delta);
     } else if (needs.light_list || (needs.light_powers && triangle_powers_stale_)) {
       compile_lights(scene, out, delta);
+    } else if (!needs.emissive_deformed.empty()) {
+      // Deformed emissive meshes: their triangle powers only, unless the
+      // light list changes.
+      if (!update_triangle_light_powers(scene, out, delta, needs.emissive_deformed,
+                                        needs.light_powers)) {
+        compile_lights(scene, out, delta);
+      }
     } else if (needs.light_powers) {
       update_light_powers(scene, out, delta);
     }

@@ -1,0 +1,216 @@
+// Deforming meshes in the scene compiler: an edited vertex range is all a
+// compile converts and all its delta holds (and SceneDelta::bytes() counts),
+// ranges merge, and the light tables of a deforming emissive mesh are
+// updated in place yet equal a fresh compile of the deformed scene.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <glm/gtc/matrix_transform.hpp>
+#include <stdexcept>
+
+#include "core/scene/kernel_scene.h"
+#include "scenes/deforming_grid.h"
+
+namespace tandem {
+namespace {
+
+const WaveGrid kGrid{.cells = 48, .size = 4.0f, .amplitude = 0.2f, .wavelength = 1.3f};
+
+// A wave grid (mesh 0, two instances) and a small static box-ish grid
+// (mesh 1), both compiled once. The grid emits when `emissive`.
+Scene grid_scene(bool emissive) {
+  Scene s;
+  Material m;
+  m.base_color = glm::vec4(0.7f, 0.6f, 0.5f, 1.0f);
+  if (emissive) m.emissive = glm::vec3(2.0f, 1.5f, 1.0f);
+  s.add_material(m);
+  s.add_material(Material{});
+  s.add_mesh(make_wave_grid(kGrid));
+  s.add_mesh(make_wave_grid(WaveGrid{.cells = 4, .size = 1.0f}, 1));
+  s.add_instance({"a", 0, glm::mat4(1.0f)});
+  s.add_instance({"b", 0,
+                  glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.0f, 0.0f)), 0.7f,
+                              glm::vec3(1.0f, 0.0f, 0.0f))});
+  s.add_instance({"c", 1, glm::translate(glm::mat4(1.0f), glm::vec3(3.0f, 0.0f, 0.0f))});
+  Light l;
+  l.type = LightType::kPoint;
+  l.position = glm::vec3(0.0f, 5.0f, 0.0f);
+  l.intensity = 20.0f;
+  s.add_light(l);
+  return s;
+}
+
+template <class T>
+bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
+  Scene scene = grid_scene(false);
+  SceneCompiler compiler;
+  KernelScene ks;
+  RenderSettings settings;
+  compiler.compile(scene, settings, ks);
+  const KMesh km = ks.meshes[0];
+  const KernelScene before = ks;
+
+  // One row and a half of the grid, somewhere in the middle.
+  const uint32_t first = 1000, count = 75;
+  Mesh& mesh = scene.edit_mesh_vertices(0, first, count);
+  deform_wave_grid(mesh, kGrid, 0.37f, first, count);
+  const SceneDelta d = compiler.compile(scene, settings, ks);
+
+  const uint32_t b = km.vertex_offset + first, e = b + count;
+  for (const ArrayChange* c : {&d.positions, &d.normals, &d.uv0}) {
+    EXPECT_FALSE(c->reallocated);
+    EXPECT_EQ(c->begin, b);
+    EXPECT_EQ(c->end, e);
+  }
+  EXPECT_FALSE(d.full);
+  EXPECT_FALSE(d.tangents.any() || d.uv1.any() || d.triangles.any() || d.meshes.any() ||
+               d.instances.any() || d.lights.any() || d.light_alias.any());
+  ASSERT_EQ(d.meshes_refit, std::vector<uint32_t>{0});
+  EXPECT_TRUE(d.instances_changed);
+  // What an upload of the delta moves: the range of three arrays and the
+  // constants (the scene's bounds may have changed).
+  EXPECT_EQ(d.bytes(ks), size_t(count) * (sizeof(Vec3) + sizeof(Vec3) + sizeof(Vec2)) +
+                             (d.constants ? sizeof(KernelConstants) : 0));
+  // Only those vertices were rewritten, and they hold the new positions.
+  for (uint32_t v = 0; v < ks.vertex_count(); ++v) {
+    const bool in = v >= b && v < e;
+    const Vec3 p = ks.positions[v], q = before.positions[v];
+    if (!in) {
+      ASSERT_EQ(std::memcmp(&p, &q, sizeof p), 0) << "vertex " << v;
+    } else {
+      const glm::vec3& w = mesh.positions[v - km.vertex_offset];
+      ASSERT_EQ(p.y, w.y) << "vertex " << v;
+    }
+  }
+  EXPECT_TRUE(same_bytes(ks.triangles, before.triangles));
+
+  // Two ranges of one frame merge into their bounding range; the arrays
+  // then equal a fresh compile of the edited scene.
+  scene.edit_mesh_vertices(0, 40, 10);
+  deform_wave_grid(scene.edit_mesh_vertices(0, 2000, 5), kGrid, 0.5f, 2000, 5);
+  deform_wave_grid(scene.edit_mesh_vertices(0, 40, 10), kGrid, 0.5f, 40, 10);
+  scene.edit_mesh_vertices(0, 45, 0);  // marks nothing
+  const SceneDelta d2 = compiler.compile(scene, settings, ks);
+  EXPECT_EQ(d2.positions.begin, km.vertex_offset + 40);
+  EXPECT_EQ(d2.positions.end, km.vertex_offset + 2005);
+  Scene copy = scene;
+  KernelScene fresh;
+  SceneCompiler fresh_compiler;
+  fresh_compiler.compile(copy, settings, fresh);
+  EXPECT_TRUE(same_bytes(ks.positions, fresh.positions));
+  EXPECT_TRUE(same_bytes(ks.normals, fresh.normals));
+  EXPECT_TRUE(same_bytes(ks.uv0, fresh.uv0));
+
+  // The whole-mesh form still means every vertex; a bad range is refused.
+  scene.edit_mesh_vertices(0);
+  const SceneDelta d3 = compiler.compile(scene, settings, ks);
+  EXPECT_EQ(d3.positions.begin, km.vertex_offset);
+  EXPECT_EQ(d3.positions.end, km.vertex_offset + km.vertex_count);
+  EXPECT_THROW(scene.edit_mesh_vertices(0, kGrid.vertex_count() - 2, 3), std::out_of_range);
+  EXPECT_THROW(scene.edit_mesh_vertices(7, 0, 1), std::out_of_range);
+}
+
+// Light list, alias table and total power of `a` and `b`, bit for bit.
+void expect_same_light_tables(const KernelScene& a, const KernelScene& b, const char* what) {
+  EXPECT_TRUE(same_bytes(a.lights, b.lights)) << what;
+  EXPECT_TRUE(same_bytes(a.light_alias, b.light_alias)) << what;
+  EXPECT_EQ(a.constants.total_light_power, b.constants.total_light_power) << what;
+}
+
+TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
+  Scene scene = grid_scene(true);
+  SceneCompiler compiler;
+  KernelScene ks;
+  RenderSettings settings;
+  compiler.compile(scene, settings, ks);
+  const std::vector<KAliasEntry> alias_before = ks.light_alias;
+  const size_t light_count = ks.lights.size();
+  ASSERT_GT(light_count, 2u * 2 * 48 * 48);  // every grid triangle of both instances
+
+  for (int frame = 1; frame <= 5; ++frame) {
+    // A growing wave: the triangles' areas (and so their powers) change.
+    WaveGrid g = kGrid;
+    g.amplitude = 0.2f + 0.15f * float(frame);
+    deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
+    const SceneDelta d = compiler.compile(scene, settings, ks);
+    // Updated in place: the light list stays, the alias table is rewritten.
+    EXPECT_FALSE(d.lights.any()) << "frame " << frame;
+    EXPECT_TRUE(d.light_alias.any()) << "frame " << frame;
+    EXPECT_FALSE(d.light_alias.reallocated) << "frame " << frame;
+    EXPECT_EQ(ks.lights.size(), light_count);
+    Scene copy = scene;
+    KernelScene fresh;
+    SceneCompiler fresh_compiler;
+    fresh_compiler.compile(copy, settings, fresh);
+    expect_same_light_tables(ks, fresh, "deformed");
+  }
+  EXPECT_FALSE(same_bytes(alias_before, ks.light_alias));  // the test saw a change
+
+  // A triangle collapsing to zero area leaves the light list: the tables
+  // are then rebuilt, and still equal a fresh compile.
+  Mesh& m = scene.edit_mesh_vertices(0, 0, 2);
+  m.positions[1] = m.positions[0];
+  const SceneDelta d = compiler.compile(scene, settings, ks);
+  EXPECT_TRUE(d.lights.any());
+  EXPECT_LT(ks.lights.size(), light_count);
+  Scene copy = scene;
+  KernelScene fresh;
+  SceneCompiler fresh_compiler;
+  fresh_compiler.compile(copy, settings, fresh);
+  expect_same_light_tables(ks, fresh, "collapsed triangle");
+
+  // A non-emissive mesh's deformation leaves the light tables alone.
+  deform_wave_grid(scene.edit_mesh_vertices(1), WaveGrid{.cells = 4, .size = 1.0f}, 0.3f);
+  const SceneDelta d4 = compiler.compile(scene, settings, ks);
+  EXPECT_TRUE(d4.positions.any());
+  EXPECT_FALSE(d4.lights.any() || d4.light_alias.any());
+}
+
+}  // namespace
+}  // namespace tandem
+
+namespace tandem {
+namespace {
+
+TEST(SceneDeform, ArrayChangeKeepsRangesApartAndMergesTheClosest) {
+  ArrayChange c;
+  c.mark(100, 110);
+  c.mark(500, 520);
+  c.mark(108, 130);  // overlaps the first
+  c.mark(130, 140);  // touches it
+  EXPECT_EQ(c.begin, 100u);
+  EXPECT_EQ(c.end, 520u);
+  ASSERT_EQ(c.range_count, 2u);
+  EXPECT_EQ(c.ranges[0].end, 140u);
+  EXPECT_EQ(c.element_count(), 40u + 20u);
+  // Past kMaxRanges the two closest ranges merge: never an element lost.
+  ArrayChange many;
+  for (uint32_t i = 0; i < ArrayChange::kMaxRanges + 3; ++i)
+    many.mark(1000 * i, 1000 * i + 10 + i);
+  EXPECT_EQ(many.range_count, ArrayChange::kMaxRanges);
+  std::vector<uint8_t> covered(20000, 0);
+  many.for_each_range([&](uint32_t b, uint32_t e) {
+    for (uint32_t i = b; i < e; ++i)
+      covered[i] = 1;
+  });
+  for (uint32_t i = 0; i < ArrayChange::kMaxRanges + 3; ++i)
+    for (uint32_t k = 1000 * i; k < 1000 * i + 10 + i; ++k)
+      ASSERT_TRUE(covered[k]) << k;
+  // Merging deltas keeps the ranges.
+  SceneDelta a, b;
+  a.positions.mark(0, 10);
+  b.positions.mark(90, 100);
+  a.merge(b);
+  EXPECT_EQ(a.positions.element_count(), 20u);
+  KernelScene ks;
+  ks.positions.resize(100);
+  EXPECT_EQ(a.bytes(ks), 20u * sizeof(Vec3));
+}
+
+}  // namespace
+}  // namespace tandem
