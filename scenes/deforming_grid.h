@@ -6,7 +6,7 @@
 
 #include <cstdint>
 
-#include "core/scene/scene.h"
+#include "core/world/scene.h"
 
 namespace tandem {
 

@@ -8,7 +8,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <stdexcept>
 
-#include "core/scene/kernel_scene.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/deforming_grid.h"
 
 namespace tandem {
