@@ -68,6 +68,14 @@ TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec
   return {r * inv, d * inv, t * inv, w.sheen * inv, w.coat * inv};
 }
 
+// Whether at most one lobe can be picked: then bsdf_sample_lobes picks it
+// whatever u_lobe is, and the caller need not draw one.
+TANDEM_HD bool bsdf_single_lobe(const BsdfLobeProbabilities& prob) {
+  const int lobes = (prob.reflect > 0.0f) + (prob.diffuse > 0.0f) + (prob.transmit > 0.0f) +
+                    (prob.sheen > 0.0f) + (prob.coat > 0.0f);
+  return lobes <= 1;
+}
+
 // The base's three lobes (f and their share of the mixture pdf), without
 // the layers.
 TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
@@ -78,6 +86,14 @@ TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabiliti
   const float spec_max = max_component(p.specular_color);
 
   if (wi.z > 0.0f) {
+    if (!(p.metallic > 0.0f || p.specular > 0.0f)) {
+      // Pure Lambertian (no metal, no specular layer, so no Fresnel
+      // normalisation either): no half vector needed. wo_h > 0 holds for
+      // any two directions above the surface.
+      out.f = p.base_color * ((dielectric * (1.0f - p.transmission)) * kInvPi);
+      out.pdf = prob.diffuse * pdf_cosine_hemisphere(wi.z);
+      return out;
+    }
     const Vec3 h = normalize(wo + wi);
     const float wo_h = dot(wo, h);
     if (wo_h <= 0.0f) return out;
@@ -92,16 +108,12 @@ TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabiliti
     }
     out.f = p.base_color * (diffuse_w * kInvPi);
     out.pdf = prob.diffuse * pdf_cosine_hemisphere(wi.z);
-    // Pure Lambertian materials (no metal, no specular layer) skip the GGX
-    // terms entirely: they are a large share of shading time otherwise.
-    if (p.metallic > 0.0f || p.specular > 0.0f) {
-      const Vec3 fresnel = p.metallic * fresnel_schlick(p.base_color, wo_h) +
-                           (dielectric * p.specular * f_dielectric) * p.specular_color;
-      const float d = ggx_d(h, p.alpha);
-      const float g = ggx_g2(wo, wi, p.alpha);
-      out.f += fresnel * (d * g / (4.0f * wo.z * wi.z));
-      out.pdf += prob.reflect * ggx_visible_pdf(wo, h, p.alpha) / (4.0f * wo_h);
-    }
+    const Vec3 fresnel = p.metallic * fresnel_schlick(p.base_color, wo_h) +
+                         (dielectric * p.specular * f_dielectric) * p.specular_color;
+    const float d = ggx_d(h, p.alpha);
+    const float g = ggx_g2(wo, wi, p.alpha);
+    out.f += fresnel * (d * g / (4.0f * wo.z * wi.z));
+    out.pdf += prob.reflect * ggx_visible_pdf(wo, h, p.alpha) / (4.0f * wo_h);
     return out;
   }
 

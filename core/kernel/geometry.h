@@ -13,6 +13,7 @@ struct SurfacePoint {
   Vec3 geometric_normal;  // world space, unit, from the triangle winding
   Vec3 shading_normal;    // world space, unit, interpolated (+ normal map)
   Vec3 tangent;           // world space, unit, orthogonal to shading_normal
+  Vec3 bitangent;         // cross(shading_normal, tangent): the shading frame, built once
   Vec3 front_normal;      // geometric normal of the front face (glTF winding)
   Vec2 uv[2];
   uint32_t material;
@@ -122,6 +123,7 @@ TANDEM_HD SurfacePoint make_light_point(const KernelData& kd, uint32_t instance,
   sp.front_normal = sp.geometric_normal;
   sp.shading_normal = sp.geometric_normal;
   sp.tangent = make_vec3(0.0f);
+  sp.bitangent = make_vec3(0.0f);
   sp.material = tv.tri.material;
   interpolate_uvs(kd, *tv.mesh, tv.tri, u, v, sp.uv);
   return sp;
@@ -204,6 +206,7 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
   }
   sp.shading_normal = frame.n;
   sp.tangent = frame.t;
+  sp.bitangent = frame.b;
   return sp;
 }
 

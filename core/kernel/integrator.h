@@ -95,7 +95,11 @@ TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 
   }
   const bool front = dot(wo, sp.geometric_normal) >= 0.0f;
   s->ng = front ? sp.geometric_normal : -sp.geometric_normal;
-  s->frame = make_frame(front ? sp.shading_normal : -sp.shading_normal, sp.tangent);
+  // The frame make_surface_point built, mirrored for the back side
+  // (make_frame(-n, t) is {t, -b, -n}): orthonormalising it again per hit
+  // cost a square root and a division for nothing.
+  s->frame = front ? Frame{sp.tangent, sp.bitangent, sp.shading_normal}
+                   : Frame{sp.tangent, -sp.bitangent, -sp.shading_normal};
   s->wo_local = to_local(s->frame, wo);
   if (s->wo_local.z <= 1e-6f) {
     // Interpolated normal faces away from the viewer: shade with the true one.
@@ -220,8 +224,9 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
   bool has_shadow = false;
   LightSample ls;
   const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
-  if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
-                   light_uv.x, light_uv.y, &ls)) {
+  if (sample_light(kd, sp.position,
+                   rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceLightSelect)), light_uv.x,
+                   light_uv.y, &ls)) {
     const Vec3 wi_local = to_local(sh.frame, ls.wi);
     if (consistent_side(ls.wi, wi_local, sh.ng)) {
       const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -239,9 +244,12 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
   // Continue the path by sampling the BSDF.
   BsdfSample bs;
   const Vec2 bsdf_uv = rng_2d(rng, bounce_dimension(bounce, kBounceBsdfU));
-  if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local,
-                         rng_1d(rng, bounce_dimension(bounce, kBounceLobe)), bsdf_uv.x, bsdf_uv.y,
-                         &bs)) {
+  // With at most one lobe any u_lobe picks it (u_lobe = 0 too), so the draw
+  // is skipped: it is most hits (Lambertian walls, mirrors).
+  const float u_lobe = bsdf_single_lobe(sh.lobes)
+                           ? 0.0f
+                           : rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceLobe));
+  if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local, u_lobe, bsdf_uv.x, bsdf_uv.y, &bs)) {
     return has_shadow;
   }
   const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
@@ -252,7 +260,8 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
 
   if (bounce + 1 >= ip.rr_start_depth) {
     const float survive = min_f(max_component(p->throughput), 0.95f);
-    if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) return has_shadow;
+    if (!(rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceRoulette)) < survive))
+      return has_shadow;
     p->throughput *= 1.0f / survive;
   }
   p->bounce = bounce + 1;

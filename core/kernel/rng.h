@@ -164,6 +164,14 @@ TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
   return rng_pair_component(rng_pair_index(r, seed), seed, component);
 }
 
+// rng_1d of a dimension that is not part of a pair (light selection, lobe,
+// roulette: rng_pair_of gives (dimension, 0) for them), without looking
+// that up: the same number.
+TANDEM_HD float rng_1d_unpaired(const PathRng& r, uint32_t dimension) {
+  const uint32_t seed = rng_pair_seed(r, dimension);
+  return rng_pair_component(rng_pair_index(r, seed), seed, 0);
+}
+
 // Both dimensions of the pair starting at `first` (pixel jitter, lens, light
 // or BSDF uv) at the cost of little more than one: exactly
 // {rng_1d(r, first), rng_1d(r, first + 1)}.
