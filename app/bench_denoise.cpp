@@ -11,6 +11,7 @@
 #include <tbb/info.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -42,10 +43,21 @@ const std::vector<OptionSpec>& denoise_bench_options() {
       {"path-frames", true,
        "frames along the scripted path; measured at 1/4, 1/2 and the end (default 60)", "N"},
       {"reference-spp", true, "samples per pixel of the reference frames (default 1024)", "N"},
+      {"reference-cache", true,
+       "keep the reference frames as .pfm in DIR and reuse them on later runs with the same "
+       "scene, size, depth, path and sample count (for tuning)",
+       "DIR"},
       {"max-history", true, "frames the colour history averages at most (default 12)", "N"},
+      {"kernel-radius", true, "a-trous taps: 1 = 3x3, 2 = 5x5 (default 1)", "R"},
+      {"iterations", true, "a-trous iterations (default 5)", "N"},
+      {"sigma-luminance", true, "luminance edge stop in standard deviations (default 4)", "S"},
+      {"firefly-sigma", true,
+       "clamp a sample above the history mean plus S standard deviations (default 3; 0: off)", "S"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"images", true,
-       "write side-by-side PNGs (raw 1 spp | raw 8 spp | denoised | reference) to DIR", "DIR"},
+       "write PNGs of each measured frame, 2x2 at half resolution (raw 1 spp, raw 8 spp / "
+       "denoised, reference) to DIR",
+       "DIR"},
       {"json", true, "write a list with one object per measured frame to FILE", "FILE"},
       {"help", false, "show this help"},
   };
@@ -57,17 +69,18 @@ double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
-// Half-resolution copies of the images side by side, tone mapped.
-void write_side_by_side(const std::filesystem::path& path,
-                        const std::vector<const ImageRGB*>& imgs) {
+// Half-resolution copies of four images in a 2x2 grid (so the PNG is the
+// frame's size), tone mapped: row-major in the order given.
+void write_grid(const std::filesystem::path& path, const std::vector<const ImageRGB*>& imgs) {
   const uint32_t w = imgs[0]->width / 2, h = imgs[0]->height / 2;
-  ImageRGB out(w * uint32_t(imgs.size()), h);
-  for (size_t k = 0; k < imgs.size(); ++k) {
+  ImageRGB out(w * 2, h * 2);
+  for (size_t k = 0; k < imgs.size() && k < 4; ++k) {
+    const uint32_t ox = uint32_t(k % 2) * w, oy = uint32_t(k / 2) * h;
     for (uint32_t y = 0; y < h; ++y) {
       for (uint32_t x = 0; x < w; ++x) {
         for (int c = 0; c < 3; ++c) {
           const ImageRGB& im = *imgs[k];
-          out.pixel(uint32_t(k) * w + x, y)[c] =
+          out.pixel(ox + x, oy + y)[c] =
               0.25f * (im.pixel(2 * x, 2 * y)[c] + im.pixel(2 * x + 1, 2 * y)[c] +
                        im.pixel(2 * x, 2 * y + 1)[c] + im.pixel(2 * x + 1, 2 * y + 1)[c]);
         }
@@ -105,6 +118,8 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   if (json_path) check_json_output_path(*json_path);
   const std::optional<std::string> images = args.value("images");
   if (images) check_aov_directory(*images);
+  const std::optional<std::string> ref_cache = args.value("reference-cache");
+  if (ref_cache) check_aov_directory(*ref_cache);
 
   Scene scene = load_scene(spec);
   if (!scene.has_camera()) {
@@ -122,6 +137,11 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   MotionHistory motion;
   SvgfParams params = svgf_default_params(settings.width, settings.height);
   params.max_history = args.get_u32("max-history", params.max_history, 1, 1u << 16);
+  params.kernel_radius = args.get_u32("kernel-radius", params.kernel_radius, 1, 2);
+  params.iterations = args.get_u32("iterations", params.iterations, 0, 10);
+  params.sigma_luminance =
+      args.get_float("sigma-luminance", params.sigma_luminance, 0.01f, 1000.0f);
+  params.firefly_sigma = args.get_float("firefly-sigma", params.firefly_sigma, 0.0f, 1000.0f);
   TemporalDenoiser denoiser(params);
   std::vector<PixelFeatures> features;
   JsonValue list = JsonValue::array();
@@ -162,7 +182,23 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
     if (std::find(std::begin(measured), std::end(measured), f) == std::end(measured)) continue;
     // The same frozen frame: 8 spp and the reference, with seeds of their own.
     const ImageRGB raw8 = render(0x10000000u + f, 8);
-    const ImageRGB ref = render(0x20000000u + f, ref_spp);
+    ImageRGB ref;
+    std::filesystem::path cached;
+    if (ref_cache) {
+      std::string scene_name = spec;
+      for (char& c : scene_name)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      cached = std::filesystem::path(*ref_cache) /
+               (scene_name + "_" + std::to_string(w) + "x" + std::to_string(h) + "_d" +
+                std::to_string(settings.max_depth) + "_p" + std::to_string(frames) + "_f" +
+                std::to_string(f) + "_" + std::to_string(ref_spp) + "spp.pfm");
+    }
+    if (!cached.empty() && std::filesystem::exists(cached)) {
+      ref = read_image(cached);
+    } else {
+      ref = render(0x20000000u + f, ref_spp);
+      if (!cached.empty()) write_image(cached, ref);
+    }
     const double e1 = relative_mse(raw1, ref), e8 = relative_mse(raw8, ref),
                  ed = relative_mse(denoised, ref);
     const double s1 = ssim_luminance(raw1, ref), s8 = ssim_luminance(raw8, ref),
@@ -183,9 +219,8 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
                   .set("render_1spp_ms", render_ms)
                   .set("reference_spp", ref_spp));
     if (images) {
-      write_side_by_side(
-          std::filesystem::path(*images) / ("denoise_frame_" + std::to_string(f) + ".png"),
-          {&raw1, &raw8, &denoised, &ref});
+      write_grid(std::filesystem::path(*images) / ("denoise_frame_" + std::to_string(f) + ".png"),
+                 {&raw1, &raw8, &denoised, &ref});
     }
   }
   write_json_report(json_path, list);

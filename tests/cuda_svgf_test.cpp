@@ -59,7 +59,9 @@ TEST(CudaGpu, SvgfFilterMatchesCpu) {
     std::vector<Vec4> hist, moments, a, b;
     std::vector<Vec3> image;
     std::vector<Vec2> slope;
-    Out(size_t n) : hist(n), moments(n), a(n), b(n), image(n), slope(n) {}
+    std::vector<SvgfGuide> guide;
+    std::vector<uint32_t> material;
+    Out(size_t n) : hist(n), moments(n), a(n), b(n), image(n), slope(n), guide(n), material(n) {}
   };
   Out cpu0(n), gpu0(n), cpu1(n), gpu1(n);
   auto frame = [&](const std::vector<PixelFeatures>& f, const std::vector<Vec3>& r,
@@ -74,7 +76,9 @@ TEST(CudaGpu, SvgfFilterMatchesCpu) {
                      out.image.data(),
                      out.a.data(),
                      out.b.data(),
-                     out.slope.data()};
+                     out.slope.data(),
+                     out.guide.data(),
+                     out.material.data()};
   };
   svgf_run_cpu(params, frame(f0, r0, nullptr, nullptr, cpu0));
   svgf_run_cuda(params, frame(f0, r0, nullptr, nullptr, gpu0));

@@ -1,4 +1,4 @@
-// tandem-view's display filters: edge-aware denoise, split-view tint, resize.
+// tandem-view's display filters: split-view tint, resize.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -7,36 +7,6 @@
 
 namespace tandem {
 namespace {
-
-TEST(ViewDenoise, SmoothsNoiseButKeepsAStepEdge) {
-  // Left half ~0.2, right half ~5 (an emitter's edge), with +-30% noise.
-  ImageRGB img(32, 16);
-  uint32_t state = 12345;
-  auto noise = [&] {
-    state = state * 1664525u + 1013904223u;
-    return (float(state >> 8) / 16777216.0f - 0.5f) * 0.6f;
-  };
-  for (uint32_t y = 0; y < 16; ++y)
-    for (uint32_t x = 0; x < 32; ++x)
-      for (int c = 0; c < 3; ++c)
-        img.pixel(x, y)[c] = (x < 16 ? 0.2f : 5.0f) * (1.0f + noise());
-  const ImageRGB out = denoise_edge_aware(img);
-  auto variance = [](const ImageRGB& im, uint32_t x0, uint32_t x1) {
-    double s = 0, s2 = 0, n = 0;
-    for (uint32_t y = 2; y < 14; ++y)
-      for (uint32_t x = x0; x < x1; ++x) {
-        s += im.pixel(x, y)[0], s2 += double(im.pixel(x, y)[0]) * im.pixel(x, y)[0], ++n;
-      }
-    return s2 / n - (s / n) * (s / n);
-  };
-  EXPECT_LT(variance(out, 2, 13), 0.5 * variance(img, 2, 13));
-  EXPECT_LT(variance(out, 19, 30), 0.5 * variance(img, 19, 30));
-  // The pixels next to the edge keep their side's level (no bleeding).
-  for (uint32_t y = 0; y < 16; ++y) {
-    EXPECT_LT(out.pixel(15, y)[0], 0.5f);
-    EXPECT_GT(out.pixel(16, y)[0], 3.0f);
-  }
-}
 
 TEST(ViewSplitOverlay, TintsEachTileByItsOwner) {
   const std::vector<Tile> tiles = make_tile_grid(8, 4, 4);  // two tiles side by side

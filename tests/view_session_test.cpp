@@ -1,9 +1,12 @@
-// The viewer session's frame loop, convergence and camera reset, and the
-// SceneAnimator every scene's motion goes through.
+// The viewer session's frame loop, convergence and camera reset, the
+// SceneAnimator every scene's motion goes through, and the SVGF denoiser in
+// the display (moving frames, the toggle, the blend to the accumulated
+// image, the debug views).
 #include <gtest/gtest.h>
 
 #include <filesystem>
 
+#include "app/view/denoise_view.h"
 #include "app/view/view_session.h"
 #include "scenes/arena_scene.h"
 #include "scenes/builtin_scenes.h"
@@ -132,6 +135,215 @@ TEST(ViewSession, TheNextFrameIsPosedWhileThisOneRenders) {
   session.render_frame(false, 1.0);
   EXPECT_EQ(session.scene_time(), 0.5);
   EXPECT_FALSE(session.last_frame_moving());
+}
+
+// --- the denoiser in the display -------------------------------------------
+
+ViewOptions denoise_options(const std::string& scene, uint32_t spp_per_frame) {
+  ViewOptions o = small(scene);
+  o.fixed_scale = 1.0f;  // no adaptation: every frame at 32x24
+  o.fixed_samples_per_frame = spp_per_frame;
+  return o;
+}
+
+Camera nudged(const Camera& c, int frame) {
+  Camera m = c;
+  m.position += glm::vec3(0.002f * float(frame), 0.0f, 0.0f);
+  return m;
+}
+
+double mean_abs_difference(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double d = 0.0;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i)
+    d += std::abs(int(a[i]) - int(b[i]));
+  return a.empty() ? 0.0 : d / double(a.size());
+}
+
+TEST(ViewDenoise, MovingFramesShowTheFilteredFrame) {
+  ViewSession session(denoise_options("builtin:cornell", 1));
+  ASSERT_TRUE(session.denoise()) << "on by default";
+  for (int f = 0; f < 4; ++f) {
+    session.set_camera(nudged(session.initial_camera(), f));
+    session.render_frame(true, std::nullopt);
+  }
+  ASSERT_TRUE(session.showing_denoised());
+  EXPECT_EQ(session.accumulated_weight(), 0.0f) << "a 1-spp motion frame is all filter";
+  const ImageRGB& d = session.denoised_image();
+  ASSERT_EQ(d.width, 32u);
+  ASSERT_EQ(d.height, 24u);
+  // The display is the tone-mapped filter output, not the raw samples.
+  EXPECT_EQ(session.display(), tone_map_to_srgb8(d, 0.0f, ToneMap::kAces));
+  EXPECT_GT(mean_abs_difference(session.display(),
+                                tone_map_to_srgb8(session.frame_radiance(), 0.0f, ToneMap::kAces)),
+            1.0);
+  // The history followed the camera: most pixels have more than one frame.
+  const std::vector<Vec4>& m = session.denoiser().moments();
+  ASSERT_EQ(m.size(), 32u * 24u);
+  size_t long_history = 0;
+  for (const Vec4& v : m)
+    long_history += v.z >= 4.0f;
+  EXPECT_GT(long_history, m.size() / 2);
+  EXPECT_GT(session.last_denoise_seconds(), 0.0);
+}
+
+TEST(ViewDenoise, ToggleSwitchesBetweenRawAndFilteredAndRestartsTheHistory) {
+  ViewSession session(denoise_options("builtin:cornell", 1));
+  for (int f = 0; f < 3; ++f) {
+    session.set_camera(nudged(session.initial_camera(), f));
+    session.render_frame(true, std::nullopt);
+  }
+  ASSERT_TRUE(session.showing_denoised());
+  const std::vector<uint8_t> filtered = session.display();
+  session.set_denoise(false);
+  EXPECT_FALSE(session.showing_denoised());
+  // Off: the same frame, unfiltered, at once (no new frame needed).
+  EXPECT_EQ(session.display(), tone_map_to_srgb8(session.tracer().image(), 0.0f, ToneMap::kAces));
+  EXPECT_NE(session.display(), filtered);
+  session.set_camera(nudged(session.initial_camera(), 3));
+  session.render_frame(true, std::nullopt);
+  EXPECT_FALSE(session.showing_denoised());
+  EXPECT_EQ(session.display(), tone_map_to_srgb8(session.tracer().image(), 0.0f, ToneMap::kAces));
+  // On again: filtered from the next frame, with a fresh history.
+  session.set_denoise(true);
+  session.set_camera(nudged(session.initial_camera(), 4));
+  session.render_frame(true, std::nullopt);
+  ASSERT_TRUE(session.showing_denoised());
+  for (const Vec4& v : session.denoiser().moments())
+    ASSERT_EQ(v.z, 1.0f) << "the history from before the toggle was dropped";
+}
+
+TEST(ViewDenoise, StillFramesBlendIntoTheAccumulatedImage) {
+  ViewSession session(denoise_options("builtin:cornell", 8));
+  session.render_frame(true, std::nullopt);  // 8 spp: the filter alone
+  EXPECT_TRUE(session.showing_denoised());
+  EXPECT_EQ(session.accumulated_weight(), 0.0f);
+  session.render_frame(false, std::nullopt);  // 16 spp
+  EXPECT_TRUE(session.showing_denoised());
+  EXPECT_NEAR(session.accumulated_weight(), 1.0f / 3.0f, 1e-6f);
+  // The filter saw this frame's own 8 samples, not the 16 accumulated ones.
+  const ImageRGB& own = session.frame_radiance();
+  const ImageRGB acc = session.tracer().image();
+  double d_own = 0.0;
+  for (size_t i = 0; i < acc.rgb.size(); ++i)
+    d_own += std::abs(own.rgb[i] - acc.rgb[i]);
+  EXPECT_GT(d_own, 0.0);
+  EXPECT_EQ(session.display(),
+            tone_map_to_srgb8(blend_images(session.denoised_image(), acc, 1.0f / 3.0f), 0.0f,
+                              ToneMap::kAces));
+  for (int f = 0; f < 6; ++f)
+    session.render_frame(false, std::nullopt);  // 64 spp
+  EXPECT_EQ(session.accumulated_spp(), 64u);
+  EXPECT_FALSE(session.showing_denoised()) << "the accumulated image has taken over";
+  EXPECT_EQ(session.display(), tone_map_to_srgb8(session.tracer().image(), 0.0f, ToneMap::kAces));
+}
+
+TEST(ViewDenoise, FrameSamplesAndBlendWeightsAreExact) {
+  ImageRGB before(2, 1), now(2, 1);
+  before.rgb = {1, 2, 3, 4, 5, 6};
+  // 4 samples averaging `before`, then 4 more averaging 3 everywhere.
+  for (size_t i = 0; i < 6; ++i)
+    now.rgb[i] = (before.rgb[i] * 4.0f + 3.0f * 4.0f) / 8.0f;
+  const ImageRGB own = frame_samples(now, 8, before, 4);
+  for (float v : own.rgb)
+    EXPECT_NEAR(v, 3.0f, 1e-5f);
+  EXPECT_EQ(frame_samples(now, 8, before, 0).rgb, now.rgb) << "restart: the frame is all there is";
+  EXPECT_EQ(accumulated_blend_weight(1), 0.0f);
+  EXPECT_EQ(accumulated_blend_weight(kDenoiseBlendStartSpp), 0.0f);
+  EXPECT_NEAR(accumulated_blend_weight(2 * kDenoiseBlendStartSpp), 1.0f / 3.0f, 1e-6f);
+  EXPECT_EQ(accumulated_blend_weight(kDenoiseBlendEndSpp), 1.0f);
+  EXPECT_EQ(accumulated_blend_weight(100000), 1.0f);
+}
+
+TEST(ViewDenoise, DebugViewsEncodeTheirBuffer) {
+  // Three synthetic pixels: a near and a far hit and a miss.
+  std::vector<PixelFeatures> f(3);
+  for (PixelFeatures& p : f) {
+    p = PixelFeatures{};
+    p.instance = p.prim = p.material = 0;
+  }
+  f[0].albedo = make_vec3(1.0f, 0.0f, 0.5f);
+  f[0].normal = make_vec3(0.0f, 0.0f, 1.0f);
+  f[0].depth = 2.0f;
+  f[0].motion = make_vec2(16.0f, -16.0f);
+  f[1].albedo = make_vec3(0.2f);
+  f[1].normal = make_vec3(-1.0f, 0.0f, 0.0f);
+  f[1].depth = 8.0f;
+  f[2].albedo = make_vec3(1.0f);
+  f[2].instance = f[2].prim = f[2].material = kInvalidIndex;
+  const std::vector<Vec4> moments = {make_vec4(1.0f, 5.0f, 12.0f, 0.0f),
+                                     make_vec4(0.5f, 0.25f, 6.0f, 0.0f),
+                                     make_vec4(0.0f, 0.0f, 1.0f, 0.0f)};
+  auto view = [&](ViewBuffer b) { return feature_view_rgb8(b, f, moments, 12, 3, 1); };
+  const auto albedo = view(ViewBuffer::kAlbedo);
+  EXPECT_EQ(albedo[0], 255);
+  EXPECT_EQ(albedo[1], 0);
+  EXPECT_NEAR(albedo[2], 188, 1) << "sRGB-encoded 0.5";
+  const auto normal = view(ViewBuffer::kNormal);
+  EXPECT_EQ(std::vector<uint8_t>(normal.begin(), normal.begin() + 6),
+            (std::vector<uint8_t>{128, 128, 255, 0, 128, 128}));
+  EXPECT_EQ(normal[6] + normal[7] + normal[8], 0) << "a miss has no normal";
+  const auto depth = view(ViewBuffer::kDepth);
+  EXPECT_GT(depth[0], depth[3]) << "near is brighter";
+  EXPECT_EQ(depth[3], 26) << "the farthest hit at 10%";
+  EXPECT_EQ(depth[6], 0);
+  const auto motion = view(ViewBuffer::kMotion);
+  EXPECT_EQ(std::vector<uint8_t>(motion.begin(), motion.begin() + 6),
+            (std::vector<uint8_t>{255, 0, 128, 128, 128, 128}));
+  const auto variance = view(ViewBuffer::kVariance);
+  EXPECT_GT(variance[0], variance[3]) << "std dev 2 against 0";
+  EXPECT_EQ(variance[3], 0);
+  const auto history = view(ViewBuffer::kHistory);
+  EXPECT_EQ(std::vector<uint8_t>(history.begin(), history.end()),
+            (std::vector<uint8_t>{255, 255, 255, 128, 128, 128, 255, 0, 0}))
+      << "full, half, and rejected (red)";
+  EXPECT_EQ(parse_view_buffer("history"), ViewBuffer::kHistory);
+  EXPECT_EQ(parse_view_buffer("normal"), ViewBuffer::kNormal);
+  EXPECT_FALSE(parse_view_buffer("nonsense"));
+}
+
+TEST(ViewDenoise, TheSessionShowsTheSelectedBufferOfItsFrame) {
+  ViewSession session(denoise_options("builtin:cornell", 1));
+  for (int f = 0; f < 3; ++f)
+    session.render_frame(false, std::nullopt);  // still: no motion anywhere
+  for (int i = 1; i < int(ViewBuffer::kCount); ++i) {
+    const ViewBuffer b = ViewBuffer(i);
+    session.set_view_buffer(b);
+    ASSERT_EQ(session.display_width(), 32u);
+    ASSERT_EQ(session.features().size(), 32u * 24u);
+    EXPECT_EQ(session.display(),
+              feature_view_rgb8(b, session.features(), session.denoiser().moments(),
+                                session.denoiser().params().max_history, 32, 24))
+        << view_buffer_name(b);
+  }
+  // Nothing moved: the motion view is uniform grey.
+  session.set_view_buffer(ViewBuffer::kMotion);
+  for (size_t i = 0; i < session.display().size(); i += 3)
+    ASSERT_NEAR(session.display()[i], 128, 1) << "pixel " << i / 3;
+  // A camera turn (about 3 degrees, some 2.4 pixels at this size) shows up
+  // in the next frame's motion view, in every pixel.
+  Camera turned = session.initial_camera();
+  turned.forward = glm::normalize(turned.forward + 0.05f * glm::cross(turned.forward, turned.up));
+  session.set_camera(turned);
+  session.render_frame(true, std::nullopt);
+  size_t moved = 0;
+  for (size_t i = 0; i < session.display().size(); i += 3)
+    moved += std::abs(int(session.display()[i]) - 128) > 8;
+  EXPECT_EQ(moved, session.display().size() / 3);
+  session.set_view_buffer(ViewBuffer::kImage);
+  EXPECT_EQ(session.display(), tone_map_to_srgb8(session.denoised_image(), 0.0f, ToneMap::kAces));
+  // Without the denoiser no frame computes features; choosing a buffer
+  // computes them for the frame on screen (a converged view renders no
+  // more frames).
+  session.set_denoise(false);
+  session.render_frame(false, std::nullopt);
+  session.set_view_buffer(ViewBuffer::kNormal);
+  EXPECT_EQ(session.display(),
+            feature_view_rgb8(ViewBuffer::kNormal, session.features(), {}, 12, 32, 24));
+  size_t lit = 0;
+  for (uint8_t v : session.display())
+    lit += v != 0;
+  EXPECT_GT(lit, session.display().size() / 2);
 }
 
 }  // namespace

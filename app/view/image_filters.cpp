@@ -5,42 +5,6 @@
 
 namespace tandem {
 
-ImageRGB denoise_edge_aware(const ImageRGB& in, int radius, float range_sigma) {
-  ImageRGB out(in.width, in.height);
-  const int w = int(in.width), h = int(in.height);
-  std::vector<float> log_lum(size_t(w) * h);
-  for (size_t i = 0; i < log_lum.size(); ++i) {
-    const float* p = &in.rgb[3 * i];
-    log_lum[i] = std::log1p(std::max(0.0f, 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]));
-  }
-  const float spatial = 1.0f / (2.0f * float(radius * radius) + 1e-6f);
-  const float range = 1.0f / (2.0f * range_sigma * range_sigma);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const float center = log_lum[size_t(y) * w + x];
-      float sum[3] = {0, 0, 0}, wsum = 0.0f;
-      for (int dy = -radius; dy <= radius; ++dy) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= h) continue;
-        for (int dx = -radius; dx <= radius; ++dx) {
-          const int xx = x + dx;
-          if (xx < 0 || xx >= w) continue;
-          const size_t j = size_t(yy) * w + xx;
-          const float d = log_lum[j] - center;
-          const float wt = std::exp(-float(dx * dx + dy * dy) * spatial - d * d * range);
-          for (int c = 0; c < 3; ++c)
-            sum[c] += wt * in.rgb[3 * j + c];
-          wsum += wt;
-        }
-      }
-      float* o = out.pixel(uint32_t(x), uint32_t(y));
-      for (int c = 0; c < 3; ++c)
-        o[c] = sum[c] / wsum;  // wsum >= 1: the centre weighs exp(0)
-    }
-  }
-  return out;
-}
-
 void backend_color(size_t i, float rgb[3]) {
   static const float palette[4][3] = {
       {0.2f, 0.9f, 0.3f}, {0.25f, 0.5f, 1.0f}, {1.0f, 0.55f, 0.1f}, {0.9f, 0.2f, 0.9f}};

@@ -1,6 +1,6 @@
-// Image post-processing for tandem-view's display: an edge-aware denoise
-// for low-sample motion frames, the tile-ownership tint of the split view,
-// and resampling to the window size. Pure functions on images.
+// Image post-processing for tandem-view's display: the tile-ownership tint
+// of the split view and resampling to the window size. Pure functions on
+// images. (Motion frames are denoised by SVGF: app/view/denoise_view.h.)
 #pragma once
 
 #include <cstdint>
@@ -10,13 +10,6 @@
 #include "core/render/tiles.h"
 
 namespace tandem {
-
-// Edge-aware (bilateral) filter on linear radiance: neighbours within
-// `radius` pixels are averaged with weights that fall off with distance and
-// with the difference in log luminance, so noise inside flat regions is
-// smoothed while object edges and highlights stay sharp. Without a G-buffer
-// this is what one noisy frame offers to steer by.
-ImageRGB denoise_edge_aware(const ImageRGB& image, int radius = 2, float range_sigma = 0.6f);
 
 // Tints 8-bit RGB pixels of each tile by the colour of the backend that
 // rendered it (owner index into a fixed palette; -1: untouched) and darkens

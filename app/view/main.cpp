@@ -40,7 +40,10 @@ const std::vector<OptionSpec>& view_options() {
       display_options(false),
       {
           {"exposure", true, "display exposure in stops", "E", "0"},
-          {"no-denoise", false, "do not filter low-sample motion frames"},
+          {"no-denoise", false, "show the raw samples (no SVGF denoiser)"},
+          {"show", true,
+           "buffer to show: image, albedo, normal, depth, motion, variance, history (B cycles)",
+           "NAME", "image"},
           {"split-view", false, "tint tiles by the backend that rendered them"},
           {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
           {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
@@ -81,6 +84,14 @@ int run(const std::vector<std::string>& argv) {
   o.target_spp = args.get_u32("target-spp", 1, 1u << 24);
   o.exposure = args.get_float("exposure", -20.0f, 20.0f);
   o.denoise = !args.has("no-denoise");
+  if (args.value("show")) {
+    const std::optional<ViewBuffer> b = parse_view_buffer(*args.value("show"));
+    if (!b) {
+      throw UsageError("--show: unknown buffer '" + *args.value("show") +
+                       "' (image, albedo, normal, depth, motion, variance, history)");
+    }
+    o.view_buffer = *b;
+  }
   o.split_view = args.has("split-view");
   const SceneRequest scene_request = parse_scene_request(args, o.scene);
   o.scene_load = scene_request.load;

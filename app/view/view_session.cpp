@@ -1,6 +1,7 @@
 #include "app/view/view_session.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <functional>
 
@@ -25,7 +26,7 @@ AdaptiveSettings adaptive_settings(const ViewOptions& o) {
 }  // namespace
 
 ViewSession::ViewSession(const ViewOptions& options)
-    : options_(options), adaptive_(adaptive_settings(options)) {
+    : options_(options), adaptive_(adaptive_settings(options)), view_buffer_(options.view_buffer) {
   GltfAnimations animations;
   SceneRequest request{options.scene, options.scene_load, options.environment, true};
   request.load.animations = &animations;  // tandem-view plays node animations
@@ -95,12 +96,80 @@ const FrameMetrics& ViewSession::render_frame(bool camera_moved,
     const double t = *next_scene_time;
     advance = [this, t](Scene&) { advance_scene(t); };
   }
-  const FrameMetrics& m = tracer_->render_frame(scene_, advance);
-  last_seconds_ = m.total_seconds;
+  const FrameMetrics* metrics = nullptr;
+  if (options_.denoise || view_buffer_ != ViewBuffer::kImage) {
+    // The feature pass must see the scene this frame rendered: the next
+    // frame is posed while this one renders (as render_frame(scene,
+    // advance) does) but compiled only at the next begin_frame(), after the
+    // features (no prepare_next_frame(), which only GPU-only lists use).
+    tracer_->begin_frame(scene_);
+    try {
+      if (advance) advance(scene_);
+    } catch (...) {
+      tracer_->end_frame();
+      throw;
+    }
+    metrics = &tracer_->end_frame();
+  } else {
+    metrics = &tracer_->render_frame(scene_, advance);
+  }
+  const FrameMetrics& m = *metrics;
   last_moving_ = moving;
   ++frames_;
+  denoise_frame(m);
+  // The filter is part of what a frame costs: adaptive quality sees both.
+  last_seconds_ = m.total_seconds + denoise_seconds_;
   display_stale_ = true;
   return m;
+}
+
+void ViewSession::drop_denoise_history() {
+  motion_.reset();
+  denoiser_.reset();
+}
+
+void ViewSession::denoise_frame(const FrameMetrics& m) {
+  const auto start = std::chrono::steady_clock::now();
+  const uint32_t spp = tracer_->accumulated_spp();
+  ImageRGB now = tracer_->image();
+  const uint32_t before = m.accumulation_reset ? 0u : accumulated_spp_before_;
+  blend_ = options_.denoise ? accumulated_blend_weight(spp) : 1.0f;
+  const bool filter = options_.denoise && blend_ < 1.0f;
+  if (filter || view_buffer_ != ViewBuffer::kImage) {
+    features_frame_ = tracer_->render_features(motion_, features_) ? frames_ : 0;
+  }
+  if (filter && features_frame_ == frames_) {
+    frame_radiance_ = frame_samples(now, spp, accumulated_, before);
+    denoised_ = denoiser_.process(features_, frame_radiance_);
+    denoised_frame_ = frames_;
+  } else if (options_.denoise && !filter) {
+    // The accumulated image has taken over: when things move again the
+    // filter starts afresh rather than from a stale history.
+    drop_denoise_history();
+  }
+  accumulated_ = std::move(now);
+  accumulated_spp_before_ = spp;
+  denoise_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void ViewSession::set_denoise(bool on) {
+  if (on == options_.denoise) return;
+  options_.denoise = on;
+  drop_denoise_history();
+  display_stale_ = frames_ > 0;
+}
+
+void ViewSession::set_view_buffer(ViewBuffer b) {
+  if (b == view_buffer_) return;
+  view_buffer_ = b;
+  if (b != ViewBuffer::kImage && frames_ > 0 && features_frame_ != frames_) {
+    // A still, converged view renders no more frames: the buffers of the
+    // frame on screen now (nothing moved since it, so no motion either).
+    MotionHistory still;
+    features_frame_ = tracer_->render_features(still, features_) ? frames_ : 0;
+  }
+  display_stale_ = frames_ > 0;
 }
 
 const std::vector<uint8_t>& ViewSession::display() const {
@@ -117,12 +186,32 @@ uint32_t ViewSession::display_height() const {
 }
 
 void ViewSession::make_display() const {
-  ImageRGB img = tracer_->image();
-  if (options_.denoise && last_moving_ && tracer_->accumulated_spp() <= 2)
-    img = denoise_edge_aware(img);
-  display_ = tone_map_to_srgb8(img, options_.exposure, ToneMap::kAces);
-  display_w_ = img.width;
-  display_h_ = img.height;
+  const uint32_t w = accumulated_.width, h = accumulated_.height;
+  if (view_buffer_ != ViewBuffer::kImage) {
+    static const std::vector<Vec4> kNoMoments;
+    const bool fresh = denoised_frame_ == frames_;
+    display_ =
+        features_frame_ == frames_
+            ? feature_view_rgb8(view_buffer_, features_, fresh ? denoiser_.moments() : kNoMoments,
+                                denoiser_.params().max_history, w, h)
+            : std::vector<uint8_t>(size_t(w) * h * 3, 0);
+    display_w_ = w;
+    display_h_ = h;
+    display_stale_ = false;
+    return;
+  }
+  const ImageRGB* img = &accumulated_;
+  ImageRGB blended;
+  if (showing_denoised()) {
+    img = &denoised_;
+    if (blend_ > 0.0f) {
+      blended = blend_images(denoised_, accumulated_, blend_);
+      img = &blended;
+    }
+  }
+  display_ = tone_map_to_srgb8(*img, options_.exposure, ToneMap::kAces);
+  display_w_ = img->width;
+  display_h_ = img->height;
   if (options_.split_view) {
     tint_tile_owners(display_, display_w_, display_h_, tracer_->tiles(), tracer_->tile_owners());
   }
@@ -143,6 +232,7 @@ void ViewSession::set_backend(BackendKind kind) {
                                          tracer_settings());
   options_.backend = kind;
   last_seconds_ = 0.0;
+  drop_denoise_history();
 }
 
 void ViewSession::set_output_size(uint32_t width, uint32_t height) {

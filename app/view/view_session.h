@@ -13,8 +13,11 @@
 
 #include "app/scene_setup.h"
 #include "app/view/adaptive_quality.h"
+#include "app/view/denoise_view.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
+#include "core/render/temporal_denoiser.h"
+#include "core/scene/motion_history.h"
 #include "core/tracer/core_tracer.h"
 #include "scenes/scene_animator.h"
 
@@ -35,7 +38,10 @@ struct ViewOptions {
   uint32_t target_spp = 1024;
   uint32_t max_depth = 4;
   float exposure = 0.0f;  // stops
-  bool denoise = true;    // edge-aware filter on motion frames
+  // SVGF on every frame until the accumulated image takes over
+  // (app/view/denoise_view.h says what is shown when).
+  bool denoise = true;
+  ViewBuffer view_buffer = ViewBuffer::kImage;  // what the display shows
   bool split_view = false;
   // How `scene` is loaded and lit (app/scene_setup.h: one rule for every
   // command); parse_scene_request() fills both from the command line.
@@ -104,10 +110,29 @@ class ViewSession {
   void set_light_scale(float scale);
   float light_scale() const { return light_scale_; }
   void set_lens(float aperture, float focus_distance);
-  void set_denoise(bool on) {
-    options_.denoise = on;
-    display_stale_ = frames_ > 0;
+  // Turning the denoiser off or on drops its history (the next frame starts
+  // it afresh).
+  void set_denoise(bool on);
+  bool denoise() const { return options_.denoise; }
+  // Which buffer the display shows (the image or a denoiser debug view).
+  void set_view_buffer(ViewBuffer b);
+  ViewBuffer view_buffer() const { return view_buffer_; }
+  // Whether the last frame's display contains the SVGF output (false: the
+  // denoiser is off, the accumulated image has taken over, or no backend
+  // has a feature pass), and with what weight the accumulated image is
+  // blended in.
+  bool showing_denoised() const {
+    return options_.denoise && denoised_frame_ == frames_ && frames_ > 0;
   }
+  float accumulated_weight() const { return blend_; }
+  // The last frame's own samples (what the denoiser filtered), its output,
+  // its features and the denoiser itself, for tests and the panel.
+  const ImageRGB& frame_radiance() const { return frame_radiance_; }
+  const ImageRGB& denoised_image() const { return denoised_; }
+  const std::vector<PixelFeatures>& features() const { return features_; }
+  const TemporalDenoiser& denoiser() const { return denoiser_; }
+  // Seconds the last frame spent in the feature pass and the filter.
+  double last_denoise_seconds() const { return denoise_seconds_; }
   void set_split_view(bool on) {
     options_.split_view = on;
     display_stale_ = frames_ > 0;
@@ -119,6 +144,9 @@ class ViewSession {
  private:
   void make_display() const;
   TracerSettings tracer_settings() const;
+  // After a frame: this frame's samples, features, the filter, the blend.
+  void denoise_frame(const FrameMetrics& m);
+  void drop_denoise_history();
 
   ViewOptions options_;
   Scene scene_;
@@ -135,6 +163,17 @@ class ViewSession {
   uint64_t frames_ = 0;
   float light_scale_ = 1.0f;
   std::vector<float> light_intensity_, emissive_strength_;  // as loaded
+  // The denoiser's state (app/view/denoise_view.h).
+  ViewBuffer view_buffer_;
+  MotionHistory motion_;
+  TemporalDenoiser denoiser_;
+  std::vector<PixelFeatures> features_;
+  uint64_t features_frame_ = 0;  // frames_ value the features belong to (0: none)
+  ImageRGB accumulated_, frame_radiance_, denoised_;
+  uint32_t accumulated_spp_before_ = 0;  // spp of accumulated_ before the last frame
+  uint64_t denoised_frame_ = 0;          // frames_ value denoised_ belongs to (0: none)
+  float blend_ = 1.0f;
+  double denoise_seconds_ = 0.0;
   mutable std::vector<uint8_t> display_;
   mutable uint32_t display_w_ = 0, display_h_ = 0;
   mutable bool display_stale_ = false;

@@ -28,6 +28,8 @@ const char* const kHelp =
     "Fly (default):  W/A/S/D move, Q/E down/up, Shift faster, left-drag look\n"
     "Orbit (Tab):    left-drag orbit, right-drag pan, wheel zoom\n"
     "Home/R reset the camera    P pause scene motion    F1 this help    F12 screenshot (PNG)\n"
+    "N denoiser (SVGF) on/off   B cycle the shown buffer (image, albedo, normal, depth,\n"
+    "motion, variance, history length)\n"
     "Esc quit. Nothing moving: samples accumulate up to the target spp, then rendering stops.\n"
     "Motion: resolution adapts to the target fps.";
 
@@ -39,7 +41,7 @@ struct UiState {
   int max_spp = 16;
   int target_spp = 1024;
   float exposure = 0.0f, light_scale = 1.0f, aperture = 0.0f, focus = 1.0f, target_fps = 30.0f;
-  bool denoise = true, split = false;
+  bool split = false;
   FrameCounter counter;
   std::string message;
 };
@@ -77,7 +79,8 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
   if (!ui.message.empty()) ImGui::TextWrapped("%s", ui.message.c_str());
   if (ImGui::Checkbox("split view", &ui.split)) s.set_split_view(ui.split);
   ImGui::SameLine();
-  if (ImGui::Checkbox("denoise motion", &ui.denoise)) s.set_denoise(ui.denoise);
+  bool denoise = s.denoise();
+  if (ImGui::Checkbox("denoise (SVGF)", &denoise)) s.set_denoise(denoise);
   ImGui::SameLine();
   ImGui::Checkbox("pause scene", &s.paused);
   if (ImGui::SliderInt("max spp/frame", &ui.max_spp, 1, 64))
@@ -119,6 +122,21 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
                        s.accumulated_spp(), s.target_spp());
   } else {
     ImGui::Text("accumulated: %u / %u spp  converging", s.accumulated_spp(), s.target_spp());
+  }
+  int buffer = int(s.view_buffer());
+  if (ImGui::Combo(
+          "show", &buffer,
+          [](void*, int i, const char** out) {
+            *out = view_buffer_name(ViewBuffer(i));
+            return true;
+          },
+          nullptr, int(ViewBuffer::kCount)))
+    s.set_view_buffer(ViewBuffer(buffer));
+  if (s.showing_denoised()) {
+    ImGui::Text("denoiser: %.1f ms (features + SVGF), accumulated image weight %.0f%%",
+                s.last_denoise_seconds() * 1e3, s.accumulated_weight() * 100.0);
+  } else {
+    ImGui::Text("denoiser: %s", !s.denoise() ? "off" : "idle (accumulated image shown)");
   }
   ImGui::Text("commit: %.1f KiB/frame (delta)", double(m.delta_bytes) / 1024.0);
   for (size_t i = 0; i < m.backends.size(); ++i) {
@@ -197,7 +215,6 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   ui.max_spp = int(vo.max_spp_per_frame);
   ui.target_spp = int(std::min(vo.target_spp, 65536u));
   ui.exposure = vo.exposure;
-  ui.denoise = vo.denoise;
   ui.split = vo.split_view;
   ui.target_fps = float(vo.target_fps);
   ui.aperture = session.camera().aperture_radius;
@@ -248,6 +265,13 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
             break;
           case SDLK_p:
             session.paused = !session.paused;
+            break;
+          case SDLK_n:
+            session.set_denoise(!session.denoise());
+            break;
+          case SDLK_b:
+            session.set_view_buffer(
+                ViewBuffer((int(session.view_buffer()) + 1) % int(ViewBuffer::kCount)));
             break;
           case SDLK_HOME:
           case SDLK_r:

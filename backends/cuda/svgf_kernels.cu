@@ -37,10 +37,17 @@ __global__ void variance_kernel(SvgfParams p, SvgfVarianceBuffers b) {
                  y = blockIdx.y * blockDim.y + threadIdx.y;
   if (x < p.width && y < p.height) svgf_variance_pixel(p, b, x, y);
 }
-__global__ void atrous_kernel(SvgfParams p, SvgfAtrousBuffers b, uint32_t step) {
+// One a-trous iteration; `out` (when set) receives the illumination, and
+// `radiance` (when set: the last iteration) the albedo-modulated result.
+__global__ void atrous_kernel(SvgfParams p, SvgfAtrousBuffers b, uint32_t step, Vec4* out,
+                              const PixelFeatures* f, Vec3* radiance) {
   const uint32_t x = blockIdx.x * blockDim.x + threadIdx.x,
                  y = blockIdx.y * blockDim.y + threadIdx.y;
-  if (x < p.width && y < p.height) svgf_atrous_pixel(p, b, step, x, y);
+  if (x >= p.width || y >= p.height) return;
+  const size_t i = size_t(y) * p.width + x;
+  const Vec4 v = svgf_atrous_pixel<true>(p, b, step, x, y);
+  if (out) out[i] = v;
+  if (radiance) radiance[i] = svgf_modulate_pixel(f[i], v);
 }
 __global__ void modulate_kernel(SvgfParams p, const PixelFeatures* f, const Vec4* illum,
                                 Vec3* out) {
@@ -93,6 +100,8 @@ SvgfStageSeconds svgf_run_cuda(const SvgfParams& p, const SvgfFrame& fr) {
   DeviceArray<PixelFeatures> features(n), prev_features(n);
   DeviceArray<Vec3> radiance(n), output(n);
   DeviceArray<Vec2> slope(n);
+  DeviceArray<SvgfGuide> guide(n);
+  DeviceArray<uint32_t> material(n);
   DeviceArray<Vec4> prev_color(n), prev_moments(n), hist(n), moments(n), a(n), b(n);
   TANDEM_CUDA_CHECK(
       cudaMemcpy(features.p, fr.features, n * sizeof(PixelFeatures), cudaMemcpyHostToDevice));
@@ -109,24 +118,28 @@ SvgfStageSeconds svgf_run_cuda(const SvgfParams& p, const SvgfFrame& fr) {
   const SvgfTemporalBuffers tb{
       features.p,   radiance.p,     fr.prev_features ? prev_features.p : nullptr,
       prev_color.p, prev_moments.p, a.p,
-      moments.p};
+      moments.p,    slope.p,        guide.p,
+      material.p};
   temporal_kernel<<<grid, block>>>(p, tb);
   TANDEM_CUDA_CHECK_LAUNCH("svgf temporal");
-  variance_kernel<<<grid, block>>>(p,
-                                   SvgfVarianceBuffers{features.p, slope.p, a.p, moments.p, b.p});
+  variance_kernel<<<grid, block>>>(
+      p, SvgfVarianceBuffers{guide.p, material.p, slope.p, a.p, moments.p, b.p});
   TANDEM_CUDA_CHECK_LAUNCH("svgf variance");
   // The same ping-pong as svgf_run_cpu: b -> history -> a -> b -> ...
   const Vec4* in = b.p;
   for (uint32_t it = 0; it < p.iterations; ++it) {
-    Vec4* out = it == 0 ? hist.p : (in == a.p ? b.p : a.p);
-    atrous_kernel<<<grid, block>>>(p, SvgfAtrousBuffers{features.p, slope.p, in, out}, 1u << it);
+    const bool last = it + 1 == p.iterations;
+    Vec4* out = it == 0 ? hist.p : (last ? nullptr : (in == a.p ? b.p : a.p));
+    atrous_kernel<<<grid, block>>>(p, SvgfAtrousBuffers{guide.p, material.p, slope.p, in}, 1u << it,
+                                   out, features.p, last ? output.p : nullptr);
     TANDEM_CUDA_CHECK_LAUNCH("svgf a-trous");
     in = out;
   }
-  if (p.iterations == 0)
+  if (p.iterations == 0) {
     TANDEM_CUDA_CHECK(cudaMemcpy(hist.p, b.p, n * sizeof(Vec4), cudaMemcpyDeviceToDevice));
-  modulate_kernel<<<grid, block>>>(p, features.p, in, output.p);
-  TANDEM_CUDA_CHECK_LAUNCH("svgf modulate");
+    modulate_kernel<<<grid, block>>>(p, features.p, b.p, output.p);
+    TANDEM_CUDA_CHECK_LAUNCH("svgf modulate");
+  }
   TANDEM_CUDA_CHECK(
       cudaMemcpy(fr.history_color_out, hist.p, n * sizeof(Vec4), cudaMemcpyDeviceToHost));
   TANDEM_CUDA_CHECK(

@@ -19,7 +19,9 @@ struct SvgfFrame {
   Vec3* output;                        // out: filtered radiance
   Vec4* scratch_a;                     // work space
   Vec4* scratch_b;
-  Vec2* depth_slope;  // work space
+  Vec2* depth_slope;   // work space
+  SvgfGuide* guide;    // work space
+  uint32_t* material;  // work space
 };
 
 struct SvgfStageSeconds {
@@ -29,7 +31,7 @@ struct SvgfStageSeconds {
 
 // The stage order both drivers follow: temporal -> variance -> a-trous
 // iterations (the first one's output is the next frame's colour history, as
-// in Schied et al.) -> modulate.
+// in Schied et al.; the last one multiplies the albedo back in).
 SvgfStageSeconds svgf_run_cpu(const SvgfParams& params, const SvgfFrame& frame);
 
 }  // namespace tandem

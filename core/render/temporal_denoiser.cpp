@@ -27,6 +27,8 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
     radiance_.assign(n, Vec3{});
     output_.assign(n, Vec3{});
     depth_slope_.assign(n, Vec2{});
+    guide_.assign(n, SvgfGuide{});
+    material_.assign(n, 0u);
   }
   for (size_t i = 0; i < n; ++i)
     radiance_[i] = make_vec3(radiance.rgb[3 * i], radiance.rgb[3 * i + 1], radiance.rgb[3 * i + 2]);
@@ -45,7 +47,9 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                         output_.data(),
                         scratch_a_.data(),
                         scratch_b_.data(),
-                        depth_slope_.data()};
+                        depth_slope_.data(),
+                        guide_.data(),
+                        material_.data()};
   last_seconds_ = svgf_run_cpu(p, frame);
   current_ = next;
   has_history_ = true;

@@ -53,6 +53,8 @@ class TemporalDenoiser {
   std::vector<Vec4> scratch_a_, scratch_b_;
   std::vector<Vec3> radiance_, output_;
   std::vector<Vec2> depth_slope_;
+  std::vector<SvgfGuide> guide_;
+  std::vector<uint32_t> material_;
   SvgfStageSeconds last_seconds_;
 };
 
