@@ -11,7 +11,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "accstruc/accel_structure.h"
-#include "backends/host/host_backend.h"
+#include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/deforming_grid.h"
 
@@ -65,7 +65,7 @@ TEST(RenderDeform, RefitEveryFrameRendersLikeAFreshBuild) {
   SceneCompiler compiler;
   KernelScene ks;
   AccelStructure accel(no_cache());
-  HostBackend host;
+  CpuBackend host(CpuTraversal::kTandemBvh);
   uint32_t refits = 0;
   for (uint32_t frame = 0; frame <= 30; ++frame) {
     if (frame > 0) {
@@ -85,7 +85,7 @@ TEST(RenderDeform, RefitEveryFrameRendersLikeAFreshBuild) {
   KernelScene fresh_ks = ks;
   AccelStructure fresh_accel(no_cache());
   fresh_accel.update(fresh_ks, SceneDelta::everything());
-  HostBackend fresh_host;
+  CpuBackend fresh_host(CpuTraversal::kTandemBvh);
   fresh_host.sync(fresh_ks, SceneDelta::everything());
   const ImageRGB fresh = render(fresh_host);
 

@@ -17,7 +17,7 @@
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/scene/motion_history.h"
+#include "core/world/motion_history.h"
 #include "core/tracer/core_tracer.h"
 #include "scenes/scene_animator.h"
 
