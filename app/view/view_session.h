@@ -17,8 +17,8 @@
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/world/motion_history.h"
 #include "core/tracer/core_tracer.h"
+#include "core/world/motion_history.h"
 #include "scenes/scene_animator.h"
 
 namespace tandem {
