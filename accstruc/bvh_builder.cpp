@@ -12,12 +12,6 @@
 
 namespace tandem {
 
-bool aabb_valid(const Aabb& b) {
-  const float m = kMaxCoordinate;
-  return b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z && b.lo.x >= -m && b.lo.y >= -m &&
-         b.lo.z >= -m && b.hi.x <= m && b.hi.y <= m && b.hi.z <= m;
-}
-
 namespace {
 
 using simd::F4;

@@ -49,7 +49,12 @@ constexpr float kMaxCoordinate = 1.844e18f;
 // Non-inverted box within +-kMaxCoordinate (so NaN-free): primitives failing
 // this (NaN/inf/huge vertices, out-of-range indices) are left out of the
 // hierarchy, as Embree does.
-bool aabb_valid(const Aabb& b);
+// Inline: the refit tests every triangle's box with it each frame.
+inline bool aabb_valid(const Aabb& b) {
+  const float m = kMaxCoordinate;
+  return b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z && b.lo.x >= -m && b.lo.y >= -m &&
+         b.lo.z >= -m && b.hi.x <= m && b.hi.y <= m && b.hi.z <= m;
+}
 
 enum class SplitMethod : uint8_t {
   kBinnedSah,  // SAH over bins of centroids
