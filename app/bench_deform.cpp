@@ -5,9 +5,6 @@
 // builds everything); the figures are medians over the timed frames.
 #include "app/bench_deform.h"
 
-#include <tbb/global_control.h>
-#include <tbb/info.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -16,6 +13,7 @@
 #include <optional>
 
 #include "accstruc/accel_structure.h"
+#include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "core/util/errors.h"
@@ -73,27 +71,20 @@ size_t deformed_vertices(const Scene& scene) {
 }  // namespace
 
 bool is_deform_bench(const std::vector<std::string>& args) {
-  return std::find(args.begin(), args.end(), "--deform") != args.end();
+  return has_bench_flag(args, "--deform");
 }
 
 int run_deform_bench(const std::vector<std::string>& argv) {
   const ParsedArgs args("bench", deform_options(), argv);
-  if (args.has("help")) {
-    std::printf("usage: tandem bench [SCENE...] --deform [options]\n\n%s",
-                format_options_help(deform_options()).c_str());
+  if (print_bench_help(args, "tandem bench [SCENE...] --deform [options]", deform_options()))
     return 0;
-  }
   const uint32_t frames = args.get_u32("frames", 30, 1, 100000);
-  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
-  std::optional<tbb::global_control> limit;
-  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
-  const std::optional<std::string> json_path = args.value("json");
-  if (json_path) check_json_output_path(*json_path);
+  const BenchThreads threads(args);
+  const std::optional<std::string> json_path = checked_json_path(args);
   std::vector<std::string> specs = args.positionals();
   if (specs.empty()) specs = {"builtin:skinned-grid"};
 
-  JsonValue report =
-      bench_report("deform", threads ? int(threads) : tbb::info::default_concurrency());
+  JsonValue report = bench_report("deform", threads.used());
   report.set("frames", uint64_t(frames));
   JsonValue list = JsonValue::array();
   RenderSettings settings;

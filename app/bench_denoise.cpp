@@ -7,9 +7,6 @@
 // (which has the history of the path so far) with that reference.
 #include "app/bench_denoise.h"
 
-#include <tbb/global_control.h>
-#include <tbb/info.h>
-
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -17,6 +14,7 @@
 #include <cstdlib>
 #include <optional>
 
+#include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/json_writer.h"
@@ -93,29 +91,24 @@ void write_grid(const std::filesystem::path& path, const std::vector<const Image
 }  // namespace
 
 bool is_denoise_quality_bench(const std::vector<std::string>& args) {
-  return std::find(args.begin(), args.end(), "--denoise-quality") != args.end();
+  return has_bench_flag(args, "--denoise-quality");
 }
 
 int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   const ParsedArgs args("bench", denoise_bench_options(), argv);
-  if (args.has("help")) {
-    std::printf("usage: tandem bench [SCENE] --denoise-quality [options]\n\n%s",
-                format_options_help(denoise_bench_options()).c_str());
+  if (print_bench_help(args, "tandem bench [SCENE] --denoise-quality [options]",
+                       denoise_bench_options()))
     return 0;
-  }
   if (args.positionals().size() > 1) throw UsageError("bench: expected at most one SCENE argument");
   const std::string spec = args.positionals().empty() ? "builtin:arena" : args.positionals()[0];
-  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
-  std::optional<tbb::global_control> limit;
-  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+  const BenchThreads threads(args);
   RenderSettings settings;
   settings.width = args.get_u32("width", 640, 16, 16384);
   settings.height = args.get_u32("height", 360, 16, 16384);
   settings.max_depth = args.get_u32("max-depth", 4, 1, 1024);
   const uint32_t frames = args.get_u32("path-frames", 60, 4, 1u << 20);
   const uint32_t ref_spp = args.get_u32("reference-spp", 1024, 8, 1u << 20);
-  const std::optional<std::string> json_path = args.value("json");
-  if (json_path) check_json_output_path(*json_path);
+  const std::optional<std::string> json_path = checked_json_path(args);
   const std::optional<std::string> images = args.value("images");
   if (images) check_aov_directory(*images);
   const std::optional<std::string> ref_cache = args.value("reference-cache");
@@ -149,8 +142,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   std::printf(
       "scene %s, %ux%u, max depth %u, %u frames on the scripted path, reference %u spp, %d "
       "threads\n",
-      spec.c_str(), w, h, settings.max_depth, frames, ref_spp,
-      threads ? int(threads) : tbb::info::default_concurrency());
+      spec.c_str(), w, h, settings.max_depth, frames, ref_spp, threads.used());
   std::printf("%6s %12s %12s %14s %9s %9s %9s %10s %11s %10s\n", "frame", "raw1_relmse",
               "raw8_relmse", "denoised_relmse", "raw1_ssim", "raw8_ssim", "den_ssim", "filter_ms",
               "feature_ms", "render_ms");

@@ -6,8 +6,6 @@
 // bodies and the scripted camera of `bench --frames`). Both runs must give
 // the same image bit for bit, which the bench checks: a difference is an
 // error (exit status 1).
-#include <tbb/global_control.h>
-#include <tbb/info.h>
 
 #include <chrono>
 #include <cstdio>
@@ -15,6 +13,7 @@
 #include <optional>
 
 #include "app/backend_list.h"
+#include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/distributed.h"
@@ -172,7 +171,7 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   const std::string backend_spec = args.get_string("backend", "auto");
   const BackendOptions options =
       parse_kernel_option(args.value("kernel"), parse_backend_list(backend_spec));
-  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
+  const BenchThreads threads(args);
   TracerSettings ts;
   ts.render.width = args.get_u32("width", loop ? 640 : 320, 1, 16384);
   ts.render.height = args.get_u32("height", loop ? 360 : 180, 1, 16384);
@@ -180,8 +179,6 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   const uint32_t spp = args.get_u32("spp", loop ? 1 : 64, 1, 1u << 16);
   ts.tile_size = args.get_u32("tile-size", 32, 1, 4096);
   const std::optional<std::string> json_path = args.value("json");
-  std::optional<tbb::global_control> limit;
-  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
 
   const int worker_status = start_distributed("bench", backend_spec, options);
   if (worker_status >= 0) return worker_status;
@@ -236,7 +233,7 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   std::printf("scene %s: %ux%u, %u spp%s, max depth %u, %d ranks, backend %s, %s threads/rank\n",
               scene_spec.c_str(), ts.render.width, ts.render.height, spp, loop ? "/frame" : "",
               ts.render.max_depth, ranks, backend_spec.c_str(),
-              threads ? std::to_string(threads).c_str() : "all");
+              threads.requested() ? std::to_string(threads.requested()).c_str() : "all");
   if (loop) {
     std::printf(
         "frame loop:  %u frames, scene moving every frame (first frame, full scene, "
@@ -270,8 +267,7 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   }
   std::printf("identical images:  %u of %u %s\n", identical, compared, loop ? "frames" : "renders");
   if (json_path) {
-    JsonValue report =
-        bench_report("distributed", threads ? int(threads) : tbb::info::default_concurrency());
+    JsonValue report = bench_report("distributed", threads.used());
     set_render_facts(report, scene_spec, ts.render.width, ts.render.height, spp,
                      ts.render.max_depth);
     JsonValue per_rank = JsonValue::array();

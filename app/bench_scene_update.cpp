@@ -5,9 +5,6 @@
 // built tree, as in a game where bodies move a little per frame.
 #include "app/bench_scene_update.h"
 
-#include <tbb/global_control.h>
-#include <tbb/info.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -17,6 +14,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "accstruc/accel_structure.h"
+#include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "core/util/errors.h"
@@ -102,22 +100,17 @@ std::vector<UpdateCase> update_cases(const Scene& scene) {
 }  // namespace
 
 bool is_scene_update_bench(const std::vector<std::string>& args) {
-  return std::find(args.begin(), args.end(), "--scene-update") != args.end();
+  return has_bench_flag(args, "--scene-update");
 }
 
 int run_scene_update_bench(const std::vector<std::string>& argv) {
   const ParsedArgs args("bench", scene_update_options(), argv);
-  if (args.has("help")) {
-    std::printf("usage: tandem bench [SCENE...] --scene-update [options]\n\n%s",
-                format_options_help(scene_update_options()).c_str());
+  if (print_bench_help(args, "tandem bench [SCENE...] --scene-update [options]",
+                       scene_update_options()))
     return 0;
-  }
   const uint32_t repeats = args.get_u32("repeats", 31, 1, 100000);
-  const uint32_t threads = args.get_u32("threads", 0, 1, 4096);
-  std::optional<tbb::global_control> limit;
-  if (threads) limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
-  const std::optional<std::string> json_path = args.value("json");
-  if (json_path) check_json_output_path(*json_path);
+  const BenchThreads threads(args);
+  const std::optional<std::string> json_path = checked_json_path(args);
   std::vector<std::string> specs = args.positionals();
   if (specs.empty()) specs = {"builtin:procedural", "builtin:arena"};
 
