@@ -36,18 +36,6 @@ Scene wave_scene(const WaveGrid& g) {
   return s;
 }
 
-// Every kernel array of the BVH built from scratch on a copy of `from`.
-struct FreshBuild {
-  KernelScene ks;
-  AccelStructure accel{test_settings()};
-  explicit FreshBuild(const KernelScene& from) : ks(from) {
-    SceneDelta full;
-    full.full = true;
-    full.instances_changed = true;
-    accel.update(ks, full);
-  }
-};
-
 Agreement closest_agreement(const TracedScene& s, const std::vector<RaySample>& rays,
                             uint32_t layout,
                             const std::function<Hit(const RaySample&)>& reference) {

@@ -76,6 +76,19 @@ class TestRandom {
   uint32_t counter_ = 0;
 };
 
+// The BVH built from scratch on a copy of `from`'s kernel arrays: what a
+// refit or a partial update must agree with.
+struct FreshBuild {
+  KernelScene ks;
+  AccelStructure accel{test_settings()};
+  explicit FreshBuild(const KernelScene& from) : ks(from) {
+    SceneDelta full;
+    full.full = true;
+    full.instances_changed = true;
+    accel.update(ks, full);
+  }
+};
+
 struct RaySample {
   Ray ray;
   uint32_t alpha_key;

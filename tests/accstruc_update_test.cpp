@@ -55,18 +55,6 @@ void expect_same_hits(const TracedScene& s, const std::function<Hit(const RaySam
   }
 }
 
-// Builds everything from scratch on a copy of the current kernel arrays.
-struct FreshBuild {
-  KernelScene ks;
-  AccelStructure accel{test_settings()};
-  explicit FreshBuild(const KernelScene& from) : ks(from) {
-    SceneDelta full;
-    full.full = true;
-    full.instances_changed = true;
-    accel.update(ks, full);
-  }
-};
-
 TEST(AccelUpdate, RefitMatchesFreshBuildAndEmbree) {
   TracedScene s(make_procedural_scene(150000, 21));
   // The largest instanced rock mesh and the (single-instance) terrain.
