@@ -26,6 +26,7 @@
 #include "scenes/mesh_deformer.h"
 #include "scenes/procedural_rigs.h"
 #include "scenes/scene_animator.h"
+#include "tests/scenes_gltf_test_file.h"
 
 namespace tandem {
 namespace {
@@ -332,53 +333,6 @@ TEST(GltfSkinning, StaticLoadShowsTheRestPoseSkinned) {
 
 // --- small files built in memory ----------------------------------------------
 
-std::string base64(const std::string& in) {
-  static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  size_t i = 0;
-  for (; i + 2 < in.size(); i += 3) {
-    const uint32_t v =
-        uint32_t(uint8_t(in[i])) << 16 | uint32_t(uint8_t(in[i + 1])) << 8 | uint8_t(in[i + 2]);
-    for (int s = 18; s >= 0; s -= 6)
-      out += k[(v >> s) & 63];
-  }
-  if (i < in.size()) {
-    uint32_t v = uint32_t(uint8_t(in[i])) << 16;
-    if (i + 1 < in.size()) v |= uint32_t(uint8_t(in[i + 1])) << 8;
-    out += k[(v >> 18) & 63];
-    out += k[(v >> 12) & 63];
-    out += i + 1 < in.size() ? k[(v >> 6) & 63] : '=';
-    out += '=';
-  }
-  return out;
-}
-
-// Accessors in one embedded buffer, one bufferView each.
-struct FileBuilder {
-  std::string bin, views, accessors;
-  int count = 0;
-  template <class T>
-  int add(const std::vector<T>& data, int component_type, const char* type, size_t elements,
-          bool normalized = false) {
-    while (bin.size() % 4)
-      bin += '\0';
-    const size_t offset = bin.size();
-    bin.append(reinterpret_cast<const char*>(data.data()), data.size() * sizeof(T));
-    const std::string sep = count ? "," : "";
-    views += sep + R"({"buffer":0,"byteOffset":)" + std::to_string(offset) + R"(,"byteLength":)" +
-             std::to_string(data.size() * sizeof(T)) + "}";
-    accessors += sep + R"({"bufferView":)" + std::to_string(count) + R"(,"componentType":)" +
-                 std::to_string(component_type) + R"(,"type":")" + type + R"(","count":)" +
-                 std::to_string(elements) + (normalized ? R"(,"normalized":true)" : "") + "}";
-    return count++;
-  }
-  std::string file(const std::string& rest) const {
-    return R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bin.size()) +
-           R"(,"uri":"data:application/octet-stream;base64,)" + base64(bin) +
-           R"("}],"bufferViews":[)" + views + R"(],"accessors":[)" + accessors + "]," + rest + "}";
-  }
-};
-
 Scene load_text(const std::string& json, GltfAnimations* anims = nullptr) {
   GltfOptions options;
   options.animations = anims;
@@ -395,7 +349,7 @@ std::string load_error(const std::string& json) {
   return "(loaded)";
 }
 
-const std::vector<float> kTriangle = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+using test::kTriangle;
 
 // A triangle skinned to two joints (node 1 at the origin, node 2 at x = 2).
 struct SkinCase {
@@ -407,7 +361,7 @@ struct SkinCase {
   std::vector<uint8_t> joints1;
   std::vector<float> weights1;
   std::string build() const {
-    FileBuilder f;
+    test::GltfTestFile f;
     const int pos = f.add(kTriangle, 5126, "VEC3", 3);
     int j = 0, w = 0;
     if (u16_weights) {
@@ -510,7 +464,7 @@ TEST(GltfSkinning, ZeroWeightsFollowTheNodeAndSumsAreNormalised) {
 // A triangle with one or two POSITION targets (+1 in y, +1 in z).
 std::string morph_file(const std::string& mesh_extra, const std::string& node_extra,
                        bool second_primitive_without_targets = false, int targets = 1) {
-  FileBuilder f;
+  test::GltfTestFile f;
   const int pos = f.add(kTriangle, 5126, "VEC3", 3);
   const int dy = f.add(std::vector<float>{0, 1, 0, 0, 1, 0, 0, 1, 0}, 5126, "VEC3", 3);
   const int dz = f.add(std::vector<float>{0, 0, 1, 0, 0, 1, 0, 0, 1}, 5126, "VEC3", 3);
