@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <iterator>
 #include <limits>
@@ -32,6 +33,42 @@ constexpr double kQualityUnknown = std::numeric_limits<double>::quiet_NaN();
 
 void mark_all(ArrayChange& c) {
   c.reallocated = true;
+}
+
+KLeafTriangle make_leaf_triangle(const MeshGeometry& g, uint32_t prim) {
+  const KTriangle& t = g.triangles[prim];
+  const Vec3 a = g.positions[t.v0], b = g.positions[t.v1], c = g.positions[t.v2];
+  KLeafTriangle lt;
+  lt.p0 = {a.x, a.y, a.z, uint_as_float(prim)};
+  lt.p1 = {b.x, b.y, b.z, 0.0f};
+  lt.p2 = {c.x, c.y, c.z, 0.0f};
+  return lt;
+}
+
+// Rewrites a BLAS's leaf records (bvh_leaf_triangles, in the binary leaf
+// order `prims`, placed at entry `base`) from the mesh's current vertices,
+// writing only those that differ, and marks them in `change` block by block,
+// so that a small deformation uploads a few small ranges.
+void emit_changed_leaf_triangles(const std::vector<uint32_t>& prims, const MeshGeometry& g,
+                                 uint32_t base, KLeafTriangle* out, ArrayChange& change) {
+  constexpr uint32_t kBlock = 4096;
+  const uint32_t n = uint32_t(prims.size());
+  const uint32_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<NodeSpan> spans(blocks);
+  tbb::parallel_for(0u, blocks, [&](uint32_t blk) {
+    NodeSpan span{~0u, 0u};
+    for (uint32_t i = blk * kBlock, e = std::min(n, i + kBlock); i < e; ++i) {
+      const KLeafTriangle lt = make_leaf_triangle(g, prims[i]);
+      if (std::memcmp(&lt, out + i, sizeof lt) == 0) continue;
+      out[i] = lt;
+      span.begin = std::min(span.begin, i);
+      span.end = i + 1;
+    }
+    spans[blk] = span;
+  });
+  for (const NodeSpan& span : spans) {
+    if (span.end > span.begin) change.mark(base + span.begin, base + span.end);
+  }
 }
 
 }  // namespace
@@ -180,6 +217,11 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
   emit_layouts(blas_[m], b, ks.bvh_nodes.data() + b.node, ks.bvh_prim_indices.data() + b.prim,
                ks.bvh_wide_nodes.data() + b.wide_node,
                ks.bvh_wide_prim_indices.data() + b.wide_prim);
+  const MeshGeometry g = mesh_geometry(ks, m);
+  const std::vector<uint32_t>& prims = blas_[m].prims;
+  KLeafTriangle* out = ks.bvh_leaf_triangles.data() + b.prim;
+  for (size_t i = 0; i < prims.size(); ++i)
+    out[i] = make_leaf_triangle(g, prims[i]);
 }
 
 // Places every BLAS and the TLAS region in fresh arrays.
@@ -210,6 +252,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   }
   ks.bvh_nodes.assign(node, KBvhNode{});
   ks.bvh_prim_indices.assign(prim, 0u);
+  ks.bvh_leaf_triangles.assign(prim, KLeafTriangle{});
   ks.bvh_wide_nodes.assign(wide_node, KWideBvhNode{});
   ks.bvh_wide_prim_indices.assign(wide_prim, 0u);
   tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
@@ -230,6 +273,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   }
   mark_all(up.delta.bvh_nodes);
   mark_all(up.delta.bvh_prim_indices);
+  mark_all(up.delta.bvh_leaf_triangles);
   mark_all(up.delta.bvh_wide_nodes);
   mark_all(up.delta.bvh_wide_prim_indices);
   laid_out_ = true;
@@ -408,6 +452,10 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
       up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
       up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
                                    b.wide_node + spans.wide_nodes.end);
+      // The leaves' records hold the vertices: rewrite the moved ones.
+      emit_changed_leaf_triangles(blas_[m].prims, mesh_geometry(ks, m), b.prim,
+                                  ks.bvh_leaf_triangles.data() + b.prim,
+                                  up.delta.bvh_leaf_triangles);
     }
   }
 

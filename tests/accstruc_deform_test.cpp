@@ -194,7 +194,36 @@ TEST(AccelDeform, VertexRangeRewritesOnlyTheNodesAboveIt) {
                 up.delta.bvh_wide_nodes.element_count() * sizeof(KWideBvhNode) +
                 up.delta.bvh_prim_indices.element_count() * sizeof(uint32_t) +
                 up.delta.bvh_wide_prim_indices.element_count() * sizeof(uint32_t) +
+                up.delta.bvh_leaf_triangles.element_count() * sizeof(KLeafTriangle) +
                 up.delta.blas_roots.element_count() * sizeof(KBlasRoot));
+  // The leaf records (vertices in leaf order): those of the triangles around
+  // the edited vertices are rewritten, few are sent, and every record,
+  // reported or not, holds its triangle's current vertices.
+  const uint32_t blas_prims = uint32_t(s.accel.blas(0).prims.size());
+  ASSERT_TRUE(up.delta.bvh_leaf_triangles.any());
+  EXPECT_FALSE(up.delta.bvh_leaf_triangles.reallocated);
+  EXPECT_GE(up.delta.bvh_leaf_triangles.element_count(), count);
+  EXPECT_LT(up.delta.bvh_leaf_triangles.element_count(), blas_prims / 10);
+  std::vector<uint8_t> leaf_reported(s.ks.bvh_leaf_triangles.size(), 0);
+  up.delta.bvh_leaf_triangles.for_each_range([&](uint32_t b, uint32_t e) {
+    std::fill(leaf_reported.begin() + b, leaf_reported.begin() + e, uint8_t(1));
+  });
+  const MeshGeometry geo = mesh_geometry(s.ks, 0);
+  for (uint32_t i = 0; i < blas_prims; ++i) {
+    const uint32_t prim = s.accel.blas(0).prims[i];
+    const KTriangle& t = geo.triangles[prim];
+    const KLeafTriangle& lt = s.ks.bvh_leaf_triangles[i];
+    const Vec3 p[3] = {geo.positions[t.v0], geo.positions[t.v1], geo.positions[t.v2]};
+    const Vec4 q[3] = {lt.p0, lt.p1, lt.p2};
+    ASSERT_EQ(float_as_uint(lt.p0.w), prim) << "record " << i;
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_TRUE(q[k].x == p[k].x && q[k].y == p[k].y && q[k].z == p[k].z)
+          << "record " << i << " vertex " << k;
+    }
+    if (!leaf_reported[i]) {
+      ASSERT_EQ(std::memcmp(&before.bvh_leaf_triangles[i], &lt, sizeof lt), 0) << "record " << i;
+    }
+  }
   for (uint32_t i = root; i < blas_end; ++i) {
     if (reported[i]) continue;
     ASSERT_EQ(std::memcmp(&before.bvh_nodes[i], &s.ks.bvh_nodes[i], sizeof(KBvhNode)), 0)

@@ -59,6 +59,21 @@ struct alignas(16) KBvhNode {
 };
 static_assert(sizeof(KBvhNode) == 64 && alignof(KBvhNode) == 16, "GPU layout");
 
+// A BLAS leaf entry's triangle with its vertices, in the binary layout's leaf
+// order (bvh_leaf_triangles, parallel to bvh_prim_indices; the TLAS's entries
+// are unused). A triangle test then reads one 48-byte record, which the
+// traversal can fetch as soon as it knows the leaf, instead of a chain of
+// three dependent loads (leaf entry, triangle, vertices): on the large scenes
+// that chain of cache misses was half of the traversal's time. The vertices
+// are the mesh's own floats, so hits are bit for bit those of the indexed
+// test; the refit rewrites them when a mesh deforms.
+struct alignas(16) KLeafTriangle {
+  Vec4 p0;  // xyz: vertex 0 (object space); w: the triangle's index in its mesh, as bits
+  Vec4 p1;  // xyz: vertex 1; w: 0
+  Vec4 p2;  // xyz: vertex 2; w: 0
+};
+static_assert(sizeof(KLeafTriangle) == 48 && alignof(KLeafTriangle) == 16, "GPU layout");
+
 constexpr uint32_t kWideBvhWidth = 8;
 // Primitives per leaf slot in a wide node (the meta byte encodes the count
 // in unary in its top three bits). The TLAS uses one instance per slot.

@@ -248,39 +248,67 @@ struct TwoLevelTrace {
   }
 
   // Tests primitive entry `entry` of the current BLAS, whose instance record
-  // is `record`; true: stop (an any-hit query found a hit). The record is read
-  // for each triangle rather than once per leaf, so that it is not live in
-  // registers during the alpha test, the loop's busiest point.
+  // is `record` (wide layout: indexed triangles); true: stop (an any-hit query
+  // found a hit).
   TANDEM_HD bool triangle(const uint32_t* prim_indices, uint32_t entry, const uint32_t* record) {
-    const BlasLeafContext leaf = blas_leaf_context(record);
     const uint32_t prim = load_readonly(prim_indices + entry);
-    const KTriangle tri = load_readonly(kd->triangles + leaf.triangle_offset + prim);
-    const Vec3* pos = kd->positions + leaf.vertex_offset;
+    const KTriangle tri = load_readonly(kd->triangles + record[kRecordTriangleOffset] + prim);
+    const Vec3* pos = kd->positions + record[kRecordVertexOffset];
+    return test_triangle(load_readonly(pos + tri.v0), load_readonly(pos + tri.v1),
+                         load_readonly(pos + tri.v2), prim, record);
+  }
+
+  // triangle() for entry `entry` of the binary layout, whose vertices are in
+  // its leaf record (bvh_leaf_triangles): one load instead of three
+  // dependent ones.
+  TANDEM_HD bool leaf_triangle(uint32_t entry, const uint32_t* record) {
+    const KLeafTriangle lt = load_readonly_16(kd->bvh_leaf_triangles + entry);
+    return test_triangle(make_vec3(lt.p0.x, lt.p0.y, lt.p0.z), make_vec3(lt.p1.x, lt.p1.y, lt.p1.z),
+                         make_vec3(lt.p2.x, lt.p2.y, lt.p2.z), float_as_uint(lt.p0.w), record);
+  }
+
+  // Host only: starts fetching the leaf records of entries [first, first +
+  // count) of bvh_leaf_triangles.
+  TANDEM_HD void prefetch_leaf_triangles(uint32_t first, uint32_t count) const {
+#if !defined(__CUDA_ARCH__)
+    const char* begin = reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first);
+    const char* end = reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first + count);
+    for (const char* p = begin; p < end; p += 64)
+      prefetch_readonly(p);
+    if (count != 0) prefetch_readonly(end - 1);
+#else
+    (void)first;
+    (void)count;
+#endif
+  }
+
+  // The watertight test of triangle `prim` (p0, p1, p2 in object space) of
+  // the current BLAS. The instance record is read for each triangle rather
+  // than once per leaf, so that it is not live in registers during the alpha
+  // test, the loop's busiest point.
+  TANDEM_HD bool test_triangle(Vec3 p0, Vec3 p1, Vec3 p2, uint32_t prim, const uint32_t* record) {
     if constexpr (kCount) counters->triangles += 1;
     ShearRay shear;
     shear.origin = box.origin;
     shear.kx = (box.octant >> 8) & 3u;
     shear.ky = (box.octant >> 10) & 3u;
     shear.kz = box.octant >> 12;
-    shear.sx = leaf.shear.x;
-    shear.sy = leaf.shear.y;
-    shear.sz = leaf.shear.z;
+    shear.sx = uint_as_float(record[kRecordShear]);
+    shear.sy = uint_as_float(record[kRecordShear + 1]);
+    shear.sz = uint_as_float(record[kRecordShear + 2]);
     TriangleHit th;
-    if (!intersect_triangle_watertight(shear, load_readonly(pos + tri.v0),
-                                       load_readonly(pos + tri.v1), load_readonly(pos + tri.v2),
-                                       tmin, tmax, &th)) {
-      return false;
-    }
+    if (!intersect_triangle_watertight(shear, p0, p1, p2, tmin, tmax, &th)) return false;
     // The mesh's flags only now: most triangle tests miss.
-    const uint32_t mesh_flags = kd->meshes[kd->instances[leaf.instance].mesh].flags;
+    const uint32_t instance = record[kRecordInstance];
+    const uint32_t mesh_flags = kd->meshes[kd->instances[instance].mesh].flags;
     if ((mesh_flags & kMeshHasAlphaTest) != 0u &&
-        !alpha_test_opaque(*kd, leaf.instance, prim, th.u, th.v, alpha_key))
+        !alpha_test_opaque(*kd, instance, prim, th.u, th.v, alpha_key))
       return false;
     // The hit's t is tmax, put in the hit at the end.
     tmax = th.t;
     frame[kFrameHitU] = float_as_uint(th.u);
     frame[kFrameHitV] = float_as_uint(th.v);
-    frame[kFrameHitInstance] = leaf.instance;
+    frame[kFrameHitInstance] = instance;
     frame[kFrameHitPrim] = prim;
     return any_hit;
   }
@@ -317,18 +345,14 @@ TANDEM_HD bool trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNode*
     bool leaf1 = hit1 && (n.child[1] & kBvhLeafFlag) != 0u;
     if (in_blas && (leaf0 || leaf1)) {
       const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
+      // Both leaves' records on their way before the first test.
+      if (leaf0) tr.prefetch_leaf_triangles(n.child[0] & ~kBvhLeafFlag, n.count[0]);
+      if (leaf1) tr.prefetch_leaf_triangles(n.child[1] & ~kBvhLeafFlag, n.count[1]);
       for (uint32_t c = 0; c < 2; ++c) {
         if (!(c == 0 ? leaf0 : leaf1)) continue;
         const uint32_t first = n.child[c] & ~kBvhLeafFlag;
-#if !defined(__CUDA_ARCH__)
-        uint32_t entries[kBvhMaxLeafEntries];
-        const uint32_t count = min_u(n.count[c], kBvhMaxLeafEntries);
-        for (uint32_t i = 0; i < count; ++i)
-          entries[i] = first + i;
-        tr.prefetch_triangles(prim_indices, entries, count, blas_leaf_context(record));
-#endif
         for (uint32_t i = 0; i < n.count[c]; ++i) {
-          if (tr.triangle(prim_indices, first + i, record)) return true;
+          if (tr.leaf_triangle(first + i, record)) return true;
         }
       }
       leaf0 = leaf1 = false;

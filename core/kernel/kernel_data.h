@@ -34,11 +34,13 @@ namespace tandem {
   X(float, env_marginal_cdf)    /* height + 1 entries */                                \
   X(float, env_conditional_cdf) /* height * (width + 1) entries */
 
-#define TANDEM_BVH_ARRAYS(X)                                                                     \
-  X(KBlasRoot, blas_roots)           /* one per mesh */                                          \
-  X(KBvhNode, bvh_nodes)             /* binary BVH: all BLAS, then the TLAS */                   \
-  X(uint32_t, bvh_prim_indices)      /* leaf ranges of bvh_nodes: triangle / instance indices */ \
-  X(KWideBvhNode, bvh_wide_nodes)    /* 8-wide compressed BVH: all BLAS, then the TLAS */        \
+#define TANDEM_BVH_ARRAYS(X)                                                                      \
+  X(KBlasRoot, blas_roots)      /* one per mesh */                                                \
+  X(KBvhNode, bvh_nodes)        /* binary BVH: all BLAS, then the TLAS */                         \
+  X(uint32_t, bvh_prim_indices) /* leaf ranges of bvh_nodes: triangle / instance indices */       \
+  X(KLeafTriangle,                                                                                \
+    bvh_leaf_triangles)              /* per bvh_prim_indices entry: a BLAS triangle's vertices */ \
+  X(KWideBvhNode, bvh_wide_nodes)    /* 8-wide compressed BVH: all BLAS, then the TLAS */         \
   X(uint32_t, bvh_wide_prim_indices) /* leaf entries of bvh_wide_nodes */
 
 #define TANDEM_KERNEL_ARRAYS(X) TANDEM_SCENE_ARRAYS(X) TANDEM_BVH_ARRAYS(X)
