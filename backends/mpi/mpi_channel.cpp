@@ -35,14 +35,15 @@ using Clock = std::chrono::steady_clock;
 class Backoff {
  public:
   Backoff() = default;
-  explicit Backoff(int first_us) : step_(std::clamp<int>(first_us, 1, int(kMax.count()))) {}
+  Backoff(int first_us, int max_us)
+      : max_(std::clamp(max_us, 1, 1000000)), step_(std::clamp(first_us, 1, int(max_.count()))) {}
   void nap() {
     std::this_thread::sleep_for(step_);
-    step_ = std::min(step_ * 2, kMax);
+    step_ = std::min(step_ * 2, max_);
   }
 
  private:
-  static constexpr std::chrono::microseconds kMax{1000};
+  std::chrono::microseconds max_{1000};
   std::chrono::microseconds step_{20};
 };
 
@@ -192,10 +193,10 @@ bool try_receive(int source, Message* out) {
 }
 
 Message receive(int source, double timeout_s, const std::string& waiting_for,
-                const std::function<void()>& idle, int first_nap_us) {
+                const std::function<void()>& idle, int first_nap_us, int max_nap_us) {
   Message m;
   const auto start = Clock::now();
-  Backoff backoff(first_nap_us);
+  Backoff backoff(first_nap_us, max_nap_us);
   while (!try_receive(source, &m)) {
     if (idle) idle();
     if (past(start, timeout_s))

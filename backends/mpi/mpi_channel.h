@@ -61,11 +61,13 @@ bool try_receive(int source, Message* out);
 // Waits for a message from `source`; RankFailure after `timeout_s` seconds
 // of silence (<= 0: no limit), naming `waiting_for`. `idle` runs between
 // polls (a worker completes its outstanding sends there). Polls sleep in
-// between, `first_nap_us` at first and twice as long each time up to 1 ms:
-// a caller that knows the answer is near passes less, one that knows it is
-// some time off more.
+// between, `first_nap_us` at first and twice as long each time up to
+// `max_nap_us`: the defaults see an answer that is nearly there at once and
+// wake about a thousand times a second during a long wait; a caller for
+// whom a late answer costs nothing may nap longer.
 Message receive(int source, double timeout_s, const std::string& waiting_for,
-                const std::function<void()>& idle = {}, int first_nap_us = 20);
+                const std::function<void()>& idle = {}, int first_nap_us = 20,
+                int max_nap_us = 1000);
 
 // Sends whose buffers are kept until MPI is done with them, so that a worker
 // can go on rendering while its results travel. progress() must be called

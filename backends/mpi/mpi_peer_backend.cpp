@@ -66,22 +66,24 @@ void MpiPeerBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
   pending_.sync_seconds += seconds_since(start);
 }
 
-Message MpiPeerBackend::wait_for_answer(const InFlight& oldest) {
+Message MpiPeerBackend::wait_for_answer(const InFlight& oldest, bool last_batches) {
   // The worker renders its batches one after the other, and a batch takes
-  // at least about as long as its fastest recent one (tiles' costs differ):
-  // the polls for the answer start a quarter of that apart instead of 20 us,
-  // since every wake-up costs CPU that a renderer on this machine would use.
-  // Noticing the answer late costs nothing while other batches wait in the
-  // worker's queue, and at the end of a frame no more than the 1 ms cap of
-  // the back-off, which any wait reaches.
+  // about as long as its fastest recent one at least (tiles' costs differ).
+  // While more tiles are left, the batches queued behind the oldest keep the
+  // worker busy, so an answer seen late costs nothing: poll half a batch
+  // apart rather than every millisecond, as every wake-up costs CPU that a
+  // renderer on this machine would use. Once the source is empty the frame
+  // waits for these answers: back to the 1 ms cap of a plain wait.
   double fastest = 0.0;
   for (double t : recent_seconds_per_tile_)
     if (t > 0.0 && (fastest == 0.0 || t < fastest)) fastest = t;
   const double batch_s = fastest * double(oldest.tiles.size());
-  const int first_nap_us = std::clamp(int(batch_s / 4.0 * 1e6), 20, 1000);
+  const int half_batch_us = std::clamp(int(batch_s * 0.5e6), 20, 50000);
+  const int first_nap_us = last_batches ? std::min(half_batch_us, 1000) : half_batch_us;
+  const int max_nap_us = last_batches ? 1000 : std::max(half_batch_us, 1000);
   return receive(
       info_.rank, settings_.timeout_s, "the sums of a tile batch", [this] { sends_.progress(); },
-      first_nap_us);
+      first_nap_us, max_nap_us);
 }
 
 BackendStats MpiPeerBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {
@@ -128,7 +130,7 @@ BackendStats MpiPeerBackend::render(const RenderPass& pass, TileSource& tiles, F
   while (!in_flight.empty()) {
     sends_.progress();
     Message m;
-    if (!try_receive(info_.rank, &m)) m = wait_for_answer(in_flight.begin()->second);
+    if (!try_receive(info_.rank, &m)) m = wait_for_answer(in_flight.begin()->second, source_empty);
     if (m.tag == kTagError) {
       WireReader r(m.bytes, "error message of rank " + std::to_string(info_.rank));
       throw RankFailure(info_.rank, r.get_string());

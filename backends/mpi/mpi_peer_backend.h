@@ -73,8 +73,9 @@ class MpiPeerBackend final : public Backend {
     std::vector<Tile> tiles;
     Clock::time_point sent;
   };
-  // Waits for the worker's next answer; `oldest` is its oldest batch in flight.
-  Message wait_for_answer(const InFlight& oldest);
+  // Waits for the worker's next answer; `oldest` is its oldest batch in
+  // flight, `last_batches`: the frame has no more tiles to send.
+  Message wait_for_answer(const InFlight& oldest, bool last_batches);
 
   WorkerInfo info_;
   PeerSettings settings_;
