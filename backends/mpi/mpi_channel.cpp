@@ -37,8 +37,16 @@ class Backoff {
   Backoff() = default;
   Backoff(int first_us, int max_us)
       : max_(std::clamp(max_us, 1, 1000000)), step_(std::clamp(first_us, 1, int(max_.count()))) {}
-  void nap() {
-    std::this_thread::sleep_for(step_);
+  // Never past the wait's deadline (`timeout_s` after `start`; <= 0: none),
+  // so a peer that stopped answering is named as soon as before.
+  void nap(Clock::time_point start, double timeout_s) {
+    auto sleep = step_;
+    if (timeout_s > 0.0) {
+      const auto left = std::chrono::duration_cast<std::chrono::microseconds>(
+          start + std::chrono::duration<double>(timeout_s) - Clock::now());
+      sleep = std::clamp(left + std::chrono::microseconds(1), std::chrono::microseconds(1), sleep);
+    }
+    std::this_thread::sleep_for(sleep);
     step_ = std::min(step_ * 2, max_);
   }
 
@@ -152,7 +160,7 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
     if (past(start, timeout_s))
       throw RankFailure(dest, "did not take a message within " + seconds_text(timeout_s) +
                                   " (stopped answering)");
-    backoff.nap();
+    backoff.nap(start, timeout_s);
   }
 }
 
@@ -188,7 +196,7 @@ bool try_receive(int source, Message* out) {
     if (past(start, timeout_s))
       throw RankFailure(out->source, "stopped answering in the middle of a message (" +
                                          seconds_text(timeout_s) + ")");
-    backoff.nap();
+    backoff.nap(start, timeout_s);
   }
 }
 
@@ -202,7 +210,7 @@ Message receive(int source, double timeout_s, const std::string& waiting_for,
     if (past(start, timeout_s))
       throw RankFailure(source, "did not answer within " + seconds_text(timeout_s) +
                                     " (waiting for " + waiting_for + ")");
-    backoff.nap();
+    backoff.nap(start, timeout_s);
   }
   return m;
 }
@@ -254,7 +262,7 @@ void PendingSends::drain(double timeout_s) {
     if (past(start, timeout_s))
       throw RankFailure(sends_.front()->dest,
                         "did not take a message within " + seconds_text(timeout_s));
-    backoff.nap();
+    backoff.nap(start, timeout_s);
   }
 }
 
