@@ -39,7 +39,8 @@ struct PeerFrameStats {
   uint64_t scene_bytes = 0;        // of bytes_to_worker: scene deltas
   double worker_busy_seconds = 0;  // inside the worker's own backends
   // The worker's process CPU time since its previous frame's last result (its
-  // waiting between frames included), and the part inside its backends.
+  // waiting between frames included), and the part inside its backends
+  // (rendering and syncing the scene).
   double worker_cpu_seconds = 0, worker_render_cpu_seconds = 0;
   // CPU time of the rank 0 thread that drives this worker (render()).
   double driver_cpu_seconds = 0;

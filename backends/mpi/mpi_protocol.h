@@ -146,7 +146,8 @@ struct BatchResult {
   uint32_t id = 0;
   double busy_seconds = 0.0;  // inside the worker's render()
   // The worker's process CPU time since rank 0's reset, in all and inside
-  // render(): what it spent beyond rendering (waiting, packing, MPI).
+  // its backends (rendering, syncing the scene): the difference is what
+  // waiting, packing and MPI cost it.
   double cpu_seconds = 0.0, render_cpu_seconds = 0.0;
   uint64_t rays = 0, samples = 0;
   std::vector<Tile> tiles;

@@ -73,9 +73,13 @@ class Worker {
           render_cpu_ = 0.0;
           break;
         case kTagSync: {
+          // Counted as work like rendering (building the Embree scene is
+          // part of a frame), not as the waiting that follows.
+          const double cpu_start = process_cpu_seconds();
           const SceneDelta delta = decode_scene(r, scene_);
           for (auto& b : backends_)
             b->sync(scene_, delta);
+          render_cpu_ += process_cpu_seconds() - cpu_start;
           break;
         }
         case kTagBatch:
@@ -180,8 +184,8 @@ class Worker {
   Film film_;
   std::vector<double> tile_seconds_;
   PendingSends sends_;
-  // Process CPU time at rank 0's last reset, and spent inside render()
-  // since (reported with every result).
+  // Process CPU time at rank 0's last reset, and spent since inside the
+  // backends' render() and sync() (reported with every result).
   double cpu_mark_ = process_cpu_seconds(), render_cpu_ = 0.0;
 };
 
