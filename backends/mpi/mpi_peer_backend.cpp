@@ -123,7 +123,7 @@ BackendStats MpiPeerBackend::render(const RenderPass& pass, TileSource& tiles, F
     // Not waited for either: a send completes only once the worker looks
     // at its messages, which it does between tiles.
     sends_.start(info_.rank, kTagBatch, std::move(w.bytes()));
-    in_flight.emplace(b.id, InFlight{std::move(b.tiles), Clock::now()});
+    in_flight.emplace(b.id, InFlight{std::move(b.tiles)});
   };
   while (!source_empty && in_flight.size() < settings_.batches_in_flight)
     send_batch();

@@ -15,7 +15,6 @@
 #pragma once
 
 #include <array>
-#include <chrono>
 #include <string>
 #include <vector>
 
@@ -69,10 +68,8 @@ class MpiPeerBackend final : public Backend {
   const PeerFrameStats& last_frame() const { return last_; }
 
  private:
-  using Clock = std::chrono::steady_clock;
   struct InFlight {
     std::vector<Tile> tiles;
-    Clock::time_point sent;
   };
   // Waits for the worker's next answer; `oldest` is its oldest batch in
   // flight, `last_batches`: the frame has no more tiles to send.
