@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
 #include <optional>
 
 #include "app/backend_list.h"
@@ -18,6 +19,7 @@
 #include "app/cli_args.h"
 #include "app/distributed.h"
 #include "app/view/scripted_path.h"
+#include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_cluster.h"
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
@@ -60,11 +62,72 @@ bool same_pixels(const ImageRGB& a, const ImageRGB& b) {
          std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)) == 0;
 }
 
+// Remembers which tiles a backend took from its source.
+class RecordingTiles final : public TileSource {
+ public:
+  explicit RecordingTiles(TileSource& inner) : inner_(inner) {}
+  bool next(Tile* tile) override {
+    if (!inner_.next(tile)) return false;
+    std::lock_guard<std::mutex> lock(mutex_);
+    taken_.push_back(tile->index);
+    return true;
+  }
+  const std::vector<uint32_t>& taken() const { return taken_; }
+
+ private:
+  TileSource& inner_;
+  std::mutex mutex_;
+  std::vector<uint32_t> taken_;
+};
+
+// A backend as the tracer sees it, plus what the bench wants to know of its
+// last render(): the seconds of each tile it rendered (from the tracer's
+// tile_seconds, which every backend fills, the peers with their worker's
+// figures) and the CPU time of the thread that ran render(), which with
+// --threads 1 is the whole renderer (TBB runs the tile loop on the caller).
+class TimedBackend final : public Backend {
+ public:
+  explicit TimedBackend(std::unique_ptr<Backend> inner) : inner_(std::move(inner)) {}
+  std::string name() const override { return inner_->name(); }
+  BackendTraits traits() const override { return inner_->traits(); }
+  void sync(const KernelScene& scene, const SceneDelta& delta) override {
+    inner_->sync(scene, delta);
+  }
+  BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
+    RecordingTiles recording(tiles);
+    const double cpu_start = mpi::thread_cpu_seconds();
+    const BackendStats stats = inner_->render(pass, recording, film);
+    thread_cpu_s_ = mpi::thread_cpu_seconds() - cpu_start;
+    tiles_.clear();
+    for (uint32_t i : recording.taken())
+      tiles_.emplace_back(i, pass.tile_seconds ? pass.tile_seconds[i] : -1.0);
+    return stats;
+  }
+  bool render_features(const FeaturePass& pass, PixelFeatures* out) override {
+    return inner_->render_features(pass, out);
+  }
+  // (tile index, seconds) of the last render().
+  const std::vector<std::pair<uint32_t, double>>& tiles() const { return tiles_; }
+  double thread_cpu_seconds() const { return thread_cpu_s_; }
+
+ private:
+  std::unique_ptr<Backend> inner_;
+  std::vector<std::pair<uint32_t, double>> tiles_;
+  double thread_cpu_s_ = 0.0;
+};
+
 // One rank's share of the distributed run, summed over the measured frames.
 struct RankTotals {
   std::string name;
   double tiles = 0, busy_s = 0, idle_s = 0;
   double bytes_to = 0, bytes_from = 0, scene_bytes = 0, sync_s = 0;
+  // CPU: the whole rank's (rank 0's process for its local backends), the
+  // part spent rendering, and for a worker rank 0's thread driving it.
+  double cpu_s = 0, render_cpu_s = 0, driver_cpu_s = 0;
+  // Seconds of the tiles this backend rendered, and of the same tiles when
+  // rank 0 rendered them alone in the same frame: their ratio is the
+  // backend's slowdown per tile, whatever the tiles' costs.
+  double tile_s = 0, same_tiles_alone_s = 0;
 };
 
 // The scene and its motion: the same for both runs, posed from time alone.
@@ -92,6 +155,7 @@ struct MovingScene {
 
 struct Run {
   std::unique_ptr<CoreTracer> tracer;
+  std::vector<TimedBackend*> timed;  // every backend, in the tracer's order
   std::vector<mpi::MpiPeerBackend*> peers;
   std::vector<RankTotals> ranks;  // rank 0's backends, then one per peer
   std::vector<double> frame_s;
@@ -99,6 +163,7 @@ struct Run {
   // what the network and an uneven finish add to the frame.
   std::vector<double> overhead_s;
   double total_s = 0;
+  double process_cpu_s = 0;  // rank 0's, over the frames
 };
 
 Run make_run(const std::string& spec, const BackendOptions& options, const TracerSettings& ts,
@@ -111,12 +176,22 @@ Run make_run(const std::string& spec, const BackendOptions& options, const Trace
       backends.push_back(std::move(p));
     }
   }
+  for (auto& b : backends) {
+    auto timed = std::make_unique<TimedBackend>(std::move(b));
+    run.timed.push_back(timed.get());
+    b = std::move(timed);
+  }
   run.tracer = std::make_unique<CoreTracer>(std::move(backends), ts);
   return run;
 }
 
 // Adds a frame's figures to the run's totals (peers: the worker's own time).
-void account(Run& run, const FrameMetrics& m) {
+// `alone_tile_s`: the seconds of every tile in the same frame rendered by
+// rank 0 alone (empty for that run itself); `process_cpu_s`: rank 0's CPU
+// time during the frame.
+void account(Run& run, const FrameMetrics& m, const std::vector<double>& alone_tile_s,
+             double process_cpu_s) {
+  run.process_cpu_s += process_cpu_s;
   run.frame_s.push_back(m.total_seconds);
   run.ranks.resize(m.backends.size());
   const size_t local = m.backends.size() - run.peers.size();
@@ -133,6 +208,18 @@ void account(Run& run, const FrameMetrics& m) {
       r.bytes_from += double(p.bytes_from_worker);
       r.scene_bytes += double(p.scene_bytes);
       r.sync_s += p.sync_seconds;
+      r.cpu_s += p.worker_cpu_seconds;
+      r.render_cpu_s += p.worker_render_cpu_seconds;
+      r.driver_cpu_s += p.driver_cpu_seconds;
+    } else {
+      r.cpu_s += process_cpu_s;
+      r.render_cpu_s += run.timed[b]->thread_cpu_seconds();
+    }
+    for (const auto& [index, seconds] : run.timed[b]->tiles()) {
+      if (index < alone_tile_s.size() && seconds > 0.0 && alone_tile_s[index] > 0.0) {
+        r.tile_s += seconds;
+        r.same_tiles_alone_s += alone_tile_s[index];
+      }
     }
     r.busy_s += busy;
     r.idle_s += std::max(0.0, m.render_seconds - busy);
@@ -197,6 +284,8 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   // The workers wait (asleep) while rank 0 renders alone.
   uint32_t identical = 0, first_difference = 0;
   uint32_t done_spp = 0;
+  std::vector<double> alone_tile_s;  // this frame's, rank 0 alone
+  double alone_tiles_total_s = 0;    // all frames'
   for (uint32_t f = 0; f < frame_count; ++f) {
     TracerSettings now = ts;
     if (!loop) now.samples_per_frame = std::min(ts.samples_per_frame, spp - done_spp);
@@ -206,13 +295,27 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
       MovingScene& ms = run == &ref ? ref_scene : dist_scene;
       run->tracer->set_settings(now);
       const auto t = Clock::now();
+      const double cpu_start = mpi::process_cpu_seconds();
       // Brigade's overlap, as in `bench --frames`: the scene moves on to the
       // next frame while this one renders.
       run->tracer->begin_frame(ms.scene);
       if (loop) ms.pose(double(f + 1) * kScriptedFrameStep);
       const FrameMetrics& m = run->tracer->end_frame();
       run->total_s += seconds_since(t);
-      account(*run, m);
+      const double cpu_s = mpi::process_cpu_seconds() - cpu_start;
+      if (run == &ref) {
+        alone_tile_s.clear();
+        for (const TimedBackend* b : ref.timed) {
+          for (const auto& [index, seconds] : b->tiles()) {
+            if (index >= alone_tile_s.size()) alone_tile_s.resize(index + 1, -1.0);
+            alone_tile_s[index] = seconds;
+            if (seconds > 0.0) alone_tiles_total_s += seconds;
+          }
+        }
+        account(ref, m, {}, cpu_s);
+      } else {
+        account(dist, m, alone_tile_s, cpu_s);
+      }
     }
     if (loop || done_spp == spp) {
       if (same_pixels(ref.tracer->image(), dist.tracer->image())) {
@@ -257,6 +360,22 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
   double tile_sum = 0;
   for (const RankTotals& r : dist.ranks)
     tile_sum += r.tiles;
+  // Per tile against rank 0 alone on the same tiles of the same frames:
+  // wall time (load from elsewhere on the machine inflates both runs
+  // alike only on average), and rendering CPU time (immune to that load),
+  // the rank 0 alone share of the same tiles taken from their wall times.
+  auto tile_time_ratio = [](const RankTotals& r) {
+    return r.same_tiles_alone_s > 0 ? r.tile_s / r.same_tiles_alone_s : 0.0;
+  };
+  double alone_render_cpu_s = 0;
+  for (const RankTotals& r : ref.ranks)
+    alone_render_cpu_s += r.render_cpu_s;
+  auto tile_cpu_ratio = [&](const RankTotals& r) {
+    const double expected = alone_tiles_total_s > 0
+                                ? alone_render_cpu_s * r.same_tiles_alone_s / alone_tiles_total_s
+                                : 0.0;
+    return expected > 0 ? r.render_cpu_s / expected : 0.0;
+  };
   for (const RankTotals& r : dist.ranks) {
     std::printf(
         "  %-16s tiles %5.1f%%  busy %8.2f ms/frame  idle %8.2f ms/frame  sent %9.1f KiB/frame "
@@ -264,7 +383,21 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
         r.name.c_str(), tile_sum > 0 ? r.tiles / tile_sum * 100.0 : 0.0, r.busy_s / frames_d * 1e3,
         r.idle_s / frames_d * 1e3, r.bytes_to / frames_d / 1024.0,
         r.scene_bytes / frames_d / 1024.0, r.bytes_from / frames_d / 1024.0);
+    // CPU time beyond the rendering is what waiting, packing and MPI cost
+    // the rank; a tile time above 1 is the slowdown per tile next to rank 0
+    // rendering alone (the same tiles of the same frame).
+    const bool peer = r.driver_cpu_s > 0.0 || r.bytes_from > 0.0;
+    std::printf(
+        "  %-16s cpu %8.2f ms/frame (%s)  rendering %8.2f ms/frame  per tile vs rank 0 alone: "
+        "time %5.3fx, cpu %5.3fx",
+        "", r.cpu_s / frames_d * 1e3, peer ? "the worker's process" : "rank 0's process",
+        r.render_cpu_s / frames_d * 1e3, tile_time_ratio(r), tile_cpu_ratio(r));
+    if (peer) std::printf("  driving it on rank 0 %6.2f ms/frame", r.driver_cpu_s / frames_d * 1e3);
+    std::printf("\n");
   }
+  const double ref_frames_d = double(std::max<size_t>(ref.frame_s.size(), 1));
+  std::printf("rank 0 alone:      cpu %8.2f ms/frame (its process)  rendering %8.2f ms/frame\n",
+              ref.process_cpu_s / ref_frames_d * 1e3, alone_render_cpu_s / ref_frames_d * 1e3);
   std::printf("identical images:  %u of %u %s\n", identical, compared, loop ? "frames" : "renders");
   if (json_path) {
     JsonValue report = bench_report("distributed", threads.used());
@@ -280,7 +413,12 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
                         .set("bytes_sent_per_frame", r.bytes_to / frames_d)
                         .set("scene_bytes_per_frame", r.scene_bytes / frames_d)
                         .set("bytes_received_per_frame", r.bytes_from / frames_d)
-                        .set("sync_ms_per_frame", r.sync_s / frames_d * 1e3));
+                        .set("sync_ms_per_frame", r.sync_s / frames_d * 1e3)
+                        .set("cpu_ms_per_frame", r.cpu_s / frames_d * 1e3)
+                        .set("render_cpu_ms_per_frame", r.render_cpu_s / frames_d * 1e3)
+                        .set("driver_cpu_ms_per_frame", r.driver_cpu_s / frames_d * 1e3)
+                        .set("tile_time_vs_rank0_alone", tile_time_ratio(r))
+                        .set("tile_cpu_vs_rank0_alone", tile_cpu_ratio(r)));
     }
     report.set("loop", loop ? "frames" : "offline")
         .set("ranks", ranks)
@@ -291,6 +429,7 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
              loop ? dist_s * 1e3 : dist_s)
         .set("speedup", speedup)
         .set("overhead_ms_per_frame", overhead_ms)
+        .set("rank0_alone_cpu_ms_per_frame", ref.process_cpu_s / ref_frames_d * 1e3)
         .set("identical_images", uint64_t(identical))
         .set("compared_images", uint64_t(compared))
         .set("ranks_detail", std::move(per_rank));

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -122,21 +123,56 @@ TEST(MpiDistributed, ArenaFrameLoopMatchesSingleProcessFrameForFrame) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("identical images:  60 of 60 frames"), std::string::npos) << r.output;
   const std::string j = file_bytes(json);
-  for (const char* key : {"\"mode\": \"distributed\"", "\"loop\": \"frames\"", "\"ranks\": 3",
-                          "\"speedup\"", "\"overhead_ms_per_frame\"", "\"bytes_sent_per_frame\"",
-                          "\"scene_bytes_per_frame\"", "\"identical_images\": 60"})
+  for (const char* key :
+       {"\"mode\": \"distributed\"", "\"loop\": \"frames\"", "\"ranks\": 3", "\"speedup\"",
+        "\"overhead_ms_per_frame\"", "\"bytes_sent_per_frame\"", "\"scene_bytes_per_frame\"",
+        "\"cpu_ms_per_frame\"", "\"render_cpu_ms_per_frame\"", "\"driver_cpu_ms_per_frame\"",
+        "\"tile_time_vs_rank0_alone\"", "\"rank0_alone_cpu_ms_per_frame\"",
+        "\"identical_images\": 60"})
     EXPECT_NE(j.find(key), std::string::npos) << key << "\n" << j;
 }
 
+// The number after `"key": ` at its n-th occurrence in a JSON report (-1
+// when missing).
+double json_number(const std::string& json, const std::string& key, int nth = 0) {
+  size_t at = 0;
+  for (int i = 0; i <= nth; ++i, ++at) {
+    at = json.find("\"" + key + "\": ", at);
+    if (at == std::string::npos) return -1.0;
+  }
+  return std::atof(json.c_str() + at - 1 + key.size() + 4);
+}
+
 TEST(MpiDistributed, OfflineBenchReportsEveryRank) {
+  TempDir dir("tandem_mpi");
+  const auto json = dir.path() / "offline.json";
   const CommandResult r =
       mpirun(2,
-             "bench --distributed builtin:cornell --width 32 --height 32 --spp 4 "
-             "--tile-size 8 --backend cpu --threads 1");
+             "bench --distributed builtin:cornell --width 64 --height 64 --spp 8 "
+             "--tile-size 8 --backend cpu --threads 1 --json " +
+                 json.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* text :
-       {"speed-up:", "rank1:cpu", "busy", "idle", "KiB/frame", "identical images:  1 of 1 renders"})
+  for (const char* text : {"speed-up:", "rank1:cpu", "busy", "idle", "KiB/frame",
+                           "the worker's process", "rank 0's process", "per tile vs rank 0 alone",
+                           "driving it on rank 0", "identical images:  1 of 1 renders"})
     EXPECT_NE(r.output.find(text), std::string::npos) << text << "\n" << r.output;
+  // While rank 0 renders alone, the worker waits for its next batch: a wait
+  // that spins would cost it about that much CPU time, one that sleeps a
+  // small part of it (polls back off to 1 ms apart, each a few tens of us).
+  const std::string j = file_bytes(json);
+  const double alone_s = json_number(j, "rank0_seconds");
+  const double frames = json_number(j, "frames");
+  const double worker_cpu_ms = json_number(j, "cpu_ms_per_frame", 1);
+  const double worker_render_ms = json_number(j, "render_cpu_ms_per_frame", 1);
+  ASSERT_GT(alone_s, 0.0) << j;
+  ASSERT_GT(worker_cpu_ms, 0.0) << j;
+  ASSERT_GE(worker_render_ms, 0.0) << j;
+  EXPECT_GT(json_number(j, "tile_cpu_vs_rank0_alone", 1), 0.0) << j;
+  const double waiting_cpu_s = (worker_cpu_ms - worker_render_ms) * frames * 1e-3;
+  EXPECT_LT(waiting_cpu_s, 0.2 * alone_s)
+      << "the worker spent " << waiting_cpu_s << " s of CPU beyond rendering while rank 0 "
+      << "rendered alone for " << alone_s << " s\n"
+      << j;
 }
 
 struct FaultCase {

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "backends/mpi/mpi_protocol.h"
+#include "core/render/film.h"
 #include "scenes/builtin_scenes.h"
 
 namespace tandem::mpi {
@@ -143,12 +144,56 @@ TEST(MpiProtocol, BatchesAndResultsRoundTrip) {
   res.tiles = {{0, 0, 2, 1, 0}};
   res.tile_seconds = {0.5};
   res.sums = {1, 2, 3, 4, 5, 6};
+  res.cpu_seconds = 2.5;
+  res.render_cpu_seconds = 2.25;
   WireWriter w3;
   encode_result(res, w3);
   WireReader r3(w3.bytes(), "result");
   const BatchResult back = decode_result(r3);
   EXPECT_EQ(back.sums, res.sums);
   EXPECT_EQ(back.tile_seconds, res.tile_seconds);
+  EXPECT_EQ(back.cpu_seconds, 2.5);
+  EXPECT_EQ(back.render_cpu_seconds, 2.25);
+}
+
+TEST(MpiProtocol, ResultWrittenStraightFromTheFilmIsTheSameMessage) {
+  // The worker writes the header, then each tile row of its film's sums:
+  // byte for byte what encode_result makes of the same sums.
+  Film film(8, 4);
+  const std::vector<Tile> tiles = {{1, 0, 4, 2, 0}, {4, 2, 8, 4, 5}};
+  double v = 0.25;
+  for (const Tile& t : tiles) {
+    for (uint32_t y = t.y0; y < t.y1; ++y) {
+      for (uint32_t x = t.x0; x < t.x1; ++x, v += 1.0) {
+        const double sum[3] = {v, -v, v * 3.0};
+        film.add(x, y, sum, 1);
+      }
+    }
+  }
+  BatchResult res;
+  res.id = 3;
+  res.busy_seconds = 0.125;
+  res.rays = 99;
+  res.tiles = tiles;
+  res.tile_seconds = {0.5, 0.75};
+  size_t count = 0;
+  for (const Tile& t : tiles) {
+    for (uint32_t y = t.y0; y < t.y1; ++y) {
+      for (uint32_t x = t.x0; x < t.x1; ++x, count += 3)
+        res.sums.insert(res.sums.end(), film.sum(x, y), film.sum(x, y) + 3);
+    }
+  }
+  WireWriter whole;
+  encode_result(res, whole);
+  WireWriter direct;
+  encode_result_header(res, direct, count);
+  for (const Tile& t : tiles) {
+    for (uint32_t y = t.y0; y < t.y1; ++y)
+      direct.put_bytes(film.sum(t.x0, y), size_t(t.x1 - t.x0) * 3 * sizeof(double));
+  }
+  EXPECT_EQ(direct.bytes(), whole.bytes());
+  WireReader r(direct.bytes(), "result");
+  EXPECT_EQ(decode_result(r).sums, res.sums);
 }
 
 TEST(MpiProtocol, FingerprintNamesEveryArrayAndTheProtocol) {

@@ -2,6 +2,7 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -24,11 +25,35 @@ bool g_finalized = false;
 
 using Clock = std::chrono::steady_clock;
 
-// Long enough not to steal a core from the renderers (the 2-core case),
-// short enough that a batch's answer is seen within a fraction of a tile.
-void nap() {
-  std::this_thread::sleep_for(std::chrono::microseconds(200));
-}
+// The sleep between two polls of one wait. MPI's own blocking calls spin
+// a core at 100%, and so would a loop of tests; every wake-up also preempts
+// a renderer when a machine runs as many renderers as it has cores. The
+// first naps are short, so an answer that is nearly there costs little
+// latency, and each doubles up to a cap, so that a long wait (a worker
+// between frames, rank 0 waiting for a batch) wakes about a thousand times
+// a second at most.
+class Backoff {
+ public:
+  Backoff() = default;
+  Backoff(int first_us, int max_us)
+      : max_(std::clamp(max_us, 1, 1000000)), step_(std::clamp(first_us, 1, int(max_.count()))) {}
+  // Never past the wait's deadline (`timeout_s` after `start`; <= 0: none),
+  // so a peer that stopped answering is named as soon as before.
+  void nap(Clock::time_point start, double timeout_s) {
+    auto sleep = step_;
+    if (timeout_s > 0.0) {
+      const auto left = std::chrono::duration_cast<std::chrono::microseconds>(
+          start + std::chrono::duration<double>(timeout_s) - Clock::now());
+      sleep = std::clamp(left + std::chrono::microseconds(1), std::chrono::microseconds(1), sleep);
+    }
+    std::this_thread::sleep_for(sleep);
+    step_ = std::min(step_ * 2, max_);
+  }
+
+ private:
+  std::chrono::microseconds max_{1000};
+  std::chrono::microseconds step_{20};
+};
 
 void abort_if_unfinished() {
   // An error left main() on this rank: the others may be waiting for it.
@@ -53,6 +78,15 @@ std::string seconds_text(double s) {
 void initialize() {
   std::lock_guard<std::mutex> lock(mpi_lock());
   if (g_initialized) return;
+  // A worker makes no MPI call while it renders a tile, and Open MPI's
+  // shared-memory transport moves a message above its eager limit (4 KiB by
+  // default) only inside MPI calls of the sender when it cannot map the
+  // other process's memory (containers: single_copy_mechanism=none). A
+  // batch's sums (48 KiB for two 32x32 tiles) would then wait for the
+  // worker's next tile boundary while rank 0 polls for them; below this
+  // limit they are copied out when the worker hands them over. Not set
+  // when the user chose a value (mpirun --mca or the environment).
+  setenv("OMPI_MCA_btl_vader_eager_limit", std::to_string(kEagerResultBytes).c_str(), 0);
   int provided = 0;
   if (MPI_Init_thread(nullptr, nullptr, MPI_THREAD_SERIALIZED, &provided) != MPI_SUCCESS)
     throw InputError("--distributed: MPI could not be initialized");
@@ -115,6 +149,7 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
     MPI_Isend(bytes.data(), int(bytes.size()), MPI_BYTE, dest, tag, MPI_COMM_WORLD, &request);
   }
   const auto start = Clock::now();
+  Backoff backoff;
   for (;;) {
     int done = 0;
     {
@@ -125,7 +160,7 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
     if (past(start, timeout_s))
       throw RankFailure(dest, "did not take a message within " + seconds_text(timeout_s) +
                                   " (stopped answering)");
-    nap();
+    backoff.nap(start, timeout_s);
   }
 }
 
@@ -150,6 +185,7 @@ bool try_receive(int source, Message* out) {
   // peers' threads go on meanwhile. Bounded like every other wait.
   const double timeout_s = answer_timeout_seconds();
   const auto start = Clock::now();
+  Backoff backoff;
   for (;;) {
     int done = 0;
     {
@@ -160,20 +196,21 @@ bool try_receive(int source, Message* out) {
     if (past(start, timeout_s))
       throw RankFailure(out->source, "stopped answering in the middle of a message (" +
                                          seconds_text(timeout_s) + ")");
-    nap();
+    backoff.nap(start, timeout_s);
   }
 }
 
 Message receive(int source, double timeout_s, const std::string& waiting_for,
-                const std::function<void()>& idle) {
+                const std::function<void()>& idle, int first_nap_us, int max_nap_us) {
   Message m;
   const auto start = Clock::now();
+  Backoff backoff(first_nap_us, max_nap_us);
   while (!try_receive(source, &m)) {
     if (idle) idle();
     if (past(start, timeout_s))
       throw RankFailure(source, "did not answer within " + seconds_text(timeout_s) +
                                     " (waiting for " + waiting_for + ")");
-    nap();
+    backoff.nap(start, timeout_s);
   }
   return m;
 }
@@ -218,13 +255,14 @@ void PendingSends::progress() {
 
 void PendingSends::drain(double timeout_s) {
   const auto start = Clock::now();
+  Backoff backoff;
   for (;;) {
     progress();
     if (sends_.empty()) return;
     if (past(start, timeout_s))
       throw RankFailure(sends_.front()->dest,
                         "did not take a message within " + seconds_text(timeout_s));
-    nap();
+    backoff.nap(start, timeout_s);
   }
 }
 

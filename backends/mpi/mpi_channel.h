@@ -2,10 +2,12 @@
 // from several threads (one per peer backend, as the core tracer renders
 // every backend on its own thread), and MPI_THREAD_SERIALIZED is what every
 // Open MPI build supports. Every wait is a poll (MPI_Test / MPI_Iprobe with
-// a short sleep) against a deadline, so a peer that stops answering ends
-// the run instead of hanging it.
+// sleeps in between that start at 20 us and double, so waiting costs next to
+// no CPU) against a deadline, so a peer that stops answering ends the run
+// instead of hanging it.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -25,6 +27,11 @@ class RankFailure : public std::runtime_error {
  private:
   int rank_;
 };
+
+// Messages up to this size travel without their sender's help, once sent
+// (Open MPI's shared-memory eager limit is raised to it): a worker's result
+// message should fit (MpiPeerBackend sizes its batches by it).
+inline constexpr size_t kEagerResultBytes = 64 * 1024;
 
 // MPI_Init_thread once per process; later calls return at once. From then
 // on, a process that leaves without finalize() (an error on any rank) calls
@@ -54,9 +61,14 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
 bool try_receive(int source, Message* out);
 // Waits for a message from `source`; RankFailure after `timeout_s` seconds
 // of silence (<= 0: no limit), naming `waiting_for`. `idle` runs between
-// polls (a worker completes its outstanding sends there).
+// polls (a worker completes its outstanding sends there). Polls sleep in
+// between, `first_nap_us` at first and twice as long each time up to
+// `max_nap_us`: the defaults see an answer that is nearly there at once and
+// wake about a thousand times a second during a long wait; a caller for
+// whom a late answer costs nothing may nap longer.
 Message receive(int source, double timeout_s, const std::string& waiting_for,
-                const std::function<void()>& idle = {});
+                const std::function<void()>& idle = {}, int first_nap_us = 20,
+                int max_nap_us = 1000);
 
 // Sends whose buffers are kept until MPI is done with them, so that a worker
 // can go on rendering while its results travel. progress() must be called

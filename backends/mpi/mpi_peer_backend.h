@@ -7,10 +7,18 @@
 //   render() pulls tiles from the source into small batches, keeps several
 //            batches in flight so the worker never waits for the network,
 //            and adds the returned sums to the film.
+//
+// Neither waits for a send to complete (the worker takes messages between
+// tiles), and render() polls for answers as rarely as their pace allows: on
+// a machine with as many renderers as cores, this thread's wake-ups come out
+// of a renderer's time.
 #pragma once
 
+#include <array>
 #include <string>
+#include <vector>
 
+#include "backends/mpi/mpi_channel.h"
 #include "backends/mpi/mpi_protocol.h"
 #include "core/render/backend.h"
 
@@ -29,7 +37,13 @@ struct PeerFrameStats {
   uint64_t bytes_from_worker = 0;  // results
   uint64_t scene_bytes = 0;        // of bytes_to_worker: scene deltas
   double worker_busy_seconds = 0;  // inside the worker's own backends
-  double sync_seconds = 0;         // rank 0 sending the scene delta
+  // The worker's process CPU time since its previous frame's last result (its
+  // waiting between frames included), and the part inside its backends
+  // (rendering and syncing the scene).
+  double worker_cpu_seconds = 0, worker_render_cpu_seconds = 0;
+  // CPU time of the rank 0 thread that drives this worker (render()).
+  double driver_cpu_seconds = 0;
+  double sync_seconds = 0;  // rank 0 sending the scene delta
   uint32_t batches = 0;
 };
 
@@ -54,11 +68,26 @@ class MpiPeerBackend final : public Backend {
   const PeerFrameStats& last_frame() const { return last_; }
 
  private:
+  struct InFlight {
+    std::vector<Tile> tiles;
+  };
+  // Waits for the worker's next answer; `oldest` is its oldest batch in
+  // flight, `last_batches`: the frame has no more tiles to send.
+  Message wait_for_answer(const InFlight& oldest, bool last_batches);
+
   WorkerInfo info_;
   PeerSettings settings_;
   ArrayCounts receiver_counts_{};
   bool reset_sent_ = false;
   uint32_t next_batch_id_ = 0;
+  // The worker's CPU counters (since the reset) at its last result.
+  double worker_cpu_ = 0, worker_render_cpu_ = 0;
+  // The worker's time per tile in its last batches: when its next answer
+  // is due (the fastest of them, as tiles' costs differ).
+  std::array<double, 4> recent_seconds_per_tile_{};
+  size_t recent_at_ = 0;
+  // Resets, scene deltas and batches on their way to the worker.
+  PendingSends sends_;
   PeerFrameStats pending_{}, last_{};
 };
 

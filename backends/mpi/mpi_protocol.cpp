@@ -160,13 +160,21 @@ TileBatch decode_batch(WireReader& r) {
   return b;
 }
 
-void encode_result(const BatchResult& res, WireWriter& w) {
+void encode_result_header(const BatchResult& res, WireWriter& w, size_t sum_count) {
+  w.reserve(w.bytes().size() + 64 + res.tiles.size() * (sizeof(Tile) + sizeof(double)) +
+            sum_count * sizeof(double));
   w.put(res.id);
   w.put(res.busy_seconds);
+  w.put(res.cpu_seconds);
+  w.put(res.render_cpu_seconds);
   w.put(res.rays);
   w.put(res.samples);
   put_tiles(w, res.tiles);
   w.put_bytes(res.tile_seconds.data(), res.tile_seconds.size() * sizeof(double));
+}
+
+void encode_result(const BatchResult& res, WireWriter& w) {
+  encode_result_header(res, w, res.sums.size());
   w.put_bytes(res.sums.data(), res.sums.size() * sizeof(double));
 }
 
@@ -174,6 +182,8 @@ BatchResult decode_result(WireReader& r) {
   BatchResult res;
   res.id = r.get<uint32_t>();
   res.busy_seconds = r.get<double>();
+  res.cpu_seconds = r.get<double>();
+  res.render_cpu_seconds = r.get<double>();
   res.rays = r.get<uint64_t>();
   res.samples = r.get<uint64_t>();
   res.tiles = get_tiles(r);

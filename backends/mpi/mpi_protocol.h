@@ -30,7 +30,7 @@ class WireError : public std::runtime_error {
 
 // Bumped whenever a message layout changes; the handshake also compares the
 // kernel arrays' element sizes (build_fingerprint()).
-inline constexpr uint32_t kProtocolVersion = 2;
+inline constexpr uint32_t kProtocolVersion = 3;
 
 enum Tag : int {
   kTagHello = 1,     // worker -> 0: fingerprint, its backends
@@ -65,6 +65,7 @@ class WireWriter {
     put(uint32_t(s.size()));
     put_bytes(s.data(), s.size());
   }
+  void reserve(size_t n) { bytes_.reserve(n); }
   std::vector<uint8_t>& bytes() { return bytes_; }
 
  private:
@@ -144,6 +145,10 @@ TileBatch decode_batch(WireReader& r);
 struct BatchResult {
   uint32_t id = 0;
   double busy_seconds = 0.0;  // inside the worker's render()
+  // The worker's process CPU time since rank 0's reset, in all and inside
+  // its backends (rendering, syncing the scene): the difference is what
+  // waiting, packing and MPI cost it.
+  double cpu_seconds = 0.0, render_cpu_seconds = 0.0;
   uint64_t rays = 0, samples = 0;
   std::vector<Tile> tiles;
   std::vector<double> tile_seconds;
@@ -151,5 +156,10 @@ struct BatchResult {
 };
 void encode_result(const BatchResult& r, WireWriter& w);
 BatchResult decode_result(WireReader& r);
+
+// The same message, written without a BatchResult in between: the header
+// now, then the pixel sums straight from the worker's film, row by row.
+// `sum_count` is the number of doubles that will follow (3 per pixel).
+void encode_result_header(const BatchResult& r, WireWriter& w, size_t sum_count);
 
 }  // namespace tandem::mpi

@@ -6,6 +6,7 @@
 #include <new>
 #include <thread>
 
+#include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_channel.h"
 #include "backends/mpi/mpi_cluster.h"
 #include "backends/mpi/mpi_protocol.h"
@@ -68,11 +69,17 @@ class Worker {
       switch (m.tag) {
         case kTagReset:
           scene_ = KernelScene{};
+          cpu_mark_ = process_cpu_seconds();
+          render_cpu_ = 0.0;
           break;
         case kTagSync: {
+          // Counted as work like rendering (building the Embree scene is
+          // part of a frame), not as the waiting that follows.
+          const double cpu_start = process_cpu_seconds();
           const SceneDelta delta = decode_scene(r, scene_);
           for (auto& b : backends_)
             b->sync(scene_, delta);
+          render_cpu_ += process_cpu_seconds() - cpu_start;
           break;
         }
         case kTagBatch:
@@ -103,6 +110,7 @@ class Worker {
     pass.tile_seconds = tile_seconds_.data();
     ProgressingTiles tiles(batch.tiles, sends_);
     const auto start = Clock::now();
+    const double cpu_start = process_cpu_seconds();
     BackendStats stats;
     if (backends_.size() == 1) {
       stats = render_on(*backends_[0], pass, tiles);
@@ -128,24 +136,29 @@ class Worker {
       for (const BackendStats& s : each)
         stats += s;
     }
+    render_cpu_ += process_cpu_seconds() - cpu_start;
     BatchResult res;
     res.id = batch.id;
     res.busy_seconds = std::chrono::duration<double>(Clock::now() - start).count();
     res.rays = stats.rays;
     res.samples = stats.samples;
     res.tiles = batch.tiles;
+    size_t sum_count = 0;
     for (const Tile& t : batch.tiles) {
       res.tile_seconds.push_back(tile_seconds_[t.index]);
-      for (uint32_t y = t.y0; y < t.y1; ++y) {
-        for (uint32_t x = t.x0; x < t.x1; ++x) {
-          const double* s = film_.sum(x, y);
-          res.sums.insert(res.sums.end(), s, s + 3);
-        }
-      }
+      sum_count += size_t(t.pixel_count()) * 3;
+    }
+    // The sums go from the film into the message a row at a time (a tile's
+    // row is contiguous in the film): one copy, no per-pixel packing.
+    res.render_cpu_seconds = render_cpu_;
+    res.cpu_seconds = process_cpu_seconds() - cpu_mark_;
+    WireWriter w;
+    encode_result_header(res, w, sum_count);
+    for (const Tile& t : batch.tiles) {
+      for (uint32_t y = t.y0; y < t.y1; ++y)
+        w.put_bytes(film_.sum(t.x0, y), size_t(t.x1 - t.x0) * 3 * sizeof(double));
       film_.clear_rect(t.x0, t.y0, t.x1, t.y1);
     }
-    WireWriter w;
-    encode_result(res, w);
     sends_.start(0, kTagResult, std::move(w.bytes()));
   }
 
@@ -171,6 +184,9 @@ class Worker {
   Film film_;
   std::vector<double> tile_seconds_;
   PendingSends sends_;
+  // Process CPU time at rank 0's last reset, and spent since inside the
+  // backends' render() and sync() (reported with every result).
+  double cpu_mark_ = process_cpu_seconds(), render_cpu_ = 0.0;
 };
 
 // Tells rank 0 why this worker cannot go on and waits for it to end the run
