@@ -141,8 +141,9 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   const uint32_t w = settings.width, h = settings.height;
   std::printf(
       "scene %s, %ux%u, max depth %u, %u frames on the scripted path, reference %u spp, %d "
-      "threads\n",
-      spec.c_str(), w, h, settings.max_depth, frames, ref_spp, threads.used());
+      "threads, filter loops %s\n",
+      spec.c_str(), w, h, settings.max_depth, frames, ref_spp, threads.used(),
+      svgf_cpu_isa_name(svgf_cpu_isa()));
   std::printf("%6s %12s %12s %14s %9s %9s %9s %10s %11s %10s\n", "frame", "raw1_relmse",
               "raw8_relmse", "denoised_relmse", "raw1_ssim", "raw8_ssim", "den_ssim", "filter_ms",
               "feature_ms", "render_ms");
@@ -209,6 +210,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
                   .set("filter_ms", filter_ms)
                   .set("feature_ms", feature_ms)
                   .set("render_1spp_ms", render_ms)
+                  .set("filter_over_render_1spp", filter_ms / render_ms)
                   .set("reference_spp", ref_spp));
     if (images) {
       write_grid(std::filesystem::path(*images) / ("denoise_frame_" + std::to_string(f) + ".png"),

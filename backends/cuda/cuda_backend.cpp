@@ -5,9 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <stdexcept>
 
 #include "backends/cuda/device_scene.h"
+#include "core/kernel/features.h"
 #include "core/kernel/tone_map.h"
 #include "core/util/errors.h"
 
@@ -42,6 +44,14 @@ struct CudaBackend::Impl {
   DeviceBuffer film_sums, film_samples;
   DeviceFilmView film;
   uint64_t commit_bytes_since_render = 0;
+  // The feature pass's buffers, kept between frames (pinned allocations are
+  // slow): the features on the device and their host landing area, and the
+  // previous frame's instance transforms on both sides.
+  DeviceBuffer features, host_features, prev_transforms, host_prev_transforms;
+  // The film size of the camera of the newest sync(): the set the next
+  // render claims. sync() may run on another thread during a render.
+  std::mutex camera_mutex;
+  uint32_t synced_width = 0, synced_height = 0;
 
   Impl(std::shared_ptr<DeviceOps> device, CudaKernelVariant v, LaunchLimits l)
       : dev(std::move(device)),
@@ -56,7 +66,11 @@ struct CudaBackend::Impl {
         host_ray_count(*dev, DeviceBuffer::kPinned),
         wave(*dev, DeviceBuffer::kDevice),
         film_sums(*dev, DeviceBuffer::kDevice),
-        film_samples(*dev, DeviceBuffer::kDevice) {
+        film_samples(*dev, DeviceBuffer::kDevice),
+        features(*dev, DeviceBuffer::kDevice),
+        host_features(*dev, DeviceBuffer::kPinned),
+        prev_transforms(*dev, DeviceBuffer::kDevice),
+        host_prev_transforms(*dev, DeviceBuffer::kPinned) {
     if (limits.max_batch_pixels == 0 || limits.max_items == 0)
       throw std::invalid_argument("cuda backend: launch limits must be positive");
     for (Slot& s : slots) {
@@ -283,6 +297,54 @@ CudaBackend::~CudaBackend() = default;
 void CudaBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
   check_bvh_present(scene, "cuda backend");
   impl_->commit_bytes_since_render += impl_->scene.commit(scene, delta);
+  std::lock_guard<std::mutex> lock(impl_->camera_mutex);
+  impl_->synced_width = scene.constants.camera.width;
+  impl_->synced_height = scene.constants.camera.height;
+}
+
+bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
+  Impl& m = *impl_;
+  if (!m.scene.ready()) throw std::logic_error("cuda backend: render_features() before sync()");
+  uint32_t width, height;
+  {
+    std::lock_guard<std::mutex> lock(m.camera_mutex);
+    width = m.synced_width;
+    height = m.synced_height;
+  }
+  const size_t n = size_t(width) * height;
+  if (n == 0) return true;
+  DeviceOps& dev = *m.dev;
+  const DeviceStream s = m.stream.get();
+  const size_t feature_bytes = n * sizeof(PixelFeatures);
+  m.features.reserve(feature_bytes);
+  m.host_features.reserve(feature_bytes);
+  // The pass points at host transforms: the kernel reads a device copy.
+  FeaturePass device_pass = pass;
+  const size_t prev_bytes =
+      pass.prev_object_to_world ? size_t(pass.prev_instance_count) * sizeof(Mat34) : 0;
+  if (prev_bytes > 0) {
+    m.prev_transforms.reserve(prev_bytes);
+    m.host_prev_transforms.reserve(prev_bytes);
+    std::memcpy(m.host_prev_transforms.get(), pass.prev_object_to_world, prev_bytes);
+    dev.copy_to_device(m.prev_transforms.get(), m.host_prev_transforms.get(), prev_bytes, s);
+    device_pass.prev_object_to_world = m.prev_transforms.as<const Mat34>();
+  } else {
+    device_pass.prev_object_to_world = nullptr;
+    device_pass.prev_instance_count = 0;
+  }
+  const DeviceScene::RenderTicket ticket = m.scene.begin_render(s);
+  try {
+    dev.render_features(ticket.view, device_pass, width, height, m.features.as<PixelFeatures>(), s);
+  } catch (...) {
+    m.abandon(ticket, false);
+    throw;
+  }
+  m.scene.end_render(ticket, s);
+  dev.copy_to_host(m.host_features.get(), m.features.get(), feature_bytes, s);
+  // Also orders the next call's transform copy after this kernel's reads.
+  dev.synchronize(s);
+  std::memcpy(out, m.host_features.get(), feature_bytes);
+  return true;
 }
 
 BackendStats CudaBackend::render(const RenderPass& pass, TileSource& tiles, Film& film) {

@@ -118,6 +118,10 @@ class CudaDevice final : public DeviceOps {
                   bool any_hit, Hit* hits, uint32_t* counter, DeviceStream s) override {
     launch_trace_rays(kd, rays, keys, n, any_hit, hits, counter, nullptr, nullptr, nullptr, cu(s));
   }
+  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
+                       uint32_t height, PixelFeatures* out, DeviceStream s) override {
+    launch_features(kd, pass, width, height, out, cu(s));
+  }
 
  private:
   cudaDeviceProp props_{};

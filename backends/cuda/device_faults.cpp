@@ -141,6 +141,11 @@ class FaultInjectingDevice final : public DeviceOps {
     on_launch("trace_rays");
     inner_->trace_rays(kd, rays, keys, n, any_hit, hits, counter, s);
   }
+  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
+                       uint32_t height, PixelFeatures* out, DeviceStream s) override {
+    on_launch("render_features");
+    inner_->render_features(kd, pass, width, height, out, s);
+  }
 
  private:
   [[noreturn]] void fail(DeviceFault fault, const char* what, const std::string& detail) {

@@ -22,6 +22,9 @@
 
 namespace tandem {
 
+struct FeaturePass;    // core/kernel/features.h
+struct PixelFeatures;  // core/kernel/features.h
+
 // What went wrong on a device, as far as the caller's recovery cares.
 enum class DeviceFault : uint8_t {
   kOutOfMemory,     // an allocation failed; the device is still usable
@@ -110,6 +113,11 @@ class DeviceOps {
   virtual void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys,
                           uint32_t n, bool any_hit, Hit* hits, uint32_t* work_counter,
                           DeviceStream stream) = 0;
+  // The denoiser's feature pass (core/kernel/features.h) of every pixel of
+  // kd's width x height camera into out[y * width + x];
+  // pass.prev_object_to_world is device memory (or null).
+  virtual void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
+                               uint32_t height, PixelFeatures* out, DeviceStream stream) = 0;
 };
 
 // ---------------------------------------------------------------------------

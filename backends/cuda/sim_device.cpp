@@ -18,6 +18,7 @@
 
 #include "backends/cpu_loops/cpu_wavefront.h"
 #include "core/kernel/bvh_traverse.h"
+#include "core/kernel/features.h"
 #include "core/kernel/integrator.h"
 
 namespace tandem {
@@ -700,6 +701,40 @@ void SimDevice::trace_rays(const KernelData* kd, const Ray* rays, const uint32_t
                     bvh_trace(k, rays[i], alpha_keys ? alpha_keys[i] : 0u, k.bvh.layout, any_hit);
             });
         *work_counter = n;
+      });
+}
+
+void SimDevice::render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
+                                uint32_t height, PixelFeatures* out, DeviceStream stream) {
+  const size_t n = size_t(width) * height;
+  if (n == 0) return;
+  DeviceStreamHandle* s = stream;
+  auto local = std::make_shared<KernelData>();
+  impl_->launch(
+      stream, "render_features",
+      [=, this] {
+        *local = impl_->read_kernel_data_locked(kd, *s, "render_features");
+        if (local->constants.camera.width != width || local->constants.camera.height != height) {
+          impl_->hazard_locked("render_features: film size differs from the scene's camera");
+          return false;
+        }
+        if (pass.prev_object_to_world && pass.prev_instance_count)
+          impl_->access_locked(pass.prev_object_to_world, pass.prev_instance_count * sizeof(Mat34),
+                               false, *s, "render_features reads previous transforms", true);
+        impl_->access_locked(out, n * sizeof(PixelFeatures), true, *s,
+                             "render_features writes features", true);
+        return true;
+      },
+      [=] {
+        // The same per-pixel code the CUDA kernel and the CPU backends run.
+        const KernelData& k = *local;
+        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, height, 2),
+                          [&](const tbb::blocked_range<uint32_t>& rows) {
+                            for (uint32_t y = rows.begin(); y != rows.end(); ++y)
+                              for (uint32_t x = 0; x < width; ++x)
+                                out[size_t(y) * width + x] =
+                                    compute_pixel_features(k, BvhTracer{&k}, pass, x, y);
+                          });
       });
 }
 

@@ -88,6 +88,8 @@ class SimDevice final : public DeviceOps {
                      uint8_t* rgb8, DeviceStream stream) override;
   void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
                   bool any_hit, Hit* hits, uint32_t* work_counter, DeviceStream stream) override;
+  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
+                       uint32_t height, PixelFeatures* out, DeviceStream stream) override;
 
  private:
   struct Impl;

@@ -128,18 +128,27 @@ struct SvgfGuide {
 // Depth slope of the current frame at (x, y): per axis the smaller one-sided
 // difference to a neighbour on the same surface kind (so an edge does not
 // count as slope), as a bound on how much depth may change per pixel.
-TANDEM_HD Vec2 svgf_depth_slope(const PixelFeatures* features, uint32_t width, uint32_t height,
-                                uint32_t x, uint32_t y) {
-  const PixelFeatures& c = features[size_t(y) * width + x];
-  float g[2] = {0.0f, 0.0f};
+// Branch-free (neighbours outside the image are read clamped and weigh
+// nothing), so that the CPU's temporal row loop vectorises.
+TANDEM_SVGF_INLINE Vec2 svgf_depth_slope(const PixelFeatures* features, uint32_t width,
+                                         uint32_t height, uint32_t x, uint32_t y) {
+  const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(width) + ptrdiff_t(x);
+  const float depth = features[i].depth;
+  const bool hit = features[i].instance != kInvalidIndex;
+  float g[2];
+  TANDEM_SVGF_UNROLL
   for (int axis = 0; axis < 2; ++axis) {
     float best = kFloatMax;
+    TANDEM_SVGF_UNROLL
     for (int s = -1; s <= 1; s += 2) {
-      const int nx = int(x) + (axis == 0 ? s : 0), ny = int(y) + (axis == 1 ? s : 0);
-      if (nx < 0 || ny < 0 || nx >= int(width) || ny >= int(height)) continue;
-      const PixelFeatures& n = features[size_t(ny) * width + uint32_t(nx)];
-      if (features_hit(n) != features_hit(c)) continue;
-      best = min_f(best, fabsf(n.depth - c.depth));
+      const int c = (axis == 0 ? int(x) : int(y)) + s;
+      const int limit = axis == 0 ? int(width) : int(height);
+      const bool inside = c >= 0 && c < limit;
+      const ptrdiff_t step = axis == 0 ? 1 : ptrdiff_t(width);
+      const ptrdiff_t j = i + (inside ? ptrdiff_t(s) * step : 0);
+      const bool same_kind = (features[j].instance != kInvalidIndex) == hit;
+      const float d = fabsf(features[j].depth - depth);
+      best = inside && same_kind ? min_f(best, d) : best;
     }
     g[axis] = best == kFloatMax ? 0.0f : best;
   }
@@ -167,14 +176,24 @@ TANDEM_HD bool svgf_history_consistent(const SvgfParams& p, const PixelFeatures&
   // Also: miss against hit. The material too: a light and the ceiling
   // around it are often one instance, with illumination orders of magnitude
   // apart, and bilinear taps at a fractional motion straddle their edge.
-  if (cur.instance != prev.instance || cur.material != prev.material) return false;
-  if (!features_hit(cur)) return true;  // environment on both
-  if (fabsf(prev.depth - cur.prev_depth) > depth_tolerance) return false;
-  return dot(prev.normal, cur.normal) >= p.reproject_normal_cos;
+  // The environment on both is consistent. Bitwise operators, not && and
+  // ||: no branches, for the vectorised row loop of the CPU.
+  const bool same_id = (cur.instance == prev.instance) & (cur.material == prev.material);
+  const bool same_surface = (fabsf(prev.depth - cur.prev_depth) <= depth_tolerance) &
+                            (dot(prev.normal, cur.normal) >= p.reproject_normal_cos);
+  return same_id & (!features_hit(cur) | same_surface);
 }
 
-TANDEM_HD void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffers& b, uint32_t x,
-                                   uint32_t y) {
+// floor(v) for |v| < 2^31 without a library call (floorf is one on
+// baseline x86-64, and a call keeps a loop from vectorising).
+TANDEM_HD int svgf_floor_int(float v) {
+  const int n = int(v);
+  return n - (float(n) > v ? 1 : 0);
+}
+
+template <bool kHasHistory>
+TANDEM_SVGF_INLINE void svgf_temporal_pixel_h(const SvgfParams& p, const SvgfTemporalBuffers& b,
+                                              uint32_t x, uint32_t y) {
   const size_t i = size_t(y) * p.width + x;
   const PixelFeatures& f = b.features[i];
   Vec3 illum = b.radiance[i] / svgf_guard_albedo(f.albedo);
@@ -184,58 +203,74 @@ TANDEM_HD void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffer
   float hist_m1 = 0.0f, hist_m2 = 0.0f, hist_len = 0.0f, weight_sum = 0.0f;
   const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
   b.depth_slope[i] = slope;
-  b.guide[i] = SvgfGuide{f.normal, f.depth};
+  b.guide[i] = SvgfGuide{make_vec3(f.normal.x, f.normal.y, f.normal.z), f.depth};
   b.material[i] = f.material;
-  if (b.prev_features) {
+  if (kHasHistory) {
     const float tol = p.reproject_depth_rel * f.prev_depth + 2.0f * (slope.x + slope.y);
     // Previous position in pixel-index coordinates (centres at integers).
     const float qx = float(x) + f.motion.x, qy = float(y) + f.motion.y;
-    if (qx > -1.0f && qy > -1.0f && qx < float(p.width) && qy < float(p.height)) {
-      const int x0 = int(floorf(qx)), y0 = int(floorf(qy));
-      const float fx = qx - float(x0), fy = qy - float(y0);
-      // Bilinear taps; the inconsistent ones are left out and the rest
-      // renormalised. No wider search: a pixel none of whose taps shows its
-      // surface was just uncovered, and borrowing a neighbour's history
-      // there is what leaves trails behind moving objects.
-      for (int k = 0; k < 4; ++k) {
-        const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
-        if (tx < 0 || ty < 0 || tx >= int(p.width) || ty >= int(p.height)) continue;
-        const size_t j = size_t(ty) * p.width + uint32_t(tx);
-        const float w = ((k & 1) ? fx : 1.0f - fx) * ((k >> 1) ? fy : 1.0f - fy);
-        if (w <= 0.0f || !svgf_history_consistent(p, f, b.prev_features[j], tol)) continue;
-        hist_color += xyz(b.prev_color[j]) * w;
-        hist_m1 += b.prev_moments[j].x * w;
-        hist_m2 += b.prev_moments[j].y * w;
-        hist_len += b.prev_moments[j].z * w;
-        weight_sum += w;
-      }
+    const bool inside = qx > -1.0f && qy > -1.0f && qx < float(p.width) && qy < float(p.height);
+    // Clamped first, so that the conversion to int is defined for any
+    // motion; inside the image this changes nothing.
+    const int x0 = svgf_floor_int(min_f(max_f(qx, -2.0f), float(p.width) + 1.0f));
+    const int y0 = svgf_floor_int(min_f(max_f(qy, -2.0f), float(p.height) + 1.0f));
+    const float fx = qx - float(x0), fy = qy - float(y0);
+    // Bilinear taps; the inconsistent ones are left out and the rest
+    // renormalised. No wider search: a pixel none of whose taps shows its
+    // surface was just uncovered, and borrowing a neighbour's history
+    // there is what leaves trails behind moving objects. Taps outside the
+    // image are read clamped and weigh nothing (no branches).
+    TANDEM_SVGF_UNROLL
+    for (int k = 0; k < 4; ++k) {
+      const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
+      const bool tap_inside =
+          inside & (tx >= 0) & (ty >= 0) & (tx < int(p.width)) & (ty < int(p.height));
+      const int cx = tap_inside ? tx : 0, cy = tap_inside ? ty : 0;
+      const size_t j = size_t(cy) * p.width + uint32_t(cx);
+      const float bw = ((k & 1) ? fx : 1.0f - fx) * ((k >> 1) ? fy : 1.0f - fy);
+      const bool use =
+          tap_inside & (bw > 0.0f) & svgf_history_consistent(p, f, b.prev_features[j], tol);
+      const float w = use ? bw : 0.0f;
+      const Vec4 pc = b.prev_color[j], pm = b.prev_moments[j];
+      hist_color += make_vec3(pc.x, pc.y, pc.z) * w;
+      hist_m1 += pm.x * w;
+      hist_m2 += pm.y * w;
+      hist_len += pm.z * w;
+      weight_sum += w;
     }
   }
-  Vec3 color = illum;
-  float m1 = lum, m2 = lum * lum, len = 1.0f;
-  if (weight_sum > 1e-4f) {
-    const float inv = 1.0f / weight_sum;
-    hist_color *= inv;
-    hist_m1 *= inv;
-    hist_m2 *= inv;
-    len = floorf(hist_len * inv + 0.5f) + 1.0f;
-    if (p.firefly_sigma > 0.0f && len > float(p.max_moments_history)) {
-      const float limit =
-          hist_m1 + p.firefly_sigma * safe_sqrt(max_f(0.0f, hist_m2 - hist_m1 * hist_m1));
-      if (lum > limit && lum > 0.0f) {
-        illum *= limit / lum;
-        lum = limit;
-      }
-    }
-    const float a = 1.0f / min_f(len, float(p.max_history));
-    const float am = 1.0f / min_f(len, float(p.max_moments_history));
-    color = lerp_v(hist_color, illum, a);
-    m1 = lerp_f(hist_m1, lum, am);
-    m2 = lerp_f(hist_m2, lum * lum, am);
-    len = min_f(len, 65535.0f);
-  }
+  // With history (selects, not branches: the row loop vectorises).
+  const bool has = weight_sum > 1e-4f;
+  const float inv = 1.0f / max_f(weight_sum, 1e-4f);
+  hist_color *= inv;
+  hist_m1 *= inv;
+  hist_m2 *= inv;
+  // Rounded to the nearest integer (the argument is >= 0).
+  const float hist_frames = float(int(hist_len * inv + 0.5f)) + 1.0f;
+  // The firefly clamp (SvgfParams::firefly_sigma).
+  const float limit =
+      hist_m1 + p.firefly_sigma * safe_sqrt(max_f(0.0f, hist_m2 - hist_m1 * hist_m1));
+  const bool clamp = has & (p.firefly_sigma > 0.0f) & (hist_frames > float(p.max_moments_history)) &
+                     (lum > limit) & (lum > 0.0f);
+  const float scale = clamp ? limit / max_f(lum, 1e-30f) : 1.0f;
+  illum *= scale;
+  lum = clamp ? limit : lum;
+  const float a = 1.0f / min_f(hist_frames, float(p.max_history));
+  const float am = 1.0f / min_f(hist_frames, float(p.max_moments_history));
+  const Vec3 color = has ? lerp_v(hist_color, illum, a) : illum;
+  const float m1 = has ? lerp_f(hist_m1, lum, am) : lum;
+  const float m2 = has ? lerp_f(hist_m2, lum * lum, am) : lum * lum;
+  const float len = has ? min_f(hist_frames, 65535.0f) : 1.0f;
   b.color[i] = make_vec4(color, max_f(0.0f, m2 - m1 * m1) * p.variance_scale);
   b.moments[i] = make_vec4(m1, m2, len, 0.0f);
+}
+
+TANDEM_SVGF_INLINE void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffers& b,
+                                            uint32_t x, uint32_t y) {
+  if (b.prev_features)
+    svgf_temporal_pixel_h<true>(p, b, x, y);
+  else
+    svgf_temporal_pixel_h<false>(p, b, x, y);
 }
 
 // --- edge-stopping weights -------------------------------------------------
@@ -310,44 +345,67 @@ struct SvgfVarianceBuffers {
 // Below this many frames of history the moments are too young to trust.
 constexpr float kSvgfMinHistoryForVariance = 4.0f;
 
-TANDEM_HD void svgf_variance_pixel(const SvgfParams& p, const SvgfVarianceBuffers& b, uint32_t x,
-                                   uint32_t y) {
-  const size_t i = size_t(y) * p.width + x;
-  const Vec4 m = b.moments[i];
-  if (m.z >= kSvgfMinHistoryForVariance) {
-    b.out[i] = b.color[i];
-    return;
-  }
-  // A spatial estimate over 7x7 pixels of the same surface, boosted while
-  // the history is short so that the filter smooths harder there.
+// The spatial estimate of svgf_variance_pixel for pixel (x, y) with
+// `history` frames (< kSvgfMinHistoryForVariance): luminance moments over
+// 7x7 pixels of the same surface, boosted while the history is short so
+// that the filter smooths harder there. kCheckBounds = false is for pixels
+// at least 3 away from every image border: then the loop has no branches
+// (other surfaces weigh 0 by a product) and the CPU driver's row loop over
+// a run of such pixels vectorises like the a-trous one.
+template <bool kCheckBounds>
+TANDEM_SVGF_INLINE Vec4 svgf_variance_spatial(const SvgfParams& p, const SvgfVarianceBuffers& b,
+                                              int x, int y, float history) {
+  const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(p.width) + x;
+  const int w = int(p.width), h = int(p.height);
   const SvgfEdgeCenter c = svgf_edge_center(p, b.guide[i], b.material[i], b.depth_slope[i]);
-  float wsum = 0.0f, m1 = 0.0f, m2 = 0.0f;
-  Vec3 col = make_vec3(0.0f);
+  // 1 / expected depth change per |offset| (0..3 on each axis): 16
+  // divisions per pixel instead of one per tap.
+  float inv_exp[4][4];
+  TANDEM_SVGF_UNROLL
+  for (int a = 0; a < 4; ++a)
+    TANDEM_SVGF_UNROLL
+  for (int bb = 0; bb < 4; ++bb)
+    inv_exp[a][bb] = svgf_inv_expected_depth(c, a, bb);
+  // The centre's own weight is 1.
+  const Vec4 cm = b.moments[i];
+  float wsum = 1.0f, m1 = cm.x, m2 = cm.y;
+  Vec3 col = xyz(b.color[i]);
+  TANDEM_SVGF_UNROLL
   for (int dy = -3; dy <= 3; ++dy) {
+    TANDEM_SVGF_UNROLL
     for (int dx = -3; dx <= 3; ++dx) {
-      const int qx = int(x) + dx, qy = int(y) + dy;
-      if (qx < 0 || qy < 0 || qx >= int(p.width) || qy >= int(p.height)) continue;
-      const size_t j = size_t(qy) * p.width + uint32_t(qx);
-      if (b.material[j] != c.material) continue;
-      const float w =
-          (dx == 0 && dy == 0)
-              ? 1.0f
-              : svgf_guide_weight(p, c, b.guide[j],
-                                  svgf_inv_expected_depth(c, dx < 0 ? -dx : dx, dy < 0 ? -dy : dy),
-                                  0.0f);
-      if (w <= 0.0f) continue;
-      m1 += b.moments[j].x * w;
-      m2 += b.moments[j].y * w;
-      col += xyz(b.color[j]) * w;
-      wsum += w;
+      if (dx == 0 && dy == 0) continue;
+      const int qx = x + dx, qy = y + dy;
+      if (kCheckBounds && (qx < 0 || qy < 0 || qx >= w || qy >= h)) continue;
+      // Offsets from i (signed, affine in x): addresses the vectoriser can
+      // follow along the row.
+      const ptrdiff_t j = i + ptrdiff_t(dy) * ptrdiff_t(p.width) + dx;
+      const float same = b.material[j] == c.material ? 1.0f : 0.0f;
+      const float wt =
+          same *
+          svgf_guide_weight(p, c, b.guide[j], inv_exp[dx < 0 ? -dx : dx][dy < 0 ? -dy : dy], 0.0f);
+      const Vec4 m = b.moments[j];
+      m1 += m.x * wt;
+      m2 += m.y * wt;
+      col += xyz(b.color[j]) * wt;
+      wsum += wt;
     }
   }
-  const float inv = 1.0f / wsum;  // the centre's own weight is 1
+  const float inv = 1.0f / wsum;
   m1 *= inv;
   m2 *= inv;
   const float variance =
-      max_f(0.0f, m2 - m1 * m1) * (kSvgfMinHistoryForVariance / m.z) * p.variance_scale;
-  b.out[i] = make_vec4(col * inv, variance);
+      max_f(0.0f, m2 - m1 * m1) * (kSvgfMinHistoryForVariance / history) * p.variance_scale;
+  return make_vec4(col * inv, variance);
+}
+
+TANDEM_HD void svgf_variance_pixel(const SvgfParams& p, const SvgfVarianceBuffers& b, uint32_t x,
+                                   uint32_t y) {
+  const size_t i = size_t(y) * p.width + x;
+  const float history = b.moments[i].z;
+  b.out[i] = history >= kSvgfMinHistoryForVariance
+                 ? b.color[i]
+                 : svgf_variance_spatial<true>(p, b, int(x), int(y), history);
 }
 
 // --- a-trous ------------------------------------------------------------------

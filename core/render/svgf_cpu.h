@@ -29,9 +29,23 @@ struct SvgfStageSeconds {
   double total() const { return temporal + variance + atrous + modulate; }
 };
 
+// Which instruction set the CPU filter's row loops use: kBaseline is
+// x86-64's SSE2 (what the build targets), kAvx2 AVX2 with FMA (clones of the
+// same loops, compiled for it with target attributes), kAuto the best the
+// CPU supports (AVX2 unless the environment sets TANDEM_SVGF_ISA=baseline).
+// The two give the same image within float rounding.
+enum class SvgfCpuIsa { kAuto, kBaseline, kAvx2 };
+bool svgf_cpu_avx2_supported();
+// What `isa` resolves to on this CPU (kAuto never comes back). Throws
+// std::invalid_argument for kAvx2 on a CPU without AVX2 and FMA.
+SvgfCpuIsa svgf_cpu_isa(SvgfCpuIsa isa = SvgfCpuIsa::kAuto);
+const char* svgf_cpu_isa_name(SvgfCpuIsa isa);
+
 // The stage order both drivers follow: temporal -> variance -> a-trous
 // iterations (the first one's output is the next frame's colour history, as
-// in Schied et al.; the last one multiplies the albedo back in).
-SvgfStageSeconds svgf_run_cpu(const SvgfParams& params, const SvgfFrame& frame);
+// in Schied et al.; the last one multiplies the albedo back in). Throws
+// std::invalid_argument for kAvx2 on a CPU without AVX2 and FMA.
+SvgfStageSeconds svgf_run_cpu(const SvgfParams& params, const SvgfFrame& frame,
+                              SvgfCpuIsa isa = SvgfCpuIsa::kAuto);
 
 }  // namespace tandem
