@@ -256,5 +256,39 @@ TEST(RenderIntegrator, EmbreePacketWavefrontMatchesItsRayLoop) {
   }
 }
 
+// Rays carry alpha keys only in scenes with alpha-tested meshes; there the
+// keys are the ones the frozen loop draws, so stochastic transparency (the
+// procedural scene's BLEND leaves) gives its images bit for bit.
+TEST(RenderIntegrator, AlphaKeysOnlyWhereSomeMeshIsAlphaTested) {
+  const uint32_t width = 32, height = 24;
+  Compiled box(load_scene("builtin:cornell"), width, height, 4);
+  EXPECT_EQ(box.ks.constants.scene_flags & kSceneHasAlphaTest, 0u);
+  Compiled leaves(test_scene("procedural"), width, height, 4);
+  EXPECT_NE(leaves.ks.constants.scene_flags & kSceneHasAlphaTest, 0u);
+
+  const KernelData box_kd = box.ks.view(), leaves_kd = leaves.ks.view();
+  PathState p;
+  path_generate(box_kd, 3, 5, 2, &p);
+  EXPECT_EQ(path_alpha_key(p), 0u);
+  path_generate(leaves_kd, 3, 5, 2, &p);
+  EXPECT_EQ(path_alpha_key(p), rng_bits(p.rng, bounce_dimension(0, kBounceAlpha)));
+  EXPECT_NE(path_alpha_key(p), 0u);
+
+  size_t same = 0, total = 0;
+  uint32_t rays_new = 0, rays_ref = 0;
+  for (uint32_t y = 0; y < height; ++y) {
+    for (uint32_t x = 0; x < width; ++x) {
+      for (uint32_t s = 0; s < 2; ++s) {
+        const Vec3 a = render_pixel_sample(leaves_kd, BvhTracer{&leaves_kd}, x, y, s, &rays_new);
+        const Vec3 b = reference_pixel_sample(leaves_kd, x, y, s, &rays_ref);
+        same += std::memcmp(&a, &b, sizeof a) == 0;
+        ++total;
+      }
+    }
+  }
+  EXPECT_EQ(same, total);
+  EXPECT_EQ(rays_new, rays_ref);
+}
+
 }  // namespace
 }  // namespace tandem

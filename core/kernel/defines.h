@@ -16,6 +16,17 @@
 #define TANDEM_DEVICE_COMPILE 0
 #endif
 
+// For the small vector, random-number and sampling helpers that every
+// shading point calls many times: nvcc inlines all TANDEM_HD functions, g++
+// at -O3 left these as calls (a tenth of a CPU path-tracing sample went to
+// call overhead and to packing Vec3 arguments into registers). Inlining
+// changes no result: without FMA there is nothing to contract.
+#if defined(__CUDACC__) || !defined(__GNUC__)
+#define TANDEM_HD_INLINE TANDEM_HD
+#else
+#define TANDEM_HD_INLINE inline __attribute__((always_inline))
+#endif
+
 // nvcc's host pass compiles the host branches below (std::memcpy) too, so
 // only NVRTC, which has no standard headers, goes without them.
 #if !defined(__CUDACC_RTC__)

@@ -13,7 +13,7 @@ namespace tandem {
 
 // 32-bit integer finaliser with low avalanche bias (constants found by
 // Chris Wellons' hash-prospector search, published as public domain).
-TANDEM_HD uint32_t hash_u32(uint32_t x) {
+TANDEM_HD_INLINE uint32_t hash_u32(uint32_t x) {
   x ^= x >> 16;
   x *= 0x7feb352du;
   x ^= x >> 15;
@@ -22,12 +22,12 @@ TANDEM_HD uint32_t hash_u32(uint32_t x) {
   return x;
 }
 
-TANDEM_HD uint32_t hash_combine(uint32_t seed, uint32_t v) {
+TANDEM_HD_INLINE uint32_t hash_combine(uint32_t seed, uint32_t v) {
   return hash_u32(seed ^ hash_u32(v));
 }
 
 // Maps 24 random bits to [0, 1): exactly representable, never returns 1.
-TANDEM_HD float u32_to_unit_float(uint32_t x) {
+TANDEM_HD_INLINE float u32_to_unit_float(uint32_t x) {
   return float(x >> 8) * (1.0f / 16777216.0f);
 }
 
@@ -58,15 +58,15 @@ struct PathRng {
   uint32_t sample_reversed;  // its bit reversal, which every draw starts from
 };
 
-TANDEM_HD uint32_t reverse_bits_u32(uint32_t x);
+TANDEM_HD_INLINE uint32_t reverse_bits_u32(uint32_t x);
 
-TANDEM_HD PathRng make_path_rng(uint32_t pixel_index, uint32_t sample_index, uint32_t seed) {
+TANDEM_HD_INLINE PathRng make_path_rng(uint32_t pixel_index, uint32_t sample_index, uint32_t seed) {
   return {hash_combine(hash_u32(seed ^ 0x9e3779b9u), pixel_index), sample_index,
           reverse_bits_u32(sample_index)};
 }
 
 // Uniform random bits with no stratification (keys for stochastic alpha).
-TANDEM_HD uint32_t rng_bits(const PathRng& r, uint32_t dimension) {
+TANDEM_HD_INLINE uint32_t rng_bits(const PathRng& r, uint32_t dimension) {
   return hash_combine(r.key ^ hash_u32(dimension * 0x632be5abu + 0x85ebca6bu), r.sample);
 }
 
@@ -82,7 +82,7 @@ TANDEM_HD uint32_t rng_bits(const PathRng& r, uint32_t dimension) {
 // van der Corput sequence the same way. Everything remains a pure function of
 // (pixel, sample, seed, dimension).
 
-TANDEM_HD uint32_t reverse_bits_u32(uint32_t x) {
+TANDEM_HD_INLINE uint32_t reverse_bits_u32(uint32_t x) {
 #if defined(__CUDA_ARCH__)
   return __brev(x);
 #else
@@ -97,7 +97,7 @@ TANDEM_HD uint32_t reverse_bits_u32(uint32_t x) {
 // depending only on the bits below it (the Laine & Karras 2011 form, in the
 // improved variant of Burley 2020). Applied to bit-reversed input it is a
 // nested uniform (Owen) scramble: owen(x) = reverse(lk_permute(reverse(x))).
-TANDEM_HD uint32_t lk_permute(uint32_t x, uint32_t seed) {
+TANDEM_HD_INLINE uint32_t lk_permute(uint32_t x, uint32_t seed) {
   x ^= x * 0x3d20adeau;
   x += seed;
   x *= (seed >> 16) | 1u;
@@ -108,7 +108,7 @@ TANDEM_HD uint32_t lk_permute(uint32_t x, uint32_t seed) {
 
 // Pascal's triangle mod 2 applied to x's bits: bit i of the result is the
 // parity of the bits j of x whose positions contain i's (Lucas' theorem).
-TANDEM_HD uint32_t pascal_mod2(uint32_t x) {
+TANDEM_HD_INLINE uint32_t pascal_mod2(uint32_t x) {
   x ^= (x & 0xaaaaaaaau) >> 1;
   x ^= (x & 0xccccccccu) >> 2;
   x ^= (x & 0xf0f0f0f0u) >> 4;
@@ -120,13 +120,13 @@ TANDEM_HD uint32_t pascal_mod2(uint32_t x) {
 // Second Sobol dimension (primitive polynomial x + 1), whose generator matrix
 // is Pascal's triangle mod 2; the first dimension is the bit reversal of the
 // index.
-TANDEM_HD uint32_t sobol_dimension1(uint32_t index) {
+TANDEM_HD_INLINE uint32_t sobol_dimension1(uint32_t index) {
   return reverse_bits_u32(pascal_mod2(index));
 }
 
 // The pair a dimension belongs to (first dimension of the pair) and its
 // component in it (0 or 1); dimensions used alone are pairs of one.
-TANDEM_HD void rng_pair_of(uint32_t dimension, uint32_t* pair, uint32_t* component) {
+TANDEM_HD_INLINE void rng_pair_of(uint32_t dimension, uint32_t* pair, uint32_t* component) {
   uint32_t first = dimension;
   if (dimension < kDimBounceBase) {
     first = dimension & ~1u;  // jitter (0, 1), lens (2, 3)
@@ -140,24 +140,24 @@ TANDEM_HD void rng_pair_of(uint32_t dimension, uint32_t* pair, uint32_t* compone
 
 // A pair's own seed and its shuffle of the sample index:
 // index = owen(sample) = reverse(lk_permute(reverse(sample))).
-TANDEM_HD uint32_t rng_pair_seed(const PathRng& r, uint32_t pair) {
+TANDEM_HD_INLINE uint32_t rng_pair_seed(const PathRng& r, uint32_t pair) {
   // r.key is already a hash of (pixel, seed): one more round per pair suffices.
   return hash_u32(r.key ^ (pair * 0x9e3779b9u + 0x632be5abu));
 }
-TANDEM_HD uint32_t rng_pair_index(const PathRng& r, uint32_t pair_seed) {
+TANDEM_HD_INLINE uint32_t rng_pair_index(const PathRng& r, uint32_t pair_seed) {
   return reverse_bits_u32(lk_permute(r.sample_reversed, pair_seed));
 }
 
 // Component c of the pair: point = sobol_c(index), value = owen(point), with
 // the reversals that cancel left out: reverse(sobol_0(i)) = i and
 // reverse(sobol_1(i)) = pascal_mod2(i).
-TANDEM_HD float rng_pair_component(uint32_t index, uint32_t pair_seed, uint32_t component) {
+TANDEM_HD_INLINE float rng_pair_component(uint32_t index, uint32_t pair_seed, uint32_t component) {
   const uint32_t reversed_point = component == 0 ? index : pascal_mod2(index);
   return u32_to_unit_float(
       reverse_bits_u32(lk_permute(reversed_point, hash_u32(pair_seed + component + 1u))));
 }
 
-TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
+TANDEM_HD_INLINE float rng_1d(const PathRng& r, uint32_t dimension) {
   uint32_t pair, component;
   rng_pair_of(dimension, &pair, &component);
   const uint32_t seed = rng_pair_seed(r, pair);
@@ -167,7 +167,7 @@ TANDEM_HD float rng_1d(const PathRng& r, uint32_t dimension) {
 // rng_1d of a dimension that is not part of a pair (light selection, lobe,
 // roulette: rng_pair_of gives (dimension, 0) for them), without looking
 // that up: the same number.
-TANDEM_HD float rng_1d_unpaired(const PathRng& r, uint32_t dimension) {
+TANDEM_HD_INLINE float rng_1d_unpaired(const PathRng& r, uint32_t dimension) {
   const uint32_t seed = rng_pair_seed(r, dimension);
   return rng_pair_component(rng_pair_index(r, seed), seed, 0);
 }
@@ -175,13 +175,13 @@ TANDEM_HD float rng_1d_unpaired(const PathRng& r, uint32_t dimension) {
 // Both dimensions of the pair starting at `first` (pixel jitter, lens, light
 // or BSDF uv) at the cost of little more than one: exactly
 // {rng_1d(r, first), rng_1d(r, first + 1)}.
-TANDEM_HD Vec2 rng_2d(const PathRng& r, uint32_t first) {
+TANDEM_HD_INLINE Vec2 rng_2d(const PathRng& r, uint32_t first) {
   const uint32_t seed = rng_pair_seed(r, first);
   const uint32_t index = rng_pair_index(r, seed);
   return {rng_pair_component(index, seed, 0), rng_pair_component(index, seed, 1)};
 }
 
-TANDEM_HD uint32_t bounce_dimension(uint32_t bounce, uint32_t which) {
+TANDEM_HD_INLINE uint32_t bounce_dimension(uint32_t bounce, uint32_t which) {
   return kDimBounceBase + bounce * kDimsPerBounce + which;
 }
 

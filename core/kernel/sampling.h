@@ -8,7 +8,7 @@
 namespace tandem {
 
 // Shirley-Chiu concentric mapping of the unit square to the unit disk.
-TANDEM_HD Vec2 sample_disk_concentric(float u1, float u2) {
+TANDEM_HD_INLINE Vec2 sample_disk_concentric(float u1, float u2) {
   const float a = 2.0f * u1 - 1.0f;
   const float b = 2.0f * u2 - 1.0f;
   if (a == 0.0f && b == 0.0f) return {0.0f, 0.0f};
@@ -26,17 +26,17 @@ TANDEM_HD Vec2 sample_disk_concentric(float u1, float u2) {
 }
 
 // Cosine-weighted hemisphere around +z; pdf = cos(theta) / pi.
-TANDEM_HD Vec3 sample_cosine_hemisphere(float u1, float u2) {
+TANDEM_HD_INLINE Vec3 sample_cosine_hemisphere(float u1, float u2) {
   const Vec2 d = sample_disk_concentric(u1, u2);
   const float z = safe_sqrt(1.0f - d.x * d.x - d.y * d.y);
   return {d.x, d.y, z};
 }
-TANDEM_HD float pdf_cosine_hemisphere(float cos_theta) {
+TANDEM_HD_INLINE float pdf_cosine_hemisphere(float cos_theta) {
   return cos_theta > 0.0f ? cos_theta * kInvPi : 0.0f;
 }
 
 // Uniform direction on the unit sphere; pdf = 1 / (4 pi).
-TANDEM_HD Vec3 sample_uniform_sphere(float u1, float u2) {
+TANDEM_HD_INLINE Vec3 sample_uniform_sphere(float u1, float u2) {
   const float z = 1.0f - 2.0f * u1;
   const float r = safe_sqrt(1.0f - z * z);
   const SinCos sc = sincos_pi(2.0f * u2);  // phi = 2 pi u2
@@ -46,7 +46,7 @@ TANDEM_HD Vec3 sample_uniform_sphere(float u1, float u2) {
 // Uniform point on a triangle, returned as barycentrics (b1, b2) with
 // b0 = 1 - b1 - b2. Uses the low-distortion square-to-triangle map of Heitz
 // (2019) so stratification of (u1, u2) carries over to the triangle.
-TANDEM_HD Vec2 sample_triangle_barycentrics(float u1, float u2) {
+TANDEM_HD_INLINE Vec2 sample_triangle_barycentrics(float u1, float u2) {
   float b0, b1;
   if (u2 > u1) {
     b0 = u1 * 0.5f;
@@ -60,7 +60,7 @@ TANDEM_HD Vec2 sample_triangle_barycentrics(float u1, float u2) {
 
 // Power heuristic (beta = 2) for multiple importance sampling; written so
 // very large pdfs (near-specular lobes) do not overflow.
-TANDEM_HD float mis_power_heuristic(float pdf_a, float pdf_b) {
+TANDEM_HD_INLINE float mis_power_heuristic(float pdf_a, float pdf_b) {
   if (!(pdf_a > 0.0f)) return 0.0f;
   if (!(pdf_b > 0.0f) || !is_finite(pdf_b)) return 1.0f;
   if (!is_finite(pdf_a)) return 1.0f;
@@ -70,7 +70,7 @@ TANDEM_HD float mis_power_heuristic(float pdf_a, float pdf_b) {
 
 // Equirectangular (latitude-longitude) mapping with +y up. u = 0.5 looks down
 // -z, matching the usual HDRI orientation used by glTF viewers.
-TANDEM_HD Vec2 direction_to_equirect(Vec3 d) {
+TANDEM_HD_INLINE Vec2 direction_to_equirect(Vec3 d) {
   const float u = atan2f(d.x, -d.z) * kInv2Pi + 0.5f;
   // theta from atan2 rather than acos(d.y): acos is ill-conditioned near the
   // poles, where float d.y = 1 - 6e-8 steps move theta by 3e-4 rad, and the
@@ -78,7 +78,7 @@ TANDEM_HD Vec2 direction_to_equirect(Vec3 d) {
   const float v = atan2f(sqrtf(d.x * d.x + d.z * d.z), d.y) * kInvPi;
   return {u - floorf(u), v};
 }
-TANDEM_HD Vec3 equirect_to_direction(float u, float v) {
+TANDEM_HD_INLINE Vec3 equirect_to_direction(float u, float v) {
   const SinCos phi = sincos_pi(2.0f * u - 1.0f);  // phi = (u - 0.5) 2 pi
   const SinCos theta = sincos_pi(v);              // theta = v pi
   return {theta.sin * phi.sin, theta.cos, -theta.sin * phi.cos};

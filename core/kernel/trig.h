@@ -26,17 +26,17 @@ struct SinCos {
 // error (iteratively reweighted least squares, which converges to the minimax
 // fit) with each coefficient rounded to float before the next ones were refit.
 // sin(pi r) = r * P(t); cos(pi r) = 1 + t * Q(t).
-TANDEM_HD float sin_pi_reduced(float r, float t) {
+TANDEM_HD_INLINE float sin_pi_reduced(float r, float t) {
   return r * (0x1.921fb6p+1f + t * (-0x1.4abc24p+2f + t * (0x1.4680a4p+1f + t * -0x1.33199p-1f)));
 }
-TANDEM_HD float cos_pi_reduced(float t) {
+TANDEM_HD_INLINE float cos_pi_reduced(float t) {
   return 1.0f +
          t * (-0x1.3bd3ccp+2f + t * (0x1.03c1bp+2f + t * (-0x1.55b2b6p+0f + t * 0x1.d4f7eep-3f)));
 }
 
 // sin(pi x) and cos(pi x) for |x| <= 2^22 (the reduction stays exact there;
 // the kernels pass |x| <= 2 or an angle over pi). NaN in, NaN out.
-TANDEM_HD SinCos sincos_pi(float x) {
+TANDEM_HD_INLINE SinCos sincos_pi(float x) {
   // x = n / 2 + r with integer n and |r| <= 1/4; both steps are exact.
   const float n = rintf(2.0f * x);
   const float r = x - 0.5f * n;
@@ -52,10 +52,10 @@ TANDEM_HD SinCos sincos_pi(float x) {
   return out;
 }
 
-TANDEM_HD float sin_pi(float x) {
+TANDEM_HD_INLINE float sin_pi(float x) {
   return sincos_pi(x).sin;
 }
-TANDEM_HD float cos_pi(float x) {
+TANDEM_HD_INLINE float cos_pi(float x) {
   return sincos_pi(x).cos;
 }
 

@@ -208,6 +208,11 @@ struct KIntegratorParams {
   uint32_t seed;
 };
 
+enum SceneFlags : uint32_t {
+  // Some mesh has kMeshHasAlphaTest: only then do rays need alpha keys.
+  kSceneHasAlphaTest = 1u << 0,
+};
+
 // Scalars that accompany the device arrays.
 struct KernelConstants {
   KCamera camera;
@@ -217,7 +222,8 @@ struct KernelConstants {
   float scene_radius;
   float total_light_power;
   uint32_t environment_light_index;  // kInvalidIndex if the environment is black
-  uint32_t pad[2];
+  uint32_t scene_flags;              // SceneFlags
+  uint32_t pad;
   // The BVH's roots and layout are in KernelData::bvh (core/kernel/bvh.h).
 };
 

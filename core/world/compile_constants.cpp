@@ -30,6 +30,11 @@ void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& 
   const SceneBounds b = scene.bounds();
   out.constants.scene_center = to_vec3(b.center());
   out.constants.scene_radius = b.radius();
+  // From the mesh flags the traversals test, so the two always agree.
+  uint32_t flags = 0;
+  for (const KMesh& m : out.meshes)
+    if (m.flags & kMeshHasAlphaTest) flags |= kSceneHasAlphaTest;
+  out.constants.scene_flags = flags;
 }
 
 }  // namespace tandem
