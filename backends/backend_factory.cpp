@@ -106,8 +106,19 @@ class CpuFallbackBackend final : public Backend {
     return stats;
   }
 
+  // A device that fails in the feature pass falls back like one that fails
+  // in render(): the CPU backend gets the whole scene and computes the
+  // features, so the denoiser never sees a device error.
   bool render_features(const FeaturePass& pass, PixelFeatures* out) override {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!fell_back_) {
+      try {
+        return active_->render_features(pass, out);
+      } catch (const DeviceError& e) {
+        fall_back_locked(e.what());
+        active_->sync(*scene_, SceneDelta::everything());
+      }
+    }
     return active_->render_features(pass, out);
   }
 

@@ -17,6 +17,7 @@
 #include "backends/cuda/sim_device.h"
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
+#include "core/world/motion_history.h"
 #include "cuda_test_util.h"
 
 namespace tandem {
@@ -439,6 +440,27 @@ TEST(CudaFaults, FallbackForwardsTraitsAndChangesThemWhenItFallsBack) {
   render_image(*wrapped, 16, 16, 1);  // the first launch fails: now the CPU renders
   EXPECT_EQ(wrapped->traits(), CpuBackend(CpuTraversal::kEmbree).traits());
   EXPECT_EQ(wrapped->name(), "cpu");
+}
+
+// A device that fails in the denoiser's feature pass falls back to the CPU
+// there too: the caller gets the CPU backend's features, not an exception.
+TEST(CudaFaults, FeaturePassFailureFallsBackToTheCpu) {
+  auto sim = std::make_shared<SimDevice>(quick());
+  std::unique_ptr<Backend> wrapped = make_cpu_fallback(
+      std::make_unique<CudaBackend>(inject_faults(sim, parse_fault_spec("launch@1")),
+                                    CudaKernelVariant::kMegakernel, CudaBackend::LaunchLimits{}));
+  FrameScene fs(load_scene("builtin:cornell"), 16, 16);
+  const SceneDelta delta = fs.next_frame();
+  wrapped->sync(fs.ks, delta);
+  CpuBackend cpu(CpuTraversal::kEmbree);
+  cpu.sync(fs.ks, delta);
+  MotionHistory motion;
+  const FeaturePass pass = motion.advance(fs.ks.view());
+  std::vector<PixelFeatures> got(16 * 16), want(16 * 16);
+  ASSERT_TRUE(wrapped->render_features(pass, got.data()));  // the first launch fails
+  EXPECT_EQ(wrapped->name(), "cpu");
+  ASSERT_TRUE(cpu.render_features(pass, want.data()));
+  EXPECT_EQ(std::memcmp(got.data(), want.data(), got.size() * sizeof(PixelFeatures)), 0);
 }
 
 // Device-film writes are checked against the film: a tile outside it is a

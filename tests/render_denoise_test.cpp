@@ -32,6 +32,14 @@ PixelFeatures plane_pixel(uint32_t instance, float depth, Vec3 normal, Vec3 albe
   return f;
 }
 
+// A pixel whose primary ray left the scene: no instance, primitive or
+// material, white albedo (what the feature pass writes for the sky).
+PixelFeatures sky_pixel() {
+  PixelFeatures f = plane_pixel(kInvalidIndex, 0.0f, make_vec3(0.0f), make_vec3(1.0f));
+  f.prim = f.material = kInvalidIndex;
+  return f;
+}
+
 ImageRGB image_from(const std::vector<Vec3>& v, uint32_t w, uint32_t h) {
   ImageRGB img(w, h);
   for (size_t i = 0; i < v.size(); ++i) {
@@ -50,8 +58,7 @@ TEST(Denoise, ConstantImagePassesThroughUnchanged) {
     for (uint32_t x = 0; x < kW; ++x) {
       PixelFeatures& f = features[y * kW + x];
       if (y < 6) {
-        f = plane_pixel(kInvalidIndex, 0.0f, make_vec3(0.0f), make_vec3(1.0f));
-        f.prim = f.material = kInvalidIndex;
+        f = sky_pixel();
       } else {
         f = x < kW / 2
                 ? plane_pixel(0, 2.0f + 0.01f * float(y), make_vec3(0, 0, 1), make_vec3(0.5f))
@@ -418,8 +425,7 @@ TEST(Denoise, Avx2AndBaselineLoopsGiveTheSameImage) {
         for (uint32_t x = 0; x < w; ++x) {
           PixelFeatures& p = f[y * w + x];
           if (y < 6) {
-            p = plane_pixel(kInvalidIndex, 0.0f, make_vec3(0.0f), make_vec3(1.0f));
-            p.prim = p.material = kInvalidIndex;
+            p = sky_pixel();
           } else if (x >= sq_x && x < sq_x + 24 && y >= 20 && y < 44) {
             p = plane_pixel(1, 2.0f, normalize(make_vec3(0.1f, 0.0f, 1.0f)), make_vec3(0.8f));
             if (frame > 0) p.motion = make_vec2(-5.0f, 0.0f);
