@@ -154,6 +154,8 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
     const MeshGeometry g = mesh_geometry(ks, m);
     // Measured before the first refit of the new tree (refit_blas).
     blas_built_quality_[m] = kQualityUnknown;
+    blas_refit_[m].clear();
+    blas_refit_state_[m] = FastRefit::kNotTried;
     const bool use_cache =
         allow_cache && cache_ && g.triangle_count >= settings_.cache.min_triangles;
     uint64_t key = 0;
@@ -178,14 +180,30 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
   up.blas_loaded += loaded.load();
 }
 
-std::vector<uint32_t> AccelStructure::refit_blas(const KernelScene& ks,
+std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
                                                  const std::vector<uint32_t>& meshes) {
   std::vector<uint8_t> poor(meshes.size(), 0);
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     BvhLayouts& l = blas_[m];
+    const MeshGeometry g = mesh_geometry(ks, m);
     if (std::isnan(blas_built_quality_[m])) blas_built_quality_[m] = refit_quality(l);
-    const std::vector<Aabb> boxes = triangle_boxes(mesh_geometry(ks, m));
+    if (blas_refit_state_[m] == FastRefit::kNotTried) {
+      blas_refit_state_[m] = blas_refit_[m].index(l, g) ? FastRefit::kIndexed : FastRefit::kRefused;
+    }
+    refit_emitted_[m] = 0;
+    if (blas_refit_state_[m] == FastRefit::kIndexed) {
+      // One pass over the triangles in leaf order, both layouts, straight
+      // into the kernel arrays (blas_refit.h).
+      const LayoutBases& b = blas_bases_[m];
+      const BlasRefit::Result r = blas_refit_[m].refit(l, g, b, ks.bvh_nodes.data() + b.node,
+                                                       ks.bvh_wide_nodes.data() + b.wide_node);
+      refit_emitted_[m] = 1;
+      refit_spans_[m] = r.spans;
+      poor[i] = r.members_changed || refit_too_poor(r.quality, blas_built_quality_[m]);
+      return;
+    }
+    const std::vector<Aabb> boxes = triangle_boxes(g);
     // A triangle whose box became valid or invalid (a vertex went to or
     // came back from NaN) joins or leaves the hierarchy: only a build
     // does that. Equal counts with a swapped member go unnoticed; the
@@ -398,6 +416,10 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   if (delta.full || !laid_out_ || blas_.size() != n) {
     blas_.assign(n, BvhLayouts{});
     blas_built_quality_.assign(n, kQualityUnknown);
+    blas_refit_.assign(n, BlasRefit{});
+    blas_refit_state_.assign(n, FastRefit::kNotTried);
+    refit_spans_.assign(n, NodeSpans{});
+    refit_emitted_.assign(n, 0);
     rebuild.resize(n);
     for (uint32_t m = 0; m < n; ++m)
       rebuild[m] = m;
@@ -447,8 +469,10 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     // report the span of those that changed.
     for (uint32_t m : refit) {
       const LayoutBases& b = blas_bases_[m];
-      const NodeSpans spans = emit_refit_nodes(blas_[m], b, ks.bvh_nodes.data() + b.node,
-                                               ks.bvh_wide_nodes.data() + b.wide_node);
+      const NodeSpans spans = refit_emitted_[m]
+                                  ? refit_spans_[m]
+                                  : emit_refit_nodes(blas_[m], b, ks.bvh_nodes.data() + b.node,
+                                                     ks.bvh_wide_nodes.data() + b.wide_node);
       up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
       up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
                                    b.wide_node + spans.wide_nodes.end);

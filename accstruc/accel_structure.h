@@ -25,6 +25,7 @@
 #include <memory>
 #include <vector>
 
+#include "accstruc/blas_refit.h"
 #include "accstruc/bvh_builder.h"
 #include "accstruc/bvh_cache.h"
 #include "accstruc/bvh_layouts.h"
@@ -84,7 +85,9 @@ class AccelStructure {
   void build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes, AccelUpdate& up,
                   bool allow_cache);
   // Refits the meshes' BLAS; returns those (ascending) to rebuild instead.
-  std::vector<uint32_t> refit_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes);
+  // Meshes BlasRefit handles are written into ks's BVH arrays too (their
+  // spans in refit_spans_); the others are left to emit_refit_nodes().
+  std::vector<uint32_t> refit_blas(KernelScene& ks, const std::vector<uint32_t>& meshes);
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
@@ -100,6 +103,13 @@ class AccelStructure {
   std::vector<BvhLayouts> blas_;
   std::vector<double> blas_built_quality_;  // refit_quality() right after each BLAS's build
   std::vector<LayoutBases> blas_bases_;
+  // Per BLAS: its BlasRefit index (built at its first refit), whether that
+  // refit wrote the kernel arrays itself, and the nodes it rewrote there.
+  enum class FastRefit : uint8_t { kNotTried, kIndexed, kRefused };
+  std::vector<BlasRefit> blas_refit_;
+  std::vector<FastRefit> blas_refit_state_;
+  std::vector<NodeSpans> refit_spans_;
+  std::vector<uint8_t> refit_emitted_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;
   uint32_t tlas_capacity_instances_ = 0;

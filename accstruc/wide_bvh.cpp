@@ -48,11 +48,15 @@ void quantize(KWideBvhNode& n, const Aabb boxes[kWideBvhWidth], uint32_t used) {
   }
   if (all.empty()) all = Aabb{{0, 0, 0}, {0, 0, 0}};
   n.origin = all.lo;
-  float scale[3];
+  float scale[3], inverse[3];
   for (int a = 0; a < 3; ++a) {
     const int e = choose_exponent(component(all.lo, a), component(all.hi, a));
     n.exponent[a] = uint8_t(e + 127);
     scale[a] = exp2_int(e);
+    // 2^-e is a normal float for every e chosen, so x * 2^-e rounds the
+    // same real number as x / 2^e: the same planes, without a division
+    // per plane (a refit re-quantises every node every frame).
+    inverse[a] = exp2_int(-e);
   }
   for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
     const bool live = ((used >> s) & 1u) && !boxes[s].empty();
@@ -62,13 +66,13 @@ void quantize(KWideBvhNode& n, const Aabb boxes[kWideBvhWidth], uint32_t used) {
         n.qhi[a][s] = 0;
         continue;
       }
-      const float o = component(n.origin, a), sc = scale[a];
+      const float o = component(n.origin, a), sc = scale[a], inv = inverse[a];
       const float lo = component(boxes[s].lo, a), hi = component(boxes[s].hi, a);
-      float f = std::floor((lo - o) / sc);
+      float f = std::floor((lo - o) * inv);
       uint32_t qlo = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
       while (qlo > 0 && decode(o, qlo, sc) > lo)
         --qlo;
-      f = std::ceil((hi - o) / sc);
+      f = std::ceil((hi - o) * inv);
       uint32_t qhi = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
       while (qhi < 255 && decode(o, qhi, sc) < hi)
         ++qhi;
@@ -380,6 +384,10 @@ Aabb refit_wide(BvhLayouts& l, std::span<const Aabb> prim_boxes, uint32_t parall
   if (l.wide_nodes.empty()) return Aabb{};
   // The wide tree is about a third as deep as the binary one.
   return refit_node(l, 0, prim_boxes, (parallel_depth + 2) / 3);
+}
+
+void quantize_wide_node(KWideBvhNode& node, const Aabb boxes[kWideBvhWidth], uint32_t used) {
+  quantize(node, boxes, used);
 }
 
 Aabb wide_slot_box(const KWideBvhNode& n, uint32_t slot) {

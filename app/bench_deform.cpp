@@ -102,7 +102,7 @@ int run_deform_bench(const std::vector<std::string>& argv) {
     SceneCompiler compiler;
     AccelStructure accel;
     std::vector<double> skin_ms, update_ms, total_ms, bytes, skin_cpu, update_cpu, sync_ms,
-        accstruc_ms;
+        accstruc_ms, sync_cpu, accstruc_cpu;
     size_t vertices = 0;
     for (uint32_t f = 0; f <= frames; ++f) {
       const double c0 = cpu_ms_now();
@@ -114,6 +114,7 @@ int run_deform_bench(const std::vector<std::string>& argv) {
       const auto t1 = Clock::now();
       const SceneDelta delta = compiler.compile(scene, settings, ks);
       const double compile = ms_since(t1);
+      const double c_compiled = cpu_ms_now();
       const auto t2 = Clock::now();
       const AccelUpdate update = accel.update(ks, delta);
       const double refit = ms_since(t2);
@@ -129,6 +130,8 @@ int run_deform_bench(const std::vector<std::string>& argv) {
       bytes.push_back(double(frame_bytes));
       skin_cpu.push_back(c1 - c0);
       update_cpu.push_back(c2 - c1);
+      sync_cpu.push_back(c_compiled - c1);
+      accstruc_cpu.push_back(c2 - c_compiled);
     }
     const double skin = median(skin_ms), upd = median(update_ms), total = median(total_ms);
     const double delta_bytes = median(bytes);
@@ -144,7 +147,9 @@ int run_deform_bench(const std::vector<std::string>& argv) {
                   .set("total_ms", total)
                   .set("delta_bytes", delta_bytes)
                   .set("skinning_cpu_ms", median(skin_cpu))
-                  .set("update_cpu_ms", median(update_cpu)));
+                  .set("update_cpu_ms", median(update_cpu))
+                  .set("sync_scene_cpu_ms", median(sync_cpu))
+                  .set("update_accstruc_cpu_ms", median(accstruc_cpu)));
   }
   report.set("scenes", list);
   write_json_report(json_path, report);

@@ -138,10 +138,12 @@ size_t deform_gltf_meshes(const GltfAnimations& anims, const std::vector<GltfAni
       palette.push_back(joint_matrix(world[dm.node]));  // the all-zero-weights slot
     }
     const std::vector<float>& weights = local[dm.node].weights;
-    deform_scene_mesh(d, palette.empty() ? nullptr : palette.data(),
-                      weights.size() == d.targets && !weights.empty() ? weights.data() : nullptr,
-                      scene);
-    ++written;
+    if (deform_scene_mesh(
+            d, palette.empty() ? nullptr : palette.data(),
+            weights.size() == d.targets && !weights.empty() ? weights.data() : nullptr, scene,
+            dm.last)) {
+      ++written;
+    }
   }
   return written;
 }

@@ -92,6 +92,7 @@ struct GltfDeformedMesh {
   uint32_t node = 0;  // glTF node with the mesh (and skin)
   int skin = -1;      // index into GltfAnimations::skins, -1: morph only
   MeshDeformation deformation;
+  mutable DeformedPose last;  // an unchanged pose is not deformed again
 };
 
 struct GltfAnimations {
@@ -119,7 +120,8 @@ std::vector<glm::mat4> gltf_world_transforms(const GltfAnimations& animations,
 std::vector<glm::mat4> pose_gltf_nodes(const GltfAnimations& animations, double t);
 
 // Deforms every mesh of `animations.deformed` for the given pose (through
-// Scene::edit_mesh_vertices). Returns how many meshes were written.
+// Scene::edit_mesh_vertices), except those that hold this pose already.
+// Returns how many meshes were written.
 size_t deform_gltf_meshes(const GltfAnimations& animations, const std::vector<GltfAnimNode>& local,
                           const std::vector<glm::mat4>& world, Scene& scene);
 

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <cmath>
+#include <cstring>
 
 #if defined(__SSE__)
 #include <xmmintrin.h>
@@ -221,6 +222,26 @@ void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene) {
   if (d.mesh >= scene.meshes().size()) return;
   deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
+}
+
+bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last) {
+  if (d.mesh >= scene.meshes().size()) return false;
+  const size_t joints = d.skinned() && palette != nullptr ? d.palette_size : 0;
+  const size_t targets = morph_weights != nullptr ? d.targets : 0;
+  const bool same_pose =
+      last.vertex_version != 0 && last.vertex_version == scene.mesh_vertex_version(d.mesh) &&
+      last.palette.size() == joints && last.morph_weights.size() == targets &&
+      (joints == 0 ||
+       std::memcmp(last.palette.data(), palette, joints * sizeof(JointMatrix)) == 0) &&
+      (targets == 0 ||
+       std::memcmp(last.morph_weights.data(), morph_weights, targets * sizeof(float)) == 0);
+  if (same_pose) return false;
+  deform_scene_mesh(d, palette, morph_weights, scene);
+  last.palette.assign(palette, palette + joints);
+  last.morph_weights.assign(morph_weights, morph_weights + targets);
+  last.vertex_version = scene.mesh_vertex_version(d.mesh);
+  return true;
 }
 
 }  // namespace tandem

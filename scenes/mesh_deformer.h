@@ -75,4 +75,18 @@ void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const flo
 void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene);
 
+// What deform_scene_mesh() last wrote into its Scene mesh. A pose equal to
+// it (a paused or held clip, a rig at rest, the viewer redrawing one time)
+// is then neither skinned again nor, the mesh staying clean, refit.
+struct DeformedPose {
+  std::vector<JointMatrix> palette;  // empty: not skinned
+  std::vector<float> morph_weights;  // empty: no weights given
+  uint64_t vertex_version = 0;       // Scene::mesh_vertex_version() after the write; 0: none
+};
+// deform_scene_mesh() unless the mesh still holds (its vertex version is
+// last's) the same pose (bit for bit the same palette and weights); then it
+// is left alone, not marked dirty. Returns whether it deformed; updates last.
+bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last);
+
 }  // namespace tandem

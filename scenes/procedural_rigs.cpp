@@ -291,7 +291,7 @@ void ProceduralRigPlayer::pose(double t, Scene& scene) const {
     } else {
       skinned_grid_palette(t, palette);
     }
-    deform_scene_mesh(r.deformation, palette, nullptr, scene);
+    deform_scene_mesh(r.deformation, palette, nullptr, scene, r.last);
   }
 }
 

@@ -61,7 +61,8 @@ class ProceduralRigPlayer {
  private:
   struct Rig {
     MeshDeformation deformation;
-    int walker = -1;  // index into arena_walker_paths(), -1: the grid
+    int walker = -1;            // index into arena_walker_paths(), -1: the grid
+    mutable DeformedPose last;  // an unchanged pose is not deformed again
   };
   std::vector<Rig> rigs_;
 };

@@ -20,6 +20,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "core/util/errors.h"
+#include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/gltf_animation.h"
 #include "scenes/gltf_loader.h"
@@ -592,6 +593,44 @@ TEST(MeshDeformer, SkinnedGridIsABuiltinWithAMillionVerticesThatAnimates) {
   scene.clear_dirty();
   animator->pose(1.0, scene);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
+}
+
+TEST(MeshDeformer, AnUnchangedPoseIsNeitherSkinnedNorRefitAgain) {
+  Scene scene = make_skinned_grid_scene(40);
+  auto animator = make_scene_animator(scene);
+  KernelScene ks;
+  SceneCompiler compiler;
+  const RenderSettings settings;
+  compiler.compile(scene, settings, ks);
+  animator->pose(0.5, scene);
+  ASSERT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
+  const uint64_t version = scene.mesh_vertex_version(0);
+  EXPECT_EQ(compiler.compile(scene, settings, ks).meshes_refit.size(), 1u);
+  // The same time again: the palette is bit for bit the last one and the
+  // mesh holds what it wrote, so nothing is skinned, marked or refit.
+  animator->pose(0.5, scene);
+  EXPECT_TRUE(scene.dirty_meshes().empty());
+  EXPECT_EQ(scene.mesh_vertex_version(0), version);
+  const SceneDelta same = compiler.compile(scene, settings, ks);
+  EXPECT_TRUE(same.meshes_refit.empty());
+  EXPECT_FALSE(same.positions.any());
+  // Someone else writes the mesh: the same pose is then written again.
+  const std::vector<glm::vec3> posed = scene.meshes()[0].positions;
+  scene.edit_mesh_vertices(0, 7, 1).positions[7].y += 1.0f;
+  compiler.compile(scene, settings, ks);
+  animator->pose(0.5, scene);
+  EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
+  EXPECT_EQ(scene.meshes()[0].positions, posed);
+  compiler.compile(scene, settings, ks);
+  // Another time moves it as before.
+  animator->pose(0.6, scene);
+  EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
+  EXPECT_NE(scene.meshes()[0].positions, posed);
+  // A copy of the scene holds the pose too: not written again there.
+  compiler.compile(scene, settings, ks);
+  Scene copy = scene;
+  animator->pose(0.6, copy);
+  EXPECT_TRUE(copy.dirty_meshes().empty());
 }
 
 }  // namespace

@@ -85,6 +85,55 @@ TEST(SceneBoundsCache, EqualsAFullRecomputationAfterRandomEdits) {
   expect_same_bounds(scene.bounds(), compute_scene_bounds(scene.meshes(), scene.instances()), 400);
 }
 
+TEST(SceneBoundsCache, BoxesFromTheCompilersVertexCopyEqualTheTriangleWalk) {
+  // Mesh 0 uses every vertex (its box can come from the compiler's copy of
+  // the positions); mesh 1 leaves one far vertex unused (it cannot); both
+  // hold zeros of both signs, whose order must not matter.
+  std::mt19937 rng(3);
+  Scene scene;
+  scene.add_material(Material{});
+  Mesh used = random_mesh(rng, 40);
+  used.positions.pop_back();
+  scene.add_mesh(used);
+  scene.add_mesh(random_mesh(rng, 40));
+  scene.add_instance({"a", 0, random_transform(rng)});
+  scene.add_instance({"b", 1, glm::mat4(1.0f)});
+  KernelScene ks;
+  SceneCompiler compiler;
+  const RenderSettings settings;
+  compiler.compile(scene, settings, ks);
+  const auto same_bits = [](const SceneBounds& a, const SceneBounds& b) {
+    return a.empty == b.empty && std::memcmp(&a.lo, &b.lo, sizeof(a.lo)) == 0 &&
+           std::memcmp(&a.hi, &b.hi, sizeof(a.hi)) == 0;
+  };
+  for (int frame = 0; frame < 20; ++frame) {
+    for (uint32_t m = 0; m < 2; ++m) {
+      Mesh& mesh = scene.edit_mesh_vertices(m);
+      for (size_t v = 0; v + (m == 1 ? 1 : 0) < mesh.positions.size(); ++v) {
+        mesh.positions[v] *= 0.9f + 0.2f * float(rng() % 100) / 100.0f;
+        if (rng() % 7 == 0) mesh.positions[v].x = (rng() % 2) ? 0.0f : -0.0f;
+      }
+      if (frame == 10) mesh.positions.back().y = 50.0f;
+    }
+    // The compile copies every vertex of both meshes; its constants read
+    // the bounds.
+    compiler.compile(scene, settings, ks);
+    const SceneBounds cached = scene.bounds();
+    const SceneBounds full = compute_scene_bounds(scene.meshes(), scene.instances());
+    ASSERT_TRUE(same_bits(cached, full)) << "frame " << frame;
+  }
+  // A box handed over and then outdated by another edit is not used; nor
+  // is one for a mesh with unused vertices.
+  const SceneBounds bogus{glm::vec3(-1000.0f), glm::vec3(1000.0f), false};
+  scene.edit_mesh_vertices(0).positions[0] = glm::vec3(9.0f);
+  scene.note_mesh_vertex_bounds(0, bogus);
+  scene.edit_mesh_vertices(0).positions[1] = glm::vec3(-9.0f);
+  scene.edit_mesh_vertices(1).positions[0] = glm::vec3(8.0f);
+  scene.note_mesh_vertex_bounds(1, bogus);
+  EXPECT_TRUE(same_bits(scene.bounds(), compute_scene_bounds(scene.meshes(), scene.instances())));
+  EXPECT_LT(scene.bounds().hi.y, 1000.0f);
+}
+
 TEST(SceneDirtyLists, ListEachMarkedObjectOnceAndClearWithTheMasks) {
   Scene scene;
   scene.add_material(Material{});

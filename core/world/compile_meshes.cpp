@@ -2,6 +2,7 @@
 // triangles. Flags read the materials, so materials compile first.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <vector>
@@ -83,8 +84,8 @@ void convert_range(std::vector<Out>& out, const std::vector<In>& in, uint32_t ba
 
 }  // namespace
 
-void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out,
-                                        uint32_t begin, uint32_t end) {
+bool SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out,
+                                        uint32_t begin, uint32_t end, SceneBounds* box) {
   const uint32_t base = out.meshes[mesh_index].vertex_offset;
   // One attribute at a time over a block: straight copies the compiler can
   // vectorise, instead of a branch per attribute per vertex.
@@ -98,16 +99,43 @@ void SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
     convert_range(out.uv0, mesh.uv0, base, b, e, uv);
     convert_range(out.uv1, mesh.uv1, base, b, e, uv);
   };
+  // The box while the block's positions are still in the cache: the bounds
+  // cache needs no pass of its own over a deformed mesh.
+  struct Box {
+    SceneBounds b;
+    bool finite = true;
+  };
+  auto block_box = [&](uint32_t b, uint32_t e) {
+    block(b, e);
+    Box r;
+    if (box != nullptr && e > b && e <= mesh.positions.size())
+      r.b = vertex_bounds(mesh.positions.data() + b, e - b, &r.finite);
+    return r;
+  };
+  if (end <= begin) return false;
+  Box all;
   if (end - begin <= kVertexGrain) {
-    block(begin, end);
-    return;
+    all = block_box(begin, end);
+  } else {
+    all = tbb::parallel_reduce(
+        tbb::blocked_range<uint32_t>(begin, end, kVertexGrain), Box{},
+        [&](const tbb::blocked_range<uint32_t>& r, Box acc) {
+          const Box here = block_box(r.begin(), r.end());
+          acc.b.extend(here.b);
+          acc.finite = acc.finite && here.finite;
+          return acc;
+        },
+        [](Box a, const Box& b) {
+          a.b.extend(b.b);
+          a.finite = a.finite && b.finite;
+          return a;
+        });
   }
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(begin, end, kVertexGrain),
-                    [&](const tbb::blocked_range<uint32_t>& r) { block(r.begin(), r.end()); });
+  if (box != nullptr) *box = all.b;
+  return box != nullptr && all.finite;
 }
 
-void SceneCompiler::update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta,
-                                  Needs& needs) {
+void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs) {
   std::vector<uint32_t> dirty = scene.dirty_meshes();
   std::sort(dirty.begin(), dirty.end());
   for (uint32_t i : dirty) {
@@ -119,7 +147,10 @@ void SceneCompiler::update_meshes(const Scene& scene, KernelScene& out, SceneDel
     const Scene::VertexRange r = scene.mesh_dirty_vertices(i);
     const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(mesh.positions.size())});
     if (end <= r.begin) continue;
-    write_mesh_vertices(mesh, i, out, r.begin, end);
+    const bool whole = r.begin == 0 && end == mesh.positions.size();
+    SceneBounds box;
+    if (write_mesh_vertices(mesh, i, out, r.begin, end, whole ? &box : nullptr))
+      scene.note_mesh_vertex_bounds(i, box);
     const uint32_t b = km.vertex_offset + r.begin, e = km.vertex_offset + end;
     delta.positions.mark(b, e);
     if (!out.normals.empty()) delta.normals.mark(b, e);

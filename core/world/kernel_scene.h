@@ -152,10 +152,12 @@ class SceneCompiler {
   void update_materials(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
   // compile_meshes.cpp
   void compile_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  // Converts vertices [begin, end) of one mesh into the kernel arrays.
-  void write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out, uint32_t begin,
-                           uint32_t end);
-  void update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // Converts vertices [begin, end) of one mesh into the kernel arrays; with
+  // `box`, also the box of those positions (false when one is not finite).
+  bool write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out, uint32_t begin,
+                           uint32_t end, SceneBounds* box = nullptr);
+  // Hands the scene's bounds cache the box of each whole mesh it copies.
+  void update_meshes(Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
   // compile_instances.cpp
   void compile_instances(const Scene& scene, KernelScene& out);
   KInstance compile_instance(const Instance& inst) const;

@@ -1,12 +1,22 @@
 #include "core/world/scene.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
 namespace tandem {
+
+namespace {
+
+uint64_t next_vertex_version() {
+  static std::atomic<uint64_t> counter{0};
+  return counter.fetch_add(1, std::memory_order_relaxed) + 1;
+}
+
+}  // namespace
 
 uint32_t Scene::DirtySet::add(uint32_t bits) {
   const uint32_t id = uint32_t(mask.size());
@@ -39,6 +49,7 @@ uint32_t Scene::add_mesh(Mesh m) {
   meshes_.push_back(std::move(m));
   bounds_cache_.mesh_added();
   mesh_vertex_ranges_.push_back({0, uint32_t(meshes_.back().positions.size())});
+  mesh_vertex_versions_.push_back(next_vertex_version());
   return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
@@ -79,6 +90,7 @@ Light& Scene::edit_light(uint32_t light) {
 }
 
 void Scene::mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end) {
+  mesh_vertex_versions_[mesh] = next_vertex_version();
   VertexRange& r = mesh_vertex_ranges_[mesh];
   if (!(meshes_dirty_.mask[mesh] & kDirtyVertices) || r.empty()) {
     r = {begin, end};

@@ -185,6 +185,12 @@ class Scene {
   // Like every Scene method it must not run concurrently with another call
   // on the same Scene.
   SceneBounds bounds() const;
+  // The box of all of an edited mesh's positions as they are now, from code
+  // that read them all anyway (the compiler's vertex copy), so bounds() needs
+  // no pass of its own over them (SceneBoundsCache::mesh_vertex_bounds).
+  void note_mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices) {
+    bounds_cache_.mesh_vertex_bounds(mesh, all_vertices);
+  }
 
   // --- change tracking -------------------------------------------------------
   const std::vector<uint32_t>& texture_dirty() const { return textures_dirty_.mask; }
@@ -209,6 +215,13 @@ class Scene {
     bool empty() const { return end <= begin; }
   };
   VertexRange mesh_dirty_vertices(uint32_t mesh) const;
+  // Changes whenever the mesh's vertices may have been edited (every
+  // edit_mesh_vertices call): unique across all scenes of the process, so a
+  // writer that recorded it after its own edit knows, when it is unchanged,
+  // that the mesh still holds what it wrote.
+  uint64_t mesh_vertex_version(uint32_t mesh) const {
+    return mesh < mesh_vertex_versions_.size() ? mesh_vertex_versions_[mesh] : 0;
+  }
   bool any_dirty() const;
   void clear_dirty();
 
@@ -236,6 +249,7 @@ class Scene {
   // Per mesh, its edited vertex range; valid where meshes_dirty_ has
   // kDirtyVertices, reset with the dirty list.
   std::vector<VertexRange> mesh_vertex_ranges_;
+  std::vector<uint64_t> mesh_vertex_versions_;
   void mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end);
   mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;

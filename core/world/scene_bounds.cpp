@@ -1,6 +1,8 @@
 #include "core/world/scene_bounds.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include "core/world/scene.h"
 
@@ -30,13 +32,50 @@ float SceneBounds::radius() const {
   return empty ? 0.0f : 0.5f * glm::length(hi - lo);
 }
 
+namespace {
+
+// -0 and +0 compare equal, so which of them a min or max keeps depends on
+// the order the points came in; every way of computing a box ends with
+// this, so they all agree to the bit.
+SceneBounds positive_zeros(SceneBounds b) {
+  b.lo += glm::vec3(0.0f);
+  b.hi += glm::vec3(0.0f);
+  return b;
+}
+
+bool finite(const glm::vec3& p) {
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+}
+
+}  // namespace
+
 SceneBounds mesh_object_bounds(const Mesh& mesh) {
   SceneBounds b;
   for (const glm::uvec3& t : mesh.triangles) {
     for (int k = 0; k < 3; ++k)
       b.extend(mesh.positions[t[k]]);
   }
-  return b;
+  return positive_zeros(b);
+}
+
+SceneBounds vertex_bounds(const glm::vec3* positions, size_t count, bool* all_finite) {
+  // Branch-free min/max over a straight array (the compiler vectorises it),
+  // instead of SceneBounds::extend per triangle corner.
+  glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-lo);
+  bool ok = true;
+  for (size_t v = 0; v < count; ++v) {
+    const glm::vec3 p = positions[v];
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+    ok &= finite(p);
+  }
+  *all_finite = ok;
+  SceneBounds b;
+  if (count == 0) return b;
+  b.lo = lo;
+  b.hi = hi;
+  b.empty = false;
+  return positive_zeros(b);
 }
 
 SceneBounds instance_world_bounds(const Instance& inst, const SceneBounds& mb) {
@@ -64,6 +103,9 @@ SceneBounds compute_scene_bounds(const std::vector<Mesh>& meshes,
 void SceneBoundsCache::mesh_added() {
   const uint32_t m = uint32_t(mesh_bounds_.size());
   mesh_bounds_.emplace_back();
+  given_bounds_.emplace_back();
+  given_.push_back(0);
+  vertex_use_.push_back(kUnknown);
   mesh_instances_.emplace_back();
   mesh_stale_.push_back(0);
   mesh_changed(m);
@@ -79,9 +121,40 @@ void SceneBoundsCache::instance_added(uint32_t mesh) {
 }
 
 void SceneBoundsCache::mesh_changed(uint32_t mesh) {
-  if (mesh >= mesh_stale_.size() || mesh_stale_[mesh]) return;
+  if (mesh >= mesh_stale_.size()) return;
+  given_[mesh] = 0;  // describes the mesh before this change
+  if (mesh_stale_[mesh]) return;
   mesh_stale_[mesh] = 1;
   stale_meshes_.push_back(mesh);
+}
+
+void SceneBoundsCache::mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices) {
+  if (mesh >= mesh_stale_.size() || !mesh_stale_[mesh]) return;
+  given_bounds_[mesh] = positive_zeros(all_vertices);
+  given_[mesh] = 1;
+}
+
+SceneBounds SceneBoundsCache::refresh_mesh(uint32_t mesh, const Mesh& m) {
+  if (vertex_use_[mesh] == kUnknown) {
+    // Once per mesh: are all vertices used? Then a straight pass over the
+    // positions (or the compiler's box) gives the triangles' box.
+    std::vector<uint8_t> used(m.positions.size(), 0);
+    for (const glm::uvec3& t : m.triangles) {
+      for (int k = 0; k < 3; ++k) {
+        if (t[k] < used.size()) used[t[k]] = 1;
+      }
+    }
+    vertex_use_[mesh] =
+        std::find(used.begin(), used.end(), 0) == used.end() ? kAllUsed : kSomeUnused;
+  }
+  if (vertex_use_[mesh] == kAllUsed && !m.triangles.empty()) {
+    if (given_[mesh]) return given_bounds_[mesh];
+    bool all_finite = false;
+    const SceneBounds b = vertex_bounds(m.positions.data(), m.positions.size(), &all_finite);
+    // Non-finite points: SceneBounds::extend's order decides, so walk.
+    if (all_finite) return b;
+  }
+  return mesh_object_bounds(m);
 }
 
 void SceneBoundsCache::instance_changed(uint32_t instance) {
@@ -124,8 +197,9 @@ void SceneBoundsCache::regrow_tree(const std::vector<Mesh>& meshes,
 SceneBounds SceneBoundsCache::bounds(const std::vector<Mesh>& meshes,
                                      const std::vector<Instance>& instances) {
   for (uint32_t m : stale_meshes_) {
-    mesh_bounds_[m] = mesh_object_bounds(meshes[m]);
+    mesh_bounds_[m] = refresh_mesh(m, meshes[m]);
     mesh_stale_[m] = 0;
+    given_[m] = 0;
     for (uint32_t i : mesh_instances_[m])
       mark_instance(i);
   }

@@ -29,6 +29,9 @@ struct SceneBounds {
 
 // Object-space box of the vertices the mesh's triangles use.
 SceneBounds mesh_object_bounds(const Mesh& mesh);
+// Box of positions[0, count); *all_finite says whether every coordinate
+// was finite (else the box is not mesh_object_bounds()'s).
+SceneBounds vertex_bounds(const glm::vec3* positions, size_t count, bool* all_finite);
 // The mesh box's 8 corners under the instance's transform.
 SceneBounds instance_world_bounds(const Instance& instance, const SceneBounds& mesh_bounds);
 // The full recomputation (every triangle of every mesh): what the cache
@@ -44,6 +47,12 @@ class SceneBoundsCache {
   void instance_added(uint32_t mesh);
   void mesh_changed(uint32_t mesh);
   void instance_changed(uint32_t instance);
+  // The box of all of a changed mesh's positions (all finite), from code
+  // that read them all anyway: the compiler's vertex copy. bounds() then
+  // takes it instead of a pass of its own over the mesh, where every vertex
+  // is used by a triangle (so the box is the triangles' box). Forgotten at
+  // the mesh's next change.
+  void mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices);
 
   // Brings the stale entries up to date and returns the union.
   SceneBounds bounds(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
@@ -52,7 +61,15 @@ class SceneBoundsCache {
   void mark_instance(uint32_t instance);
   void regrow_tree(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
 
+  SceneBounds refresh_mesh(uint32_t mesh, const Mesh& m);
+
   std::vector<SceneBounds> mesh_bounds_;
+  // Per mesh: a box from mesh_vertex_bounds() waiting (1) or not (0); and
+  // whether every vertex is used by a triangle (kUnknown until the first
+  // pass over its triangles; triangles never change after add_mesh).
+  enum : uint8_t { kUnknown, kAllUsed, kSomeUnused };
+  std::vector<SceneBounds> given_bounds_;
+  std::vector<uint8_t> given_, vertex_use_;
   std::vector<std::vector<uint32_t>> mesh_instances_;  // instances of each mesh
   std::vector<uint32_t> instance_mesh_;
   std::vector<uint8_t> mesh_stale_, instance_stale_;

@@ -1,0 +1,401 @@
+#include "accstruc/blas_refit.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <functional>
+
+#include "accstruc/wide_bvh.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace tandem {
+
+namespace {
+
+constexpr uint32_t kNone = 0xffffffffu;
+constexpr uint32_t kSlotEmpty = 0u, kSlotNode = 1u << 30, kSlotTris = 2u << 30;
+constexpr uint32_t kSlotKind = 3u << 30, kSlotIndex = ~kSlotKind;
+// Binary nodes per task at most: a task's nodes (64 bytes each), leaf
+// triangles and vertices stay within a core's L2 while it sweeps them, and a
+// million-triangle mesh is a few hundred tasks for two cores to share.
+constexpr uint32_t kTaskNodes = 4096;
+// The boxes of a node (c0_xy, c1_xy, c01_z): the only bytes a refit changes.
+constexpr size_t kBinaryBoxBytes = 3 * sizeof(Vec4);
+
+uint32_t wide_leaf_count(uint32_t meta) {
+  const uint32_t unary = meta >> 5;
+  return unary == 7 ? 3u : (unary == 3 ? 2u : 1u);
+}
+
+void set_child_box(KBvhNode& n, uint32_t c, const Aabb& b) {
+  Vec4& xy = c == 0 ? n.c0_xy : n.c1_xy;
+  xy = {b.lo.x, b.hi.x, b.lo.y, b.hi.y};
+  if (c == 0) {
+    n.c01_z.x = b.lo.z;
+    n.c01_z.y = b.hi.z;
+  } else {
+    n.c01_z.z = b.lo.z;
+    n.c01_z.w = b.hi.z;
+  }
+}
+
+// The box triangle_boxes() gives the triangle, and whether aabb_valid()
+// holds for it: every coordinate finite and within kMaxCoordinate.
+inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
+  const Vec3 a = p[v[0]], c = p[v[1]], d = p[v[2]];
+  b = Aabb{};
+  b.grow(a);
+  b.grow(c);
+  b.grow(d);
+  const float m = kMaxCoordinate;
+  const auto ok = [m](const Vec3& q) {
+    return (std::fabs(q.x) <= m) & (std::fabs(q.y) <= m) & (std::fabs(q.z) <= m);
+  };
+  return ok(a) & ok(c) & ok(d);
+}
+
+// Writes a whole node with non-temporal stores: the kernel arrays are not
+// read again this frame (the sweep reads the host copy), so they need not
+// displace the sweep's data from the caches, nor be read before written.
+template <class Node>
+inline void stream_node(Node* dst, const Node& src) {
+  static_assert(sizeof(Node) % 16 == 0 && alignof(Node) == 16, "whole 16-byte lanes");
+#if defined(__SSE2__)
+  const float* s = reinterpret_cast<const float*>(&src);
+  float* d = reinterpret_cast<float*>(dst);
+  for (size_t k = 0; k < sizeof(Node) / 16; ++k)
+    _mm_stream_ps(d + 4 * k, _mm_load_ps(s + 4 * k));
+#else
+  *dst = src;
+#endif
+}
+
+inline void stream_fence() {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
+
+}  // namespace
+
+void BlasRefit::clear() {
+  indexed_ = false;
+  vertex_count_ = triangle_count_ = 0;
+  leaf_tris_.clear();
+  non_members_.clear();
+  tasks_.clear();
+  top_.clear();
+  anchored_.clear();
+  wide_deferred_.clear();
+  wide_src_.clear();
+}
+
+bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
+  clear();
+  const uint32_t n = uint32_t(l.nodes.size()), prims = uint32_t(l.prims.size());
+  const uint32_t wn = uint32_t(l.wide_nodes.size());
+  if (n == 0 || wn == 0 || l.wide_prims.size() != prims || n >= (1u << 29) || prims >= (1u << 30)) {
+    return false;
+  }
+  // Leaf entries: each triangle once, with vertices in range.
+  std::vector<uint32_t> pos(g.triangle_count, kNone);  // triangle -> leaf entry
+  leaf_tris_.resize(size_t(3) * prims);
+  for (uint32_t e = 0; e < prims; ++e) {
+    const uint32_t t = l.prims[e];
+    if (t >= g.triangle_count || pos[t] != kNone) return false;
+    pos[t] = e;
+    const KTriangle& tri = g.triangles[t];
+    if (tri.v0 >= g.vertex_count || tri.v1 >= g.vertex_count || tri.v2 >= g.vertex_count)
+      return false;
+    leaf_tris_[3 * size_t(e)] = tri.v0;
+    leaf_tris_[3 * size_t(e) + 1] = tri.v1;
+    leaf_tris_[3 * size_t(e) + 2] = tri.v2;
+  }
+  for (uint32_t t = 0; t < g.triangle_count; ++t) {
+    if (pos[t] == kNone) non_members_.push_back(t);
+  }
+
+  // Binary node children (x = 2 * node + c): their leaf-entry ranges, which
+  // must be contiguous for a subtree, parents, sizes (preorder: a subtree is
+  // the node range [i, i + size)).
+  std::vector<uint32_t> rbeg(2 * size_t(n)), rend(2 * size_t(n)), parent(n, kNone), size(n, 1);
+  std::vector<uint32_t> leaf_at(prims, kNone);
+  for (uint32_t i = n; i-- > 0;) {
+    const KBvhNode& node = l.nodes[i];
+    uint32_t next = i + 1;
+    for (uint32_t c = 0; c < 2; ++c) {
+      const uint32_t x = 2 * i + c, ref = node.child[c];
+      if (ref & kBvhLeafFlag) {
+        const uint32_t first = ref & ~kBvhLeafFlag, count = node.count[c];
+        if (uint64_t(first) + count > prims) return false;
+        rbeg[x] = first;
+        rend[x] = first + count;
+        for (uint32_t e = first; e < first + count; ++e) {
+          if (leaf_at[e] != kNone) return false;
+          leaf_at[e] = x;
+        }
+      } else {
+        if (ref != next || ref >= n || parent[ref] != kNone) return false;
+        parent[ref] = x;
+        if (rend[2 * ref] != rbeg[2 * ref + 1]) return false;
+        rbeg[x] = rbeg[2 * ref];
+        rend[x] = rend[2 * ref + 1];
+        size[i] += size[ref];
+        next += size[ref];
+      }
+    }
+  }
+  for (uint32_t i = 1; i < n; ++i) {
+    if (parent[i] == kNone) return false;
+  }
+  for (uint32_t e = 0; e < prims; ++e) {
+    if (leaf_at[e] == kNone) return false;
+  }
+
+  // Tasks: the largest subtrees of at most kTaskNodes nodes; the nodes above
+  // them are refit afterwards, children (larger indices) first.
+  std::vector<uint32_t> task_of(n, kNone);
+  {
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+      const uint32_t i = stack.back();
+      stack.pop_back();
+      if (size[i] <= kTaskNodes) {
+        tasks_.push_back({i, i + size[i], 0, 0});
+        continue;
+      }
+      top_.push_back(i);
+      for (uint32_t c = 0; c < 2; ++c) {
+        if (!(l.nodes[i].child[c] & kBvhLeafFlag)) stack.push_back(l.nodes[i].child[c]);
+      }
+    }
+    std::sort(tasks_.begin(), tasks_.end(),
+              [](const Task& a, const Task& b) { return a.lo < b.lo; });
+    std::sort(top_.begin(), top_.end(), std::greater<uint32_t>());
+    for (uint32_t t = 0; t < tasks_.size(); ++t) {
+      for (uint32_t i = tasks_[t].lo; i < tasks_[t].hi; ++i)
+        task_of[i] = t;
+    }
+  }
+
+  // The binary node child whose range is exactly [b, e), or for a leaf
+  // slot the leaf entries [b, e) inside one binary leaf.
+  const auto source = [&](uint32_t b, uint32_t e, bool leaf_slot) -> uint32_t {
+    if (b >= e || e > prims) return kNone;
+    uint32_t x = leaf_at[b];
+    if (rbeg[x] == b && rend[x] == e) return kSlotNode | x;
+    if (rbeg[x] <= b && e <= rend[x])
+      return leaf_slot && e - b <= kWideMaxLeafPrims ? kSlotTris | b : kNone;
+    for (;;) {
+      x = parent[x >> 1];
+      if (x == kNone || rbeg[x] > b || rend[x] - rbeg[x] > e - b) return kNone;
+      if (rbeg[x] == b && rend[x] == e) return kSlotNode | x;
+    }
+  };
+
+  // Wide nodes, children (larger indices) first: each slot's source, the
+  // node's leaf-entry range, and the task whose sweep computes its sources.
+  wide_src_.assign(size_t(kWideBvhWidth) * wn, kSlotEmpty);
+  std::vector<uint32_t> wbeg(wn), wend(wn);
+  std::vector<std::vector<Anchored>> per_task(tasks_.size());
+  for (uint32_t w = wn; w-- > 0;) {
+    const KWideBvhNode& node = l.wide_nodes[w];
+    uint32_t lo = kNone, hi = 0, total = 0, rank = 0, anchor = kNone, task = kNone;
+    bool one_task = true;
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      const uint32_t meta = node.meta[s];
+      const bool interior = (node.imask >> s) & 1u;
+      if (meta == 0) {
+        if (interior) return false;
+        continue;
+      }
+      uint32_t b, e;
+      if (interior) {
+        const uint64_t cw = uint64_t(node.child_base) + rank++;
+        if (cw <= w || cw >= wn) return false;
+        b = wbeg[cw];
+        e = wend[cw];
+      } else {
+        const uint64_t first = uint64_t(node.prim_base) + (meta & 31u);
+        const uint32_t count = wide_leaf_count(meta);
+        if (first + count > prims) return false;
+        b = pos[l.wide_prims[first]];
+        if (b == kNone) return false;
+        for (uint32_t j = 1; j < count; ++j) {
+          if (pos[l.wide_prims[first + j]] != b + j) return false;
+        }
+        e = b + count;
+      }
+      const uint32_t src = source(b, e, !interior);
+      if (src == kNone) return false;
+      wide_src_[size_t(kWideBvhWidth) * w + s] = src;
+      lo = std::min(lo, b);
+      hi = std::max(hi, e);
+      total += e - b;
+      const uint32_t at =
+          (src & kSlotKind) == kSlotNode ? (src & kSlotIndex) >> 1 : leaf_at[b] >> 1;
+      anchor = std::min(anchor, at);
+      if (task == kNone) task = task_of[at];
+      one_task = one_task && task_of[at] == task && task != kNone;
+    }
+    if (lo == kNone || hi - lo != total) return false;
+    wbeg[w] = lo;
+    wend[w] = hi;
+    if (one_task) {
+      per_task[task].push_back({anchor, w});
+    } else {
+      wide_deferred_.push_back(w);
+    }
+  }
+  for (uint32_t t = 0; t < tasks_.size(); ++t) {
+    std::vector<Anchored>& a = per_task[t];
+    std::sort(a.begin(), a.end(),
+              [](const Anchored& x, const Anchored& y) { return x.anchor > y.anchor; });
+    tasks_[t].wide_lo = uint32_t(anchored_.size());
+    anchored_.insert(anchored_.end(), a.begin(), a.end());
+    tasks_[t].wide_hi = uint32_t(anchored_.size());
+  }
+  vertex_count_ = g.vertex_count;
+  triangle_count_ = g.triangle_count;
+  indexed_ = true;
+  return true;
+}
+
+BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const LayoutBases& bases,
+                                   KBvhNode* nodes, KWideBvhNode* wide_nodes) const {
+  Result result;
+  if (!indexed_ || g.vertex_count != vertex_count_ || g.triangle_count != triangle_count_) {
+    result.members_changed = true;
+    return result;
+  }
+  struct Out {
+    uint32_t lo = kNone, hi = 0, wide_lo = kNone, wide_hi = 0;
+    double area = 0.0;
+    bool invalid = false;
+  };
+  const Vec3* positions = g.positions;
+  const uint32_t* tris = leaf_tris_.data();
+
+  const auto leaf_box = [&](uint32_t first, uint32_t count, Out& o) {
+    Aabb box;
+    for (uint32_t e = first; e < first + count; ++e) {
+      Aabb t;
+      if (triangle_box(positions, tris + 3 * size_t(e), t)) {
+        box.grow(t);
+      } else {
+        o.invalid = true;
+      }
+    }
+    return box;
+  };
+
+  const auto refit_node = [&](uint32_t i, Out& o) {
+    KBvhNode& node = l.nodes[i];
+    Aabb box[2];
+    for (uint32_t c = 0; c < 2; ++c) {
+      const uint32_t ref = node.child[c];
+      if (ref & kBvhLeafFlag) {
+        box[c] = leaf_box(ref & ~kBvhLeafFlag, node.count[c], o);
+      } else {
+        // Refit before its parent (larger index), so exact already.
+        const KBvhNode& child = l.nodes[ref];
+        box[c] = binary_child_box(child, 0);
+        box[c].grow(binary_child_box(child, 1));
+      }
+    }
+    o.area += double(box[0].half_area()) + double(box[1].half_area());
+    KBvhNode updated = node;
+    set_child_box(updated, 0, box[0]);
+    set_child_box(updated, 1, box[1]);
+    if (std::memcmp(&updated, &node, kBinaryBoxBytes) == 0) return;
+    node = updated;
+    for (uint32_t c = 0; c < 2; ++c) {
+      updated.child[c] += (updated.child[c] & kBvhLeafFlag) ? bases.prim : bases.node;
+    }
+    stream_node(nodes + i, updated);
+    o.lo = std::min(o.lo, i);
+    o.hi = std::max(o.hi, i + 1);
+  };
+
+  const auto requantize = [&](uint32_t w, Out& o) {
+    KWideBvhNode& node = l.wide_nodes[w];
+    Aabb boxes[kWideBvhWidth];
+    uint32_t used = 0;
+    const uint32_t* src = wide_src_.data() + size_t(kWideBvhWidth) * w;
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      const uint32_t kind = src[s] & kSlotKind, at = src[s] & kSlotIndex;
+      if (kind == kSlotEmpty) continue;
+      used |= 1u << s;
+      if (kind == kSlotNode) {
+        boxes[s] = binary_child_box(l.nodes[at >> 1], at & 1u);
+      } else {
+        boxes[s] = leaf_box(at, wide_leaf_count(node.meta[s]), o);
+      }
+    }
+    KWideBvhNode updated = node;
+    quantize_wide_node(updated, boxes, used);
+    if (std::memcmp(&updated, &node, sizeof(KWideBvhNode)) == 0) return;
+    node = updated;
+    updated.child_base += bases.wide_node;
+    updated.prim_base += bases.wide_prim;
+    stream_node(wide_nodes + w, updated);
+    o.wide_lo = std::min(o.wide_lo, w);
+    o.wide_hi = std::max(o.wide_hi, w + 1);
+  };
+
+  std::vector<Out> outs(tasks_.size() + 1);
+  tbb::parallel_for(size_t(0), tasks_.size(), [&](size_t t) {
+    const Task& task = tasks_[t];
+    Out& o = outs[t];
+    uint32_t next = task.wide_lo;
+    for (uint32_t i = task.hi; i-- > task.lo;) {
+      refit_node(i, o);
+      for (; next < task.wide_hi && anchored_[next].anchor >= i; ++next)
+        requantize(anchored_[next].wide, o);
+    }
+    stream_fence();
+  });
+  Out& top = outs.back();
+  for (uint32_t i : top_)
+    refit_node(i, top);
+  for (uint32_t w : wide_deferred_)
+    requantize(w, top);
+  stream_fence();
+
+  // In task order, then the top: the same sum whatever ran where.
+  double area = 0.0;
+  Out all;
+  for (const Out& o : outs) {
+    area += o.area;
+    all.lo = std::min(all.lo, o.lo);
+    all.hi = std::max(all.hi, o.hi);
+    all.wide_lo = std::min(all.wide_lo, o.wide_lo);
+    all.wide_hi = std::max(all.wide_hi, o.wide_hi);
+    all.invalid = all.invalid || o.invalid;
+  }
+  for (uint32_t t : non_members_) {
+    const KTriangle& tri = g.triangles[t];
+    const uint32_t v[3] = {tri.v0, tri.v1, tri.v2};
+    Aabb box;
+    if (v[0] < g.vertex_count && v[1] < g.vertex_count && v[2] < g.vertex_count &&
+        triangle_box(positions, v, box)) {
+      all.invalid = true;
+      break;
+    }
+  }
+  l.bounds = binary_child_box(l.nodes[0], 0);
+  l.bounds.grow(binary_child_box(l.nodes[0], 1));
+  const double root = l.bounds.half_area();
+  result.members_changed = all.invalid;
+  result.quality = root > 0.0 ? area / root : 0.0;
+  if (all.hi > 0) result.spans.nodes = {all.lo, all.hi};
+  if (all.wide_hi > 0) result.spans.wide_nodes = {all.wide_lo, all.wide_hi};
+  return result;
+}
+
+}  // namespace tandem
