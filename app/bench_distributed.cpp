@@ -18,6 +18,7 @@
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "app/distributed.h"
+#include "app/render_frames.h"
 #include "app/view/scripted_path.h"
 #include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_cluster.h"
@@ -273,7 +274,7 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
 
   // The offline render takes its samples as frames of the core tracer, as
   // `tandem render` does; the frame loop renders spp per frame.
-  const uint32_t frame_count = loop ? frames : std::min(spp, 32u);
+  const uint32_t frame_count = loop ? frames : offline_frame_count(spp);
   ts.samples_per_frame = loop ? spp : (spp + frame_count - 1) / frame_count;
   MovingScene ref_scene(scene_spec, ts.render.width, ts.render.height, loop);
   MovingScene dist_scene(scene_spec, ts.render.width, ts.render.height, loop);

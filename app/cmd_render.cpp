@@ -236,9 +236,8 @@ int run_render(const std::vector<std::string>& argv) {
   tracer_settings.tile_size = tile_size;
   tracer_settings.scheduler.forced_split = split;
   tracer_settings.scheduler.stealing = !args.has("no-stealing");
-  // The samples are rendered as a few frames of the core tracer: the tile
-  // split is rebalanced between them, and they drive the progress bar.
-  const uint32_t frames = std::min(spp, 32u);
+  // The samples are rendered as a few frames of the core tracer.
+  const uint32_t frames = offline_frame_count(spp);
   const uint32_t per_frame = (spp + frames - 1) / frames;
   tracer_settings.samples_per_frame = per_frame;
   std::vector<std::unique_ptr<Backend>> backends = make_backend_list(backend_spec, backend_options);

@@ -26,6 +26,16 @@ std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>
                                                 const std::optional<std::string>& fps,
                                                 const std::string& output);
 
+// How many frames of the core tracer an offline render of `spp` samples
+// per pixel takes: the tile split is rebalanced between frames and they
+// drive the progress bar, but every frame also costs a hand-out and a
+// barrier (on a distributed render a worker waits through both), so a frame
+// carries at least 4 samples and a render has at most 32 frames.
+inline uint32_t offline_frame_count(uint32_t spp) {
+  const uint32_t frames = (spp + 3) / 4;
+  return frames < 1 ? 1 : frames > 32 ? 32 : frames;
+}
+
 // `output` with its last run of '#' replaced by `frame`, zero-padded to the
 // run's length (longer numbers are written in full); unchanged without '#'.
 std::string frame_output_name(const std::string& output, uint32_t frame);

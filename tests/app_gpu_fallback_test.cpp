@@ -33,7 +33,7 @@ class GpuFallback : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   std::string out(const std::string& name) const { return (dir_ / name).string(); }
   static std::string render_args(const std::string& backend, const std::string& output) {
-    return "render builtin:cornell --width 48 --height 32 --spp 4 --seed 3 --backend " + backend +
+    return "render builtin:cornell --width 48 --height 32 --spp 16 --seed 3 --backend " + backend +
            " --output " + app_test::shell_quote(output);
   }
   fs::path dir_;
