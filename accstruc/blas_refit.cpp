@@ -32,18 +32,6 @@ uint32_t wide_leaf_count(uint32_t meta) {
   return unary == 7 ? 3u : (unary == 3 ? 2u : 1u);
 }
 
-void set_child_box(KBvhNode& n, uint32_t c, const Aabb& b) {
-  Vec4& xy = c == 0 ? n.c0_xy : n.c1_xy;
-  xy = {b.lo.x, b.hi.x, b.lo.y, b.hi.y};
-  if (c == 0) {
-    n.c01_z.x = b.lo.z;
-    n.c01_z.y = b.hi.z;
-  } else {
-    n.c01_z.z = b.lo.z;
-    n.c01_z.w = b.hi.z;
-  }
-}
-
 // The box triangle_boxes() gives the triangle, and whether aabb_valid()
 // holds for it: every coordinate finite and within kMaxCoordinate.
 inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
@@ -310,8 +298,8 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     }
     o.area += double(box[0].half_area()) + double(box[1].half_area());
     KBvhNode updated = node;
-    set_child_box(updated, 0, box[0]);
-    set_child_box(updated, 1, box[1]);
+    set_binary_child_box(updated, 0, box[0]);
+    set_binary_child_box(updated, 1, box[1]);
     if (std::memcmp(&updated, &node, kBinaryBoxBytes) == 0) return;
     node = updated;
     for (uint32_t c = 0; c < 2; ++c) {

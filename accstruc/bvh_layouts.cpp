@@ -19,18 +19,6 @@ namespace {
 // Subtrees at least this large are flattened / refit as separate tasks.
 constexpr uint32_t kParallelSubtree = 4096;
 
-void set_child_box(KBvhNode& n, uint32_t c, const Aabb& b) {
-  Vec4& xy = c == 0 ? n.c0_xy : n.c1_xy;
-  xy = {b.lo.x, b.hi.x, b.lo.y, b.hi.y};
-  if (c == 0) {
-    n.c01_z.x = b.lo.z;
-    n.c01_z.y = b.hi.z;
-  } else {
-    n.c01_z.z = b.lo.z;
-    n.c01_z.w = b.hi.z;
-  }
-}
-
 class BinaryFlattener {
  public:
   BinaryFlattener(const BuildTree& tree, std::vector<KBvhNode>& out) : tree_(tree), out_(out) {
@@ -50,8 +38,8 @@ class BinaryFlattener {
       // is empty.
       out_.assign(1, KBvhNode{});
       KBvhNode& n = out_[0];
-      set_child_box(n, 0, root.box);
-      set_child_box(n, 1, Aabb{});
+      set_binary_child_box(n, 0, root.box);
+      set_binary_child_box(n, 1, Aabb{});
       n.child[0] = kBvhLeafFlag | root.first;
       n.count[0] = root.count;
       n.child[1] = kBvhLeafFlag;
@@ -71,7 +59,7 @@ class BinaryFlattener {
     uint32_t child_out[2] = {kInvalidIndex, kInvalidIndex};
     for (uint32_t c = 0; c < 2; ++c) {
       const BuildNode& child = tree_.nodes[b.child[c]];
-      set_child_box(n, c, child.box);
+      set_binary_child_box(n, c, child.box);
       if (child.is_leaf()) {
         n.child[c] = kBvhLeafFlag | child.first;
         n.count[c] = child.count;
@@ -134,8 +122,8 @@ RefitResult refit_binary(BvhLayouts& l, uint32_t index, std::span<const Aabb> pr
     child(0);
     child(1);
   }
-  set_child_box(n, 0, r[0].box);
-  set_child_box(n, 1, r[1].box);
+  set_binary_child_box(n, 0, r[0].box);
+  set_binary_child_box(n, 1, r[1].box);
   RefitResult all;
   all.box = r[0].box;
   all.box.grow(r[1].box);
@@ -251,8 +239,8 @@ Aabb refit_binary_node(BvhLayouts& l, uint32_t index, std::span<const Aabb> prim
       boxes[c].grow(binary_child_box(ch, 1));
     }
   }
-  set_child_box(n, 0, boxes[0]);
-  set_child_box(n, 1, boxes[1]);
+  set_binary_child_box(n, 0, boxes[0]);
+  set_binary_child_box(n, 1, boxes[1]);
   Aabb all = boxes[0];
   all.grow(boxes[1]);
   return all;

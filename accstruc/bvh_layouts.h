@@ -95,6 +95,20 @@ Aabb wide_node_box(const BvhLayouts& layouts, uint32_t index, std::span<const Aa
 // Child c's box of a binary node.
 Aabb binary_child_box(const KBvhNode& node, uint32_t c);
 
+// Writes child c's box into a binary node (the inverse of
+// binary_child_box()); inline, as the refits call it for every child.
+inline void set_binary_child_box(KBvhNode& node, uint32_t c, const Aabb& b) {
+  Vec4& xy = c == 0 ? node.c0_xy : node.c1_xy;
+  xy = {b.lo.x, b.hi.x, b.lo.y, b.hi.y};
+  if (c == 0) {
+    node.c01_z.x = b.lo.z;
+    node.c01_z.y = b.hi.z;
+  } else {
+    node.c01_z.z = b.lo.z;
+    node.c01_z.w = b.hi.z;
+  }
+}
+
 // Structural check of an untrusted hierarchy (e.g. read from disk): every
 // index in range, children after their parents (no cycles), depth within the
 // kernel stacks, primitive ids below prim_count. Boxes are not checked.
