@@ -142,12 +142,10 @@ double answer_timeout_seconds() {
   return s;
 }
 
-void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s) {
-  MPI_Request request;
-  {
-    std::lock_guard<std::mutex> lock(mpi_lock());
-    MPI_Isend(bytes.data(), int(bytes.size()), MPI_BYTE, dest, tag, MPI_COMM_WORLD, &request);
-  }
+// Tests `request` until it completes, napping between tests; past the
+// bound, `rank` is the one that failed, for the reason `failure()` gives.
+template <class Failure>
+void wait_for_request(MPI_Request& request, int rank, double timeout_s, Failure failure) {
   const auto start = Clock::now();
   Backoff backoff;
   for (;;) {
@@ -157,11 +155,20 @@ void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s
       MPI_Test(&request, &done, MPI_STATUS_IGNORE);
     }
     if (done) return;
-    if (past(start, timeout_s))
-      throw RankFailure(dest, "did not take a message within " + seconds_text(timeout_s) +
-                                  " (stopped answering)");
+    if (past(start, timeout_s)) throw RankFailure(rank, failure());
     backoff.nap(start, timeout_s);
   }
+}
+
+void send(int dest, int tag, const std::vector<uint8_t>& bytes, double timeout_s) {
+  MPI_Request request;
+  {
+    std::lock_guard<std::mutex> lock(mpi_lock());
+    MPI_Isend(bytes.data(), int(bytes.size()), MPI_BYTE, dest, tag, MPI_COMM_WORLD, &request);
+  }
+  wait_for_request(request, dest, timeout_s, [&] {
+    return "did not take a message within " + seconds_text(timeout_s) + " (stopped answering)";
+  });
 }
 
 bool try_receive(int source, Message* out) {
@@ -184,20 +191,10 @@ bool try_receive(int source, Message* out) {
   // worker between two tiles): wait without holding the lock, so the other
   // peers' threads go on meanwhile. Bounded like every other wait.
   const double timeout_s = answer_timeout_seconds();
-  const auto start = Clock::now();
-  Backoff backoff;
-  for (;;) {
-    int done = 0;
-    {
-      std::lock_guard<std::mutex> lock(mpi_lock());
-      MPI_Test(&request, &done, MPI_STATUS_IGNORE);
-    }
-    if (done) return true;
-    if (past(start, timeout_s))
-      throw RankFailure(out->source, "stopped answering in the middle of a message (" +
-                                         seconds_text(timeout_s) + ")");
-    backoff.nap(start, timeout_s);
-  }
+  wait_for_request(request, out->source, timeout_s, [&] {
+    return "stopped answering in the middle of a message (" + seconds_text(timeout_s) + ")";
+  });
+  return true;
 }
 
 Message receive(int source, double timeout_s, const std::string& waiting_for,
