@@ -44,8 +44,7 @@ class CpuFallbackBackend final : public Backend {
       scene_ = &scene;
       if (!deferred_failure_.empty() && !rendering_) {
         // A sync that failed while the previous frame rendered.
-        fall_back_locked(deferred_failure_);
-        active_->sync(scene, SceneDelta::everything());
+        fall_back_and_sync_locked(deferred_failure_, scene);
         return;
       }
       backend = active_.get();
@@ -58,8 +57,7 @@ class CpuFallbackBackend final : public Backend {
         deferred_failure_ = e.what();  // the render in flight still uses the device backend
         return;
       }
-      fall_back_locked(e.what());
-      active_->sync(scene, SceneDelta::everything());
+      fall_back_and_sync_locked(e.what(), scene);
     }
   }
 
@@ -115,8 +113,7 @@ class CpuFallbackBackend final : public Backend {
       try {
         return active_->render_features(pass, out);
       } catch (const DeviceError& e) {
-        fall_back_locked(e.what());
-        active_->sync(*scene_, SceneDelta::everything());
+        fall_back_and_sync_locked(e.what(), *scene_);
       }
     }
     return active_->render_features(pass, out);
@@ -132,6 +129,13 @@ class CpuFallbackBackend final : public Backend {
     fell_back_ = true;
     retired_ = std::move(active_);
     active_ = std::make_unique<CpuBackend>(CpuTraversal::kEmbree);
+  }
+
+  // Falls back and gives the new CPU backend the whole scene at once (when
+  // nothing renders from the device backend any more).
+  void fall_back_and_sync_locked(const std::string& failure, const KernelScene& scene) {
+    fall_back_locked(failure);
+    active_->sync(scene, SceneDelta::everything());
   }
 
   mutable std::mutex mutex_;
