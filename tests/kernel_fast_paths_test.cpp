@@ -1,13 +1,18 @@
 // The integrator's shortcuts must give what the general code gives: the
 // unpaired 1-D draw the same numbers as rng_1d, a single-lobe BSDF the same
 // sample whatever the lobe number, and the Lambertian evaluation the
-// Lambertian value and pdf.
+// Lambertian value and pdf; and an identity instance's shading point the
+// transformed one.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/kernel/bsdf.h"
+#include "core/kernel/lights.h"
 #include "core/kernel/rng.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 namespace {
@@ -101,6 +106,83 @@ TEST(KernelFastPaths, LambertianEvalIsBaseColourOverPi) {
   EXPECT_FLOAT_EQ(e.f.z, 0.3f * w);
   EXPECT_FLOAT_EQ(e.pdf, prob.diffuse * wi.z * kInvPi);
   EXPECT_GT(prob.transmit, 0.0f);
+}
+
+// The same bits, a zero of either sign counting as equal (the only
+// difference the skipped identity products can make; adding +0 turns -0
+// into +0 and leaves everything else as it is).
+bool same_value(Vec3 a, Vec3 b) {
+  return same_bits(a.x + 0.0f, b.x + 0.0f) && same_bits(a.y + 0.0f, b.y + 0.0f) &&
+         same_bits(a.z + 0.0f, b.z + 0.0f);
+}
+
+// A mesh with every attribute the shading point reads (normals, tangents,
+// UVs), placed once by the identity and once by a translation.
+Scene attribute_scene() {
+  Scene scene;
+  Material m;
+  m.name = "emissive";
+  m.emissive = glm::vec3(1.0f);
+  const uint32_t mat = scene.add_material(m);
+  Mesh mesh;
+  mesh.name = "sheet";
+  for (int i = 0; i < 9; ++i) {
+    const float x = float(i % 3) * 0.5f - 0.5f, y = float(i / 3) * 0.4f - 0.4f;
+    mesh.positions.push_back({x, y, 0.1f * x * y - 0.25f});
+    mesh.normals.push_back(glm::normalize(glm::vec3(0.2f * x, -0.1f * y, 1.0f)));
+    mesh.tangents.push_back({1.0f, 0.0f, -0.2f * x, i % 2 ? 1.0f : -1.0f});
+    mesh.uv0.push_back({x + 0.5f, 0.5f - y});
+  }
+  for (uint32_t r = 0; r < 2; ++r) {
+    for (uint32_t c = 0; c < 2; ++c) {
+      const uint32_t a = r * 3 + c;
+      mesh.triangles.push_back({a, a + 1, a + 4});
+      mesh.triangles.push_back({a, a + 4, a + 3});
+    }
+  }
+  mesh.triangle_materials.assign(mesh.triangles.size(), mat);
+  const uint32_t id = scene.add_mesh(mesh);
+  scene.add_instance({"identity", id, glm::mat4(1.0f)});
+  scene.add_instance({"moved", id, glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 1.0f, 0.0f))});
+  return scene;
+}
+
+TEST(KernelFastPaths, IdentityInstancesShadeAsTransformedOnes) {
+  Scene scene = attribute_scene();
+  KernelScene ks;
+  SceneCompiler compiler;
+  RenderSettings settings;
+  settings.width = settings.height = 8;
+  compiler.compile(scene, settings, ks);
+  ASSERT_EQ(ks.instances.size(), 2u);
+  EXPECT_NE(ks.instances[0].flags & kInstanceIdentity, 0u);
+  EXPECT_EQ(ks.instances[1].flags & kInstanceIdentity, 0u);
+  // The same scene with the shortcut switched off.
+  KernelScene general = ks;
+  general.instances[0].flags &= ~kInstanceIdentity;
+  const KernelData fast_kd = ks.view(), general_kd = general.view();
+  for (uint32_t prim = 0; prim < 8; ++prim) {
+    for (const Vec2 b : {Vec2{0.2f, 0.3f}, Vec2{0.0f, 0.0f}, Vec2{0.6f, 0.1f}}) {
+      SCOPED_TRACE(prim);
+      const Hit hit{1.0f, b.x, b.y, 0, prim};
+      const SurfacePoint f = make_surface_point(fast_kd, hit);
+      const SurfacePoint g = make_surface_point(general_kd, hit);
+      EXPECT_TRUE(same_value(f.position, g.position));
+      EXPECT_TRUE(same_value(f.geometric_normal, g.geometric_normal));
+      EXPECT_TRUE(same_value(f.shading_normal, g.shading_normal));
+      EXPECT_TRUE(same_value(f.tangent, g.tangent));
+      EXPECT_TRUE(same_value(f.bitangent, g.bitangent));
+      EXPECT_TRUE(same_bits(f.area_world, g.area_world));
+      const SurfacePoint fl = make_light_point(fast_kd, 0, prim, b.x, b.y);
+      const SurfacePoint gl = make_light_point(general_kd, 0, prim, b.x, b.y);
+      EXPECT_TRUE(same_value(fl.position, gl.position));
+      EXPECT_TRUE(same_value(fl.geometric_normal, gl.geometric_normal));
+      EXPECT_TRUE(same_bits(fl.area_world, gl.area_world));
+      // The moved copy is one unit up: the shortcut is not taken there.
+      const SurfacePoint moved = make_surface_point(fast_kd, {1.0f, b.x, b.y, 1, prim});
+      EXPECT_NEAR(moved.position.y, f.position.y + 1.0f, 1e-6f);
+    }
+  }
 }
 
 }  // namespace

@@ -27,11 +27,18 @@ TandemRayContext make_context(const KernelData* kd) {
   return ctx;
 }
 
+// The scene instance of a hit: the instance geometry's ID in a two-level
+// scene, the triangle geometry's in a flat one.
+uint32_t hit_instance(uint32_t inst_id, uint32_t geom_id) {
+  return inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
+}
+
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
   const auto* ctx = reinterpret_cast<const TandemRayContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const uint32_t instance = RTCHitN_instID(args->hit, args->N, i, 0);
+    const uint32_t instance = hit_instance(RTCHitN_instID(args->hit, args->N, i, 0),
+                                           RTCHitN_geomID(args->hit, args->N, i));
     const uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
     const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
     const uint32_t alpha_key = RTCRayN_id(args->ray, args->N, i);
@@ -71,7 +78,8 @@ Hit EmbreeTracer::intersect(const Ray& ray, uint32_t alpha_key) const {
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(scene, &ctx.rtc, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return make_miss();
-  return {rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.instID[0], rh.hit.primID};
+  return {rh.ray.tfar, rh.hit.u, rh.hit.v, hit_instance(rh.hit.instID[0], rh.hit.geomID),
+          rh.hit.primID};
 }
 
 bool EmbreeTracer::occluded(const Ray& ray, uint32_t alpha_key) const {
@@ -117,10 +125,10 @@ void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha
   }
   rtcIntersect16(valid, scene, &ctx.rtc, &rh);
   for (uint32_t j = 0; j < n; ++j) {
-    hits[j] =
-        rh.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID
-            ? make_miss()
-            : Hit{rh.ray.tfar[j], rh.hit.u[j], rh.hit.v[j], rh.hit.instID[0][j], rh.hit.primID[j]};
+    hits[j] = rh.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID
+                  ? make_miss()
+                  : Hit{rh.ray.tfar[j], rh.hit.u[j], rh.hit.v[j],
+                        hit_instance(rh.hit.instID[0][j], rh.hit.geomID[j]), rh.hit.primID[j]};
   }
 }
 
@@ -171,8 +179,66 @@ void EmbreeScene::release_scenes() {
   blas_.clear();
 }
 
+namespace {
+
+// Flat only without real instancing, so that the world-space copies of
+// moved instances cost at most the scene's own vertex memory once.
+bool can_flatten(const KernelScene& ks) {
+  std::vector<uint8_t> used(ks.meshes.size(), 0);
+  for (const KInstance& inst : ks.instances) {
+    if (inst.mesh >= used.size() || used[inst.mesh]) return false;
+    used[inst.mesh] = 1;
+  }
+  return true;
+}
+
+}  // namespace
+
 void EmbreeScene::build_all(const KernelScene& ks) {
   release_scenes();
+  flat_ = !dynamic_ && can_flatten(ks);
+  if (flat_) {
+    build_flat(ks);
+  } else {
+    build_two_level(ks);
+  }
+}
+
+void EmbreeScene::build_flat(const KernelScene& ks) {
+  top_ = rtcNewScene(device_);
+  rtcSetSceneFlags(top_, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_HIGH);
+  for (size_t i = 0; i < ks.instances.size(); ++i) {
+    const KInstance& inst = ks.instances[i];
+    const KMesh& km = ks.meshes[inst.mesh];
+    if (km.triangle_count == 0) continue;  // no geometry: the ID stays unused
+    RTCGeometry g;
+    if (inst.flags & kInstanceIdentity) {
+      g = new_mesh_geometry(device_, ks, inst.mesh, RTC_BUILD_QUALITY_HIGH);
+    } else {
+      // Embree pads the buffers it allocates as its SIMD loads need.
+      g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+      auto* world = static_cast<Vec3*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, sizeof(Vec3), km.vertex_count));
+      for (uint32_t v = 0; v < km.vertex_count; ++v)
+        world[v] = transform_point(inst.object_to_world, ks.positions[km.vertex_offset + v]);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
+                                 size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle),
+                                 km.triangle_count);
+      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+    }
+    if (km.flags & kMeshHasAlphaTest) {
+      rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+      rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+    }
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(top_, g, unsigned(i));
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(top_);
+}
+
+void EmbreeScene::build_two_level(const KernelScene& ks) {
   blas_.resize(ks.meshes.size());
   // BLAS builds are independent; Embree parallelises inside each build too.
   for (size_t m = 0; m < ks.meshes.size(); ++m) {
@@ -213,6 +279,13 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
   if (delta.full || !top_ || delta.positions.reallocated || delta.triangles.reallocated ||
       delta.meshes.reallocated || delta.instances.reallocated || !delta.meshes_rebuilt.empty()) {
     build_all(ks);
+  } else if (flat_) {
+    // The flat layout has no cheap update: switch to the two-level one,
+    // which refits and moves instances, for good.
+    if (delta.instances_changed || !delta.meshes_refit.empty()) {
+      dynamic_ = true;
+      build_all(ks);
+    }
   } else {
     for (uint32_t m : delta.meshes_refit) {
       if (m >= blas_.size() || ks.meshes[m].triangle_count == 0) continue;  // no geometry

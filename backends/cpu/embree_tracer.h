@@ -2,10 +2,18 @@
 // backends/cpu/cpu_backend.h): the Embree 3 scene it keeps in step with the
 // KernelScene, and the kernel Tracers that query it.
 //
-// One Embree BLAS (RTCScene) per mesh, one instance geometry per scene
-// instance in a top-level scene whose geometry IDs equal instance indices.
-// Vertex and index buffers are shared with KernelScene (no copies), and alpha
-// testing runs the kernel's alpha_test_opaque from an intersection filter.
+// Two layouts. Two-level: one Embree BLAS (RTCScene) per mesh, one instance
+// geometry per scene instance in a top-level scene whose geometry IDs equal
+// instance indices. One-level ("flat"): when no mesh is instanced more than
+// once, every instance is a triangle geometry of a single scene, again with
+// its instance index as geometry ID; an identity instance shares its mesh's
+// vertices, any other gets a world-space copy. The flat layout saves the
+// instance level of every query (the top-level traversal and the ray's
+// transform into the mesh: about a quarter of Embree's instructions on the
+// Cornell box), and is used until the scene first moves an instance or
+// deforms a mesh; from then on the two-level layout refits cheaply.
+// Index buffers are always shared with KernelScene, and alpha testing runs
+// the kernel's alpha_test_opaque from an intersection filter.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -31,14 +39,22 @@ class EmbreeScene {
   void sync(const KernelScene& scene, const SceneDelta& delta);
   // Null before the first sync.
   RTCScene top_level() const { return top_; }
+  // Whether the scene is one-level (see above).
+  bool flat() const { return flat_; }
+  // Never flatten (tests compare the two layouts).
+  void disallow_flat() { dynamic_ = true; }
 
  private:
   void release_scenes();
   void build_all(const KernelScene& scene);
+  void build_two_level(const KernelScene& scene);
+  void build_flat(const KernelScene& scene);
 
   RTCDevice device_ = nullptr;
   RTCScene top_ = nullptr;
   std::vector<RTCScene> blas_;
+  bool flat_ = false;
+  bool dynamic_ = false;  // an instance has moved or a mesh deformed: stay two-level
 };
 
 // A triangle geometry over mesh `mesh` of `ks`, sharing its vertex and index

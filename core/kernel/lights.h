@@ -49,8 +49,8 @@ TANDEM_HD float triangle_light_power(const KMaterial& m, float area_world) {
 
 TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst, uint32_t prim) {
   const TriangleVertices tv = fetch_triangle(kd, inst.mesh, prim);
-  const Vec3 e1 = transform_vector(inst.object_to_world, tv.p1 - tv.p0);
-  const Vec3 e2 = transform_vector(inst.object_to_world, tv.p2 - tv.p0);
+  const Vec3 e1 = instance_vector(inst, tv.p1 - tv.p0);
+  const Vec3 e2 = instance_vector(inst, tv.p2 - tv.p0);
   return 0.5f * length(cross(e1, e2));
 }
 

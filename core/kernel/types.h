@@ -59,11 +59,18 @@ struct KMesh {
 };
 static_assert(sizeof(KMesh) == 32, "GPU layout");
 
+enum KInstanceFlags : uint32_t {
+  // object_to_world is exactly the identity (most glTF nodes, the built-in
+  // scenes): shading skips the transforms of its points, normals and
+  // tangents, and Embree traces its mesh without an instance level.
+  kInstanceIdentity = 1u << 0,
+};
+
 struct KInstance {
   Mat34 object_to_world;
   Mat34 world_to_object;
   uint32_t mesh;
-  uint32_t flags;
+  uint32_t flags;  // KInstanceFlags
   // Sign of the determinant: mirrored instances flip triangle winding.
   float handedness;
   float pad;

@@ -37,6 +37,7 @@ KInstance SceneCompiler::compile_instance(const Instance& inst) const {
   k.world_to_object = to_mat34(glm::inverse(inst.transform));
   k.mesh = inst.mesh;
   k.handedness = glm::determinant(glm::mat3(inst.transform)) < 0.0f ? -1.0f : 1.0f;
+  if (inst.transform == glm::mat4(1.0f)) k.flags |= kInstanceIdentity;
   return k;
 }
 
