@@ -12,6 +12,7 @@
 #include "core/kernel/bsdf.h"
 #include "core/kernel/lights.h"
 #include "core/kernel/rng.h"
+#include "core/kernel/texture.h"
 #include "core/world/kernel_scene.h"
 
 namespace tandem {
@@ -181,6 +182,31 @@ TEST(KernelFastPaths, IdentityInstancesShadeAsTransformedOnes) {
       // The moved copy is one unit up: the shortcut is not taken there.
       const SurfacePoint moved = make_surface_point(fast_kd, {1.0f, b.x, b.y, 1, prim});
       EXPECT_NEAR(moved.position.y, f.position.y + 1.0f, 1e-6f);
+    }
+  }
+}
+
+// wrap_coord as it was, with an integer division for every index.
+int wrap_coord_by_division(int i, int n, uint32_t mode) {
+  if (mode == kWrapClamp) return i < 0 ? 0 : (i >= n ? n - 1 : i);
+  if (mode == kWrapMirror) {
+    const int period = 2 * n;
+    int m = i % period;
+    if (m < 0) m += period;
+    return m < n ? m : period - 1 - m;
+  }
+  int m = i % n;
+  return m < 0 ? m + n : m;
+}
+
+TEST(KernelFastPaths, TexelWrapWithoutDivisionIsTheRemainder) {
+  for (uint32_t mode : {kWrapRepeat, kWrapClamp, kWrapMirror}) {
+    for (int n = 1; n <= 37; ++n) {
+      // The lookups' range [-1, 2n] and well beyond it on both sides.
+      for (int i = -5 * n - 3; i <= 5 * n + 3; ++i) {
+        ASSERT_EQ(wrap_coord(i, n, mode), wrap_coord_by_division(i, n, mode))
+            << "i " << i << " n " << n << " mode " << mode;
+      }
     }
   }
 }
