@@ -174,15 +174,16 @@ RTCGeometry new_mesh_geometry(RTCDevice device, const KernelScene& ks, uint32_t 
 void EmbreeScene::release_scenes() {
   if (top_) rtcReleaseScene(top_);
   top_ = nullptr;
-  for (RTCScene s : blas_)
-    rtcReleaseScene(s);
+  for (RTCScene s : blas_) {
+    if (s) rtcReleaseScene(s);
+  }
   blas_.clear();
 }
 
 namespace {
 
-// Flat only without real instancing, so that the world-space copies of
-// moved instances cost at most the scene's own vertex memory once.
+// Flat only without real instancing: a mesh in the top-level scene itself
+// can be placed once.
 bool can_flatten(const KernelScene& ks) {
   std::vector<uint8_t> used(ks.meshes.size(), 0);
   for (const KInstance& inst : ks.instances) {
@@ -204,36 +205,49 @@ void EmbreeScene::build_all(const KernelScene& ks) {
   }
 }
 
+RTCScene EmbreeScene::build_blas(const KernelScene& ks, uint32_t mesh) {
+  const KMesh& km = ks.meshes[mesh];
+  RTCScene blas = rtcNewScene(device_);
+  rtcSetSceneFlags(blas, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(blas, RTC_BUILD_QUALITY_HIGH);
+  if (km.triangle_count > 0) attach_mesh(blas, ks, mesh, 0);
+  rtcCommitScene(blas);
+  return blas;
+}
+
+void EmbreeScene::attach_mesh(RTCScene scene, const KernelScene& ks, uint32_t mesh, unsigned id) {
+  RTCGeometry g = new_mesh_geometry(device_, ks, mesh, RTC_BUILD_QUALITY_HIGH);
+  if (ks.meshes[mesh].flags & kMeshHasAlphaTest) {
+    rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+    rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+  }
+  rtcCommitGeometry(g);
+  rtcAttachGeometryByID(scene, g, id);
+  rtcReleaseGeometry(g);
+}
+
+void EmbreeScene::attach_instance(const KInstance& inst, unsigned id) {
+  RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
+  rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &inst.object_to_world);
+  rtcCommitGeometry(g);
+  rtcAttachGeometryByID(top_, g, id);
+  rtcReleaseGeometry(g);
+}
+
 void EmbreeScene::build_flat(const KernelScene& ks) {
+  blas_.assign(ks.meshes.size(), nullptr);
   top_ = rtcNewScene(device_);
   rtcSetSceneFlags(top_, RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_HIGH);
   for (size_t i = 0; i < ks.instances.size(); ++i) {
     const KInstance& inst = ks.instances[i];
-    const KMesh& km = ks.meshes[inst.mesh];
-    if (km.triangle_count == 0) continue;  // no geometry: the ID stays unused
-    RTCGeometry g;
     if (inst.flags & kInstanceIdentity) {
-      g = new_mesh_geometry(device_, ks, inst.mesh, RTC_BUILD_QUALITY_HIGH);
+      if (ks.meshes[inst.mesh].triangle_count > 0) attach_mesh(top_, ks, inst.mesh, unsigned(i));
     } else {
-      // Embree pads the buffers it allocates as its SIMD loads need.
-      g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto* world = static_cast<Vec3*>(rtcSetNewGeometryBuffer(
-          g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, sizeof(Vec3), km.vertex_count));
-      for (uint32_t v = 0; v < km.vertex_count; ++v)
-        world[v] = transform_point(inst.object_to_world, ks.positions[km.vertex_offset + v]);
-      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, ks.triangles.data(),
-                                 size_t(km.triangle_offset) * sizeof(KTriangle), sizeof(KTriangle),
-                                 km.triangle_count);
-      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+      blas_[inst.mesh] = build_blas(ks, inst.mesh);
+      attach_instance(inst, unsigned(i));
     }
-    if (km.flags & kMeshHasAlphaTest) {
-      rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
-      rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
-    }
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(top_, g, unsigned(i));
-    rtcReleaseGeometry(g);
   }
   rtcCommitScene(top_);
 }
@@ -241,35 +255,12 @@ void EmbreeScene::build_flat(const KernelScene& ks) {
 void EmbreeScene::build_two_level(const KernelScene& ks) {
   blas_.resize(ks.meshes.size());
   // BLAS builds are independent; Embree parallelises inside each build too.
-  for (size_t m = 0; m < ks.meshes.size(); ++m) {
-    const KMesh& km = ks.meshes[m];
-    RTCScene blas = rtcNewScene(device_);
-    rtcSetSceneFlags(blas, RTC_SCENE_FLAG_ROBUST);
-    rtcSetSceneBuildQuality(blas, RTC_BUILD_QUALITY_HIGH);
-    if (km.triangle_count > 0) {
-      RTCGeometry g = new_mesh_geometry(device_, ks, uint32_t(m), RTC_BUILD_QUALITY_HIGH);
-      if (km.flags & kMeshHasAlphaTest) {
-        rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
-        rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
-      }
-      rtcCommitGeometry(g);
-      rtcAttachGeometryByID(blas, g, 0);
-      rtcReleaseGeometry(g);
-    }
-    rtcCommitScene(blas);
-    blas_[m] = blas;
-  }
+  for (size_t m = 0; m < ks.meshes.size(); ++m)
+    blas_[m] = build_blas(ks, uint32_t(m));
   top_ = rtcNewScene(device_);
   rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
-  for (size_t i = 0; i < ks.instances.size(); ++i) {
-    const KInstance& inst = ks.instances[i];
-    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-    rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
-    rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &inst.object_to_world);
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(top_, g, unsigned(i));
-    rtcReleaseGeometry(g);
-  }
+  for (size_t i = 0; i < ks.instances.size(); ++i)
+    attach_instance(ks.instances[i], unsigned(i));
   rtcCommitScene(top_);
 }
 

@@ -4,16 +4,19 @@
 //
 // Two layouts. Two-level: one Embree BLAS (RTCScene) per mesh, one instance
 // geometry per scene instance in a top-level scene whose geometry IDs equal
-// instance indices. One-level ("flat"): when no mesh is instanced more than
-// once, every instance is a triangle geometry of a single scene, again with
-// its instance index as geometry ID; an identity instance shares its mesh's
-// vertices, any other gets a world-space copy. The flat layout saves the
-// instance level of every query (the top-level traversal and the ray's
-// transform into the mesh: about a quarter of Embree's instructions on the
-// Cornell box), and is used until the scene first moves an instance or
+// instance indices. Flat: when no mesh is instanced more than once, every
+// identity instance is its mesh's triangle geometry directly in the top-level
+// scene (again with its instance index as geometry ID); other instances stay
+// instances of their BLAS. That saves the instance level of every query that
+// hits an identity instance (the top-level traversal and the ray's transform
+// into the mesh: about a quarter of Embree's instructions on the Cornell
+// box) and gives the same hits bit for bit (transforming by the identity
+// changes no value), so a frame never depends on the layout it was traced
+// in. The flat layout is used until the scene first moves an instance or
 // deforms a mesh; from then on the two-level layout refits cheaply.
-// Index buffers are always shared with KernelScene, and alpha testing runs
-// the kernel's alpha_test_opaque from an intersection filter.
+// Vertex and index buffers are shared with KernelScene (no copies), and
+// alpha testing runs the kernel's alpha_test_opaque from an intersection
+// filter.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -49,10 +52,13 @@ class EmbreeScene {
   void build_all(const KernelScene& scene);
   void build_two_level(const KernelScene& scene);
   void build_flat(const KernelScene& scene);
+  RTCScene build_blas(const KernelScene& scene, uint32_t mesh);
+  void attach_mesh(RTCScene target, const KernelScene& scene, uint32_t mesh, unsigned id);
+  void attach_instance(const KInstance& inst, unsigned id);
 
   RTCDevice device_ = nullptr;
   RTCScene top_ = nullptr;
-  std::vector<RTCScene> blas_;
+  std::vector<RTCScene> blas_;  // null for the meshes of a flat scene's identity instances
   bool flat_ = false;
   bool dynamic_ = false;  // an instance has moved or a mesh deformed: stay two-level
 };
