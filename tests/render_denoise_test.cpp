@@ -377,6 +377,139 @@ TEST(Denoise, AccumulatedAndFilteredOneSampleFramesBeatRawOneSample) {
   EXPECT_LT(e_den, 0.25 * e_raw) << "raw " << e_raw << " denoised " << e_den;
 }
 
+// Frame `frame` of a synthetic sequence for the filter-loop tests: sky at
+// the top, a slanted plane of two materials with a checker albedo, and a
+// square moving 5 pixels per frame across it (disocclusions: short-history
+// runs next to long ones), with noisy radiance and 2% fireflies.
+void make_square_frame(int frame, uint32_t w, uint32_t h, std::mt19937& rng,
+                       std::vector<PixelFeatures>& f, std::vector<Vec3>& radiance) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  f.assign(size_t(w) * h, PixelFeatures{});
+  radiance.assign(size_t(w) * h, Vec3{});
+  const uint32_t sq_x = 20 + 5 * uint32_t(frame);
+  for (uint32_t y = 0; y < h; ++y) {
+    for (uint32_t x = 0; x < w; ++x) {
+      PixelFeatures& p = f[y * w + x];
+      if (y < 6) {
+        p = sky_pixel();
+      } else if (x >= sq_x && x < sq_x + 24 && y >= 20 && y < 44) {
+        p = plane_pixel(1, 2.0f, normalize(make_vec3(0.1f, 0.0f, 1.0f)), make_vec3(0.8f));
+        if (frame > 0) p.motion = make_vec2(-5.0f, 0.0f);
+      } else {
+        const float z = 6.0f + 0.02f * float(y);
+        p = plane_pixel(0, z, normalize(make_vec3(0.0f, 0.3f, 1.0f)),
+                        make_vec3(0.3f + 0.4f * float((x / 3 + y / 3) % 2), 0.5f, 0.4f));
+        p.prev_depth = z;
+        p.material = x < w / 3 ? 2u : 0u;
+      }
+      radiance[y * w + x] = p.albedo * (2.0f * u(rng)) * (u(rng) < 0.02f ? 20.0f : 1.0f);
+    }
+  }
+}
+
+// The buffers of one filter run over a sequence (double-buffered history).
+struct FilterRun {
+  std::vector<PixelFeatures> features[2];
+  std::vector<Vec4> color[2], moments[2], a, b;
+  std::vector<Vec3> output;
+  std::vector<Vec2> slope;
+  std::vector<SvgfGuide> guide;
+  std::vector<uint32_t> material;
+  explicit FilterRun(size_t n) : a(n), b(n), output(n), slope(n), guide(n), material(n) {
+    for (int k = 0; k < 2; ++k) {
+      features[k].assign(n, PixelFeatures{});
+      color[k].assign(n, Vec4{});
+      moments[k].assign(n, Vec4{});
+    }
+  }
+  SvgfFrame frame(int cur, bool has_history, const std::vector<Vec3>& radiance) {
+    const int prev = 1 - cur;
+    return SvgfFrame{features[cur].data(),
+                     radiance.data(),
+                     has_history ? features[prev].data() : nullptr,
+                     color[prev].data(),
+                     moments[prev].data(),
+                     color[cur].data(),
+                     moments[cur].data(),
+                     output.data(),
+                     a.data(),
+                     b.data(),
+                     slope.data(),
+                     guide.data(),
+                     material.data()};
+  }
+};
+
+// The device driver's sequence (backends/cuda/svgf_kernels.cu): each stage
+// one pass of the per-pixel functions over the records, always checking
+// bounds. The CPU driver's planes must give the same image.
+void run_filter_on_records(const SvgfParams& p, const SvgfFrame& fr) {
+  const SvgfTemporalBuffers tb{fr.features,     fr.radiance,  fr.prev_features, fr.prev_color,
+                               fr.prev_moments, fr.scratch_a, fr.moments_out,   fr.depth_slope,
+                               fr.guide,        fr.material};
+  for (uint32_t y = 0; y < p.height; ++y)
+    for (uint32_t x = 0; x < p.width; ++x)
+      svgf_temporal_pixel(p, tb, x, y);
+  const SvgfVarianceBuffers vb{fr.guide,     fr.material,    fr.depth_slope,
+                               fr.scratch_a, fr.moments_out, fr.scratch_b};
+  for (uint32_t y = 0; y < p.height; ++y)
+    for (uint32_t x = 0; x < p.width; ++x)
+      svgf_variance_pixel(p, vb, x, y);
+  const Vec4* in = fr.scratch_b;
+  for (uint32_t it = 0; it < p.iterations; ++it) {
+    Vec4* out = it == 0 ? fr.history_color_out : (in == fr.scratch_a ? fr.scratch_b : fr.scratch_a);
+    const SvgfAtrousBuffers ab{fr.guide, fr.material, fr.depth_slope, in};
+    for (uint32_t y = 0; y < p.height; ++y)
+      for (uint32_t x = 0; x < p.width; ++x)
+        out[size_t(y) * p.width + x] = svgf_atrous_pixel<true>(p, ab, 1u << it, x, y);
+    in = out;
+  }
+  for (size_t i = 0; i < size_t(p.width) * p.height; ++i)
+    fr.output[i] = svgf_modulate_pixel(fr.features[i], in[i]);
+}
+
+// The CPU driver runs the spatial stages over structure-of-arrays planes
+// (vectorised, unchecked interior loops); the device over the records. Both
+// run the same per-pixel functions, so the images, the colour history and
+// the history lengths must agree within float rounding, frame after frame
+// (first frame: spatial variance everywhere; later: disocclusions).
+TEST(Denoise, CpuPlanesGiveTheImageOfTheRecordsPath) {
+  const uint32_t w = 96, h = 64;
+  const size_t n = size_t(w) * h;
+  for (uint32_t radius : {1u, 2u}) {
+    SCOPED_TRACE("kernel radius " + std::to_string(radius));
+    SvgfParams params = svgf_default_params(w, h);
+    params.kernel_radius = radius;
+    FilterRun planes(n), records(n);
+    std::mt19937 rng(5);
+    for (int frame = 0; frame < 5; ++frame) {
+      SCOPED_TRACE("frame " + std::to_string(frame));
+      const int cur = frame & 1;
+      std::vector<PixelFeatures> f;
+      std::vector<Vec3> radiance;
+      make_square_frame(frame, w, h, rng, f, radiance);
+      planes.features[cur] = f;
+      records.features[cur] = f;
+      svgf_run_cpu(params, planes.frame(cur, frame > 0, radiance), SvgfCpuIsa::kBaseline);
+      run_filter_on_records(params, records.frame(cur, frame > 0, radiance));
+      double worst = 0.0, worst_hist = 0.0;
+      for (size_t i = 0; i < n; ++i) {
+        const Vec3 a = planes.output[i], b = records.output[i];
+        const double scale = std::fabs(b.x) + std::fabs(b.y) + std::fabs(b.z) + 1e-3;
+        for (float d : {a.x - b.x, a.y - b.y, a.z - b.z})
+          worst = std::max(worst, std::fabs(d) / scale);
+        const Vec4 ha = planes.color[cur][i], hb = records.color[cur][i];
+        const double hscale = std::fabs(hb.x) + std::fabs(hb.y) + std::fabs(hb.z) + 1e-3;
+        for (float d : {ha.x - hb.x, ha.y - hb.y, ha.z - hb.z})
+          worst_hist = std::max(worst_hist, std::fabs(d) / hscale);
+        EXPECT_EQ(planes.moments[cur][i].z, records.moments[cur][i].z) << "pixel " << i;
+      }
+      EXPECT_LT(worst, 1e-4) << "largest relative difference of the image";
+      EXPECT_LT(worst_hist, 1e-4) << "largest relative difference of the colour history";
+    }
+  }
+}
+
 // The filter's row loops run as AVX2 + FMA clones where the CPU has them,
 // and as the baseline x86-64 (SSE2) build elsewhere: the two must give the
 // same image within float rounding, on a first frame (the spatial variance
@@ -388,74 +521,22 @@ TEST(Denoise, Avx2AndBaselineLoopsGiveTheSameImage) {
   EXPECT_EQ(svgf_cpu_isa(SvgfCpuIsa::kBaseline), SvgfCpuIsa::kBaseline);
   const uint32_t w = 96, h = 64;
   const size_t n = size_t(w) * h;
-  struct Run {
-    std::vector<PixelFeatures> features[2];
-    std::vector<Vec4> color[2], moments[2], a, b;
-    std::vector<Vec3> output;
-    std::vector<Vec2> slope;
-    std::vector<SvgfGuide> guide;
-    std::vector<uint32_t> material;
-  };
   for (uint32_t radius : {1u, 2u}) {
     SCOPED_TRACE("kernel radius " + std::to_string(radius));
     SvgfParams params = svgf_default_params(w, h);
     params.kernel_radius = radius;
-    Run runs[2];
-    for (Run& r : runs) {
-      for (int k = 0; k < 2; ++k) {
-        r.features[k].assign(n, PixelFeatures{});
-        r.color[k].assign(n, Vec4{});
-        r.moments[k].assign(n, Vec4{});
-      }
-      r.a.assign(n, Vec4{});
-      r.b.assign(n, Vec4{});
-      r.output.assign(n, Vec3{});
-      r.slope.assign(n, Vec2{});
-      r.guide.assign(n, SvgfGuide{});
-      r.material.assign(n, 0u);
-    }
+    FilterRun runs[2] = {FilterRun(n), FilterRun(n)};
     std::mt19937 rng(11);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (int frame = 0; frame < 5; ++frame) {
-      const int cur = frame & 1, prev = 1 - cur;
-      std::vector<PixelFeatures> f(n);
-      std::vector<Vec3> radiance(n);
-      const uint32_t sq_x = 20 + 5 * uint32_t(frame);
-      for (uint32_t y = 0; y < h; ++y) {
-        for (uint32_t x = 0; x < w; ++x) {
-          PixelFeatures& p = f[y * w + x];
-          if (y < 6) {
-            p = sky_pixel();
-          } else if (x >= sq_x && x < sq_x + 24 && y >= 20 && y < 44) {
-            p = plane_pixel(1, 2.0f, normalize(make_vec3(0.1f, 0.0f, 1.0f)), make_vec3(0.8f));
-            if (frame > 0) p.motion = make_vec2(-5.0f, 0.0f);
-          } else {
-            const float z = 6.0f + 0.02f * float(y);
-            p = plane_pixel(0, z, normalize(make_vec3(0.0f, 0.3f, 1.0f)),
-                            make_vec3(0.3f + 0.4f * float((x / 3 + y / 3) % 2), 0.5f, 0.4f));
-            p.prev_depth = z;
-            p.material = x < w / 3 ? 2u : 0u;
-          }
-          radiance[y * w + x] = p.albedo * (2.0f * u(rng)) * (u(rng) < 0.02f ? 20.0f : 1.0f);
-        }
-      }
+      const int cur = frame & 1;
+      std::vector<PixelFeatures> f;
+      std::vector<Vec3> radiance;
+      make_square_frame(frame, w, h, rng, f, radiance);
       for (int isa = 0; isa < 2; ++isa) {
-        Run& r = runs[isa];
+        FilterRun& r = runs[isa];
         r.features[cur] = f;
-        const SvgfFrame fr{r.features[cur].data(),
-                           radiance.data(),
-                           frame > 0 ? r.features[prev].data() : nullptr,
-                           r.color[prev].data(),
-                           r.moments[prev].data(),
-                           r.color[cur].data(),
-                           r.moments[cur].data(),
-                           r.output.data(),
-                           r.a.data(),
-                           r.b.data(),
-                           r.slope.data(),
-                           r.guide.data(),
-                           r.material.data()};
-        svgf_run_cpu(params, fr, isa == 0 ? SvgfCpuIsa::kBaseline : SvgfCpuIsa::kAvx2);
+        svgf_run_cpu(params, r.frame(cur, frame > 0, radiance),
+                     isa == 0 ? SvgfCpuIsa::kBaseline : SvgfCpuIsa::kAvx2);
       }
       SCOPED_TRACE("frame " + std::to_string(frame));
       double worst = 0.0, sum = 0.0;

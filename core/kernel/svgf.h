@@ -342,6 +342,69 @@ struct SvgfVarianceBuffers {
   Vec4* out;            // illumination, variance
 };
 
+// Structure-of-arrays form of the same inputs for the CPU driver: one
+// plane per component, so that a row loop loads 8 neighbouring pixels'
+// values with one vector load instead of de-interleaving 16-byte records
+// (the CPU's vectorised tap loops spent more instructions on that than on
+// the weights). The device reads the records (SvgfVarianceBuffers).
+struct SvgfGuidePlanes {
+  const float* normal_x;
+  const float* normal_y;
+  const float* normal_z;
+  const float* depth;
+  const uint32_t* material;
+  const Vec2* depth_slope;  // per centre only: a record is fine
+};
+struct SvgfVariancePlanes {
+  SvgfGuidePlanes guide;
+  const float* r;  // temporal illumination
+  const float* g;
+  const float* b;
+  const float* m1;  // temporal luminance moments
+  const float* m2;
+  const Vec4* moments;  // (m1, m2, length, 0), for the centre's history length
+};
+
+// Tap reads of the spatial stages, one overload per buffer form: the
+// per-pixel functions below are the same code for both.
+TANDEM_HD SvgfGuide svgf_tap_guide(const SvgfVarianceBuffers& b, ptrdiff_t j) {
+  return b.guide[j];
+}
+TANDEM_HD SvgfGuide svgf_tap_guide(const SvgfGuidePlanes& g, ptrdiff_t j) {
+  SvgfGuide q;
+  q.normal = make_vec3(g.normal_x[j], g.normal_y[j], g.normal_z[j]);
+  q.depth = g.depth[j];
+  return q;
+}
+TANDEM_HD SvgfGuide svgf_tap_guide(const SvgfVariancePlanes& b, ptrdiff_t j) {
+  return svgf_tap_guide(b.guide, j);
+}
+TANDEM_HD uint32_t svgf_tap_material(const SvgfVarianceBuffers& b, ptrdiff_t j) {
+  return b.material[j];
+}
+TANDEM_HD uint32_t svgf_tap_material(const SvgfVariancePlanes& b, ptrdiff_t j) {
+  return b.guide.material[j];
+}
+TANDEM_HD Vec2 svgf_tap_slope(const SvgfVarianceBuffers& b, ptrdiff_t j) {
+  return b.depth_slope[j];
+}
+TANDEM_HD Vec2 svgf_tap_slope(const SvgfVariancePlanes& b, ptrdiff_t j) {
+  return b.guide.depth_slope[j];
+}
+TANDEM_HD Vec3 svgf_tap_color(const SvgfVarianceBuffers& b, ptrdiff_t j) {
+  return xyz(b.color[j]);
+}
+TANDEM_HD Vec3 svgf_tap_color(const SvgfVariancePlanes& b, ptrdiff_t j) {
+  return make_vec3(b.r[j], b.g[j], b.b[j]);
+}
+// (m1, m2) of the luminance moments.
+TANDEM_HD Vec2 svgf_tap_moments(const SvgfVarianceBuffers& b, ptrdiff_t j) {
+  return make_vec2(b.moments[j].x, b.moments[j].y);
+}
+TANDEM_HD Vec2 svgf_tap_moments(const SvgfVariancePlanes& b, ptrdiff_t j) {
+  return make_vec2(b.m1[j], b.m2[j]);
+}
+
 // Below this many frames of history the moments are too young to trust.
 constexpr float kSvgfMinHistoryForVariance = 4.0f;
 
@@ -352,12 +415,13 @@ constexpr float kSvgfMinHistoryForVariance = 4.0f;
 // at least 3 away from every image border: then the loop has no branches
 // (other surfaces weigh 0 by a product) and the CPU driver's row loop over
 // a run of such pixels vectorises like the a-trous one.
-template <bool kCheckBounds>
-TANDEM_SVGF_INLINE Vec4 svgf_variance_spatial(const SvgfParams& p, const SvgfVarianceBuffers& b,
-                                              int x, int y, float history) {
+template <bool kCheckBounds, class B>
+TANDEM_SVGF_INLINE Vec4 svgf_variance_spatial(const SvgfParams& p, const B& b, int x, int y,
+                                              float history) {
   const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(p.width) + x;
   const int w = int(p.width), h = int(p.height);
-  const SvgfEdgeCenter c = svgf_edge_center(p, b.guide[i], b.material[i], b.depth_slope[i]);
+  const SvgfEdgeCenter c =
+      svgf_edge_center(p, svgf_tap_guide(b, i), svgf_tap_material(b, i), svgf_tap_slope(b, i));
   // 1 / expected depth change per |offset| (0..3 on each axis): 16
   // divisions per pixel instead of one per tap.
   float inv_exp[4][4];
@@ -367,9 +431,9 @@ TANDEM_SVGF_INLINE Vec4 svgf_variance_spatial(const SvgfParams& p, const SvgfVar
   for (int bb = 0; bb < 4; ++bb)
     inv_exp[a][bb] = svgf_inv_expected_depth(c, a, bb);
   // The centre's own weight is 1.
-  const Vec4 cm = b.moments[i];
+  const Vec2 cm = svgf_tap_moments(b, i);
   float wsum = 1.0f, m1 = cm.x, m2 = cm.y;
-  Vec3 col = xyz(b.color[i]);
+  Vec3 col = svgf_tap_color(b, i);
   TANDEM_SVGF_UNROLL
   for (int dy = -3; dy <= 3; ++dy) {
     TANDEM_SVGF_UNROLL
@@ -380,14 +444,14 @@ TANDEM_SVGF_INLINE Vec4 svgf_variance_spatial(const SvgfParams& p, const SvgfVar
       // Offsets from i (signed, affine in x): addresses the vectoriser can
       // follow along the row.
       const ptrdiff_t j = i + ptrdiff_t(dy) * ptrdiff_t(p.width) + dx;
-      const float same = b.material[j] == c.material ? 1.0f : 0.0f;
+      const float same = svgf_tap_material(b, j) == c.material ? 1.0f : 0.0f;
       const float wt =
-          same *
-          svgf_guide_weight(p, c, b.guide[j], inv_exp[dx < 0 ? -dx : dx][dy < 0 ? -dy : dy], 0.0f);
-      const Vec4 m = b.moments[j];
+          same * svgf_guide_weight(p, c, svgf_tap_guide(b, j),
+                                   inv_exp[dx < 0 ? -dx : dx][dy < 0 ? -dy : dy], 0.0f);
+      const Vec2 m = svgf_tap_moments(b, j);
       m1 += m.x * wt;
       m2 += m.y * wt;
-      col += xyz(b.color[j]) * wt;
+      col += svgf_tap_color(b, j) * wt;
       wsum += wt;
     }
   }
@@ -417,6 +481,46 @@ struct SvgfAtrousBuffers {
   const Vec4* in;  // illumination, variance
 };
 
+// The CPU driver's structure-of-arrays form (see SvgfVariancePlanes).
+struct SvgfAtrousPlanes {
+  SvgfGuidePlanes guide;
+  const float* r;  // illumination
+  const float* g;
+  const float* b;
+  const float* var;  // its variance
+};
+
+TANDEM_HD SvgfGuide svgf_tap_guide(const SvgfAtrousBuffers& b, ptrdiff_t j) {
+  return b.guide[j];
+}
+TANDEM_HD SvgfGuide svgf_tap_guide(const SvgfAtrousPlanes& b, ptrdiff_t j) {
+  return svgf_tap_guide(b.guide, j);
+}
+TANDEM_HD uint32_t svgf_tap_material(const SvgfAtrousBuffers& b, ptrdiff_t j) {
+  return b.material[j];
+}
+TANDEM_HD uint32_t svgf_tap_material(const SvgfAtrousPlanes& b, ptrdiff_t j) {
+  return b.guide.material[j];
+}
+TANDEM_HD Vec2 svgf_tap_slope(const SvgfAtrousBuffers& b, ptrdiff_t j) {
+  return b.depth_slope[j];
+}
+TANDEM_HD Vec2 svgf_tap_slope(const SvgfAtrousPlanes& b, ptrdiff_t j) {
+  return b.guide.depth_slope[j];
+}
+TANDEM_HD Vec3 svgf_tap_color(const SvgfAtrousBuffers& b, ptrdiff_t j) {
+  return xyz(b.in[j]);
+}
+TANDEM_HD Vec3 svgf_tap_color(const SvgfAtrousPlanes& b, ptrdiff_t j) {
+  return make_vec3(b.r[j], b.g[j], b.b[j]);
+}
+TANDEM_HD float svgf_tap_variance(const SvgfAtrousBuffers& b, ptrdiff_t j) {
+  return b.in[j].w;
+}
+TANDEM_HD float svgf_tap_variance(const SvgfAtrousPlanes& b, ptrdiff_t j) {
+  return b.var[j];
+}
+
 // 1D kernel taps: radius 1 (1/4, 1/2, 1/4); radius 2 the B3 spline
 // (1/16, 1/4, 3/8, 1/4, 1/16).
 TANDEM_HD float svgf_kernel_tap(uint32_t radius, int d) {
@@ -425,22 +529,43 @@ TANDEM_HD float svgf_kernel_tap(uint32_t radius, int d) {
   return a == 0 ? 0.375f : (a == 1 ? 0.25f : 0.0625f);
 }
 
+// Which taps of an a-trous pixel are inside the image, for a run of pixels
+// near the border where that is the same for every pixel of the run (the
+// CPU driver splits rows at the pixels where a tap crosses the border):
+// a tap outside is read at offset 0 (the centre's row or column, always
+// inside) and weighs 0, so the run's loop has no branches and vectorises
+// like the interior one. Indexed by tap + 2 (radius <= 2).
+struct SvgfTapMask {
+  float ok_x[5], ok_y[5];  // 1 inside, 0 outside
+  int off_x[5];            // pixel offset of the tap column: kx * step inside, else 0
+  int off_y[5];            // the same for the tap row (in rows)
+};
+
+// How svgf_atrous_pixel_core treats the image border.
+enum SvgfBorderMode : int {
+  kSvgfUnchecked = 0,  // pixel at least R * step + 1 away from every border
+  kSvgfChecked = 1,    // any pixel: taps outside are skipped (branches)
+  kSvgfMasked = 2,     // taps outside given by a SvgfTapMask; pixel not on the image's edge
+};
+
 // One a-trous iteration at (x, y) with tap spacing `step` and a kernel of
 // radius R (svgf_kernel_tap); returns the filtered illumination and its
-// variance. kCheckBounds = false is for pixels at least R * step + 1 away
-// from every image border (the CPU driver's interior, whose row loop the
-// compiler vectorises: no branches on pixel data, only selects; the device
-// always checks).
-template <bool kCheckBounds, int R>
-TANDEM_SVGF_INLINE Vec4 svgf_atrous_pixel_r(const SvgfParams& p, const SvgfAtrousBuffers& b,
-                                            uint32_t step, int x, int y) {
+// variance. kSvgfUnchecked and kSvgfMasked are for the CPU driver's row
+// loops, which the compiler vectorises (no branches on pixel data, only
+// selects); the device always checks. All three give the same result.
+template <int kMode, int R, class B>
+TANDEM_SVGF_INLINE Vec4 svgf_atrous_pixel_core(const SvgfParams& p, const B& b, uint32_t step,
+                                               int x, int y, const SvgfTapMask* mask) {
+  constexpr bool kCheckBounds = kMode == kSvgfChecked;
   // Signed pixel indices: an unsigned one may wrap, and the vectoriser
   // then cannot follow the addresses along the row.
   const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(p.width) + x;
   const int w = int(p.width), h = int(p.height);
-  const SvgfEdgeCenter c = svgf_edge_center(p, b.guide[i], b.material[i], b.depth_slope[i]);
-  const Vec4 center = b.in[i];
-  const float lum_c = luminance(xyz(center));
+  const SvgfEdgeCenter c =
+      svgf_edge_center(p, svgf_tap_guide(b, i), svgf_tap_material(b, i), svgf_tap_slope(b, i));
+  const Vec3 center = svgf_tap_color(b, i);
+  const float center_var = svgf_tap_variance(b, i);
+  const float lum_c = luminance(center);
   // The luminance edge stop uses the variance blurred over 3x3 pixels: the
   // raw per-pixel estimate is itself noisy.
   float var_blur = 0.0f, var_w = 0.0f;
@@ -453,7 +578,7 @@ TANDEM_SVGF_INLINE Vec4 svgf_atrous_pixel_r(const SvgfParams& p, const SvgfAtrou
       const float k = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
       // Offsets from i (signed, affine in x) rather than (qy * width + qx):
       // the vectoriser needs addresses it can follow along the row.
-      var_blur += b.in[ptrdiff_t(i) + ptrdiff_t(dy) * ptrdiff_t(p.width) + dx].w * k;
+      var_blur += svgf_tap_variance(b, ptrdiff_t(i) + ptrdiff_t(dy) * ptrdiff_t(p.width) + dx) * k;
       var_w += k;
     }
   }
@@ -468,34 +593,44 @@ TANDEM_SVGF_INLINE Vec4 svgf_atrous_pixel_r(const SvgfParams& p, const SvgfAtrou
     inv_exp[a][bb] = svgf_inv_expected_depth(c, a * s, bb * s);
 
   const float k0 = svgf_kernel_tap(R, 0);
-  Vec3 sum = xyz(center) * (k0 * k0);  // centre tap, edge weight 1
-  float var_sum = center.w * (k0 * k0) * (k0 * k0), wsum = k0 * k0;
+  Vec3 sum = center * (k0 * k0);  // centre tap, edge weight 1
+  float var_sum = center_var * (k0 * k0) * (k0 * k0), wsum = k0 * k0;
   TANDEM_SVGF_UNROLL
   for (int ky = -R; ky <= R; ++ky) {
     const int qy = y + ky * s;
     if (kCheckBounds && (qy < 0 || qy >= h)) continue;
-    const float tap_y = svgf_kernel_tap(R, ky);
-    const ptrdiff_t row = ptrdiff_t(i) + ptrdiff_t(ky * s) * ptrdiff_t(p.width);
+    const float tap_y = svgf_kernel_tap(R, ky) * (kMode == kSvgfMasked ? mask->ok_y[ky + 2] : 1.0f);
+    const int row_offset = kMode == kSvgfMasked ? mask->off_y[ky + 2] : ky * s;
+    const ptrdiff_t row = ptrdiff_t(i) + ptrdiff_t(row_offset) * ptrdiff_t(p.width);
     TANDEM_SVGF_UNROLL
     for (int kx = -R; kx <= R; ++kx) {
       if (kx == 0 && ky == 0) continue;
       const int qx = x + kx * s;
       if (kCheckBounds && (qx < 0 || qx >= w)) continue;
-      const ptrdiff_t j = row + kx * s;
-      const Vec4 q = b.in[j];
+      const ptrdiff_t j = row + (kMode == kSvgfMasked ? mask->off_x[kx + 2] : kx * s);
+      const Vec3 q = svgf_tap_color(b, j);
       // Another material (also: hit against miss) weighs nothing.
-      const float same = b.material[j] == c.material ? 1.0f : 0.0f;
-      const float e =
-          same * svgf_guide_weight(p, c, b.guide[j], inv_exp[kx < 0 ? -kx : kx][ky < 0 ? -ky : ky],
-                                   fabsf(luminance(xyz(q)) - lum_c) * lum_scale);
-      const float hw = svgf_kernel_tap(R, kx) * tap_y * e;
-      sum += xyz(q) * hw;
-      var_sum += q.w * hw * hw;
+      const float same = svgf_tap_material(b, j) == c.material ? 1.0f : 0.0f;
+      const float e = same * svgf_guide_weight(p, c, svgf_tap_guide(b, j),
+                                               inv_exp[kx < 0 ? -kx : kx][ky < 0 ? -ky : ky],
+                                               fabsf(luminance(q) - lum_c) * lum_scale);
+      const float tap_x =
+          svgf_kernel_tap(R, kx) * (kMode == kSvgfMasked ? mask->ok_x[kx + 2] : 1.0f);
+      const float hw = tap_x * tap_y * e;
+      sum += q * hw;
+      var_sum += svgf_tap_variance(b, j) * hw * hw;
       wsum += hw;
     }
   }
   const float inv = 1.0f / wsum;
   return make_vec4(sum * inv, var_sum * inv * inv);
+}
+
+template <bool kCheckBounds, int R, class B>
+TANDEM_SVGF_INLINE Vec4 svgf_atrous_pixel_r(const SvgfParams& p, const B& b, uint32_t step, int x,
+                                            int y) {
+  return svgf_atrous_pixel_core < kCheckBounds ? kSvgfChecked : kSvgfUnchecked,
+         R > (p, b, step, x, y, nullptr);
 }
 
 template <bool kCheckBounds>

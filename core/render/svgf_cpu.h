@@ -22,7 +22,13 @@ struct SvgfFrame {
   Vec2* depth_slope;   // work space
   SvgfGuide* guide;    // work space
   uint32_t* material;  // work space
+  // Work space of svgf_cpu_plane_floats(width, height) floats for the CPU
+  // driver's structure-of-arrays planes; null: svgf_run_cpu allocates it
+  // per call (the device driver does not use it).
+  float* planes = nullptr;
 };
+
+size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height);
 
 struct SvgfStageSeconds {
   double temporal = 0.0, variance = 0.0, atrous = 0.0, modulate = 0.0;

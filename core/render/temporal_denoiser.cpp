@@ -29,6 +29,7 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
     depth_slope_.assign(n, Vec2{});
     guide_.assign(n, SvgfGuide{});
     material_.assign(n, 0u);
+    planes_.assign(svgf_cpu_plane_floats(width_, height_), 0.0f);
   }
   for (size_t i = 0; i < n; ++i)
     radiance_[i] = make_vec3(radiance.rgb[3 * i], radiance.rgb[3 * i + 1], radiance.rgb[3 * i + 2]);
@@ -49,7 +50,8 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                         scratch_b_.data(),
                         depth_slope_.data(),
                         guide_.data(),
-                        material_.data()};
+                        material_.data(),
+                        planes_.data()};
   last_seconds_ = svgf_run_cpu(p, frame);
   current_ = next;
   has_history_ = true;

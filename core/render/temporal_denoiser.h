@@ -55,6 +55,7 @@ class TemporalDenoiser {
   std::vector<Vec2> depth_slope_;
   std::vector<SvgfGuide> guide_;
   std::vector<uint32_t> material_;
+  std::vector<float> planes_;  // svgf_run_cpu's work space
   SvgfStageSeconds last_seconds_;
 };
 
