@@ -156,6 +156,8 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
     blas_built_quality_[m] = kQualityUnknown;
     blas_refit_[m].clear();
     blas_refit_state_[m] = FastRefit::kNotTried;
+    host_stale_[m] = 0;
+    wide_stale_[m] = 0;
     const bool use_cache =
         allow_cache && cache_ && g.triangle_count >= settings_.cache.min_triangles;
     uint64_t key = 0;
@@ -183,6 +185,7 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
 std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
                                                  const std::vector<uint32_t>& meshes) {
   std::vector<uint8_t> poor(meshes.size(), 0);
+  const bool keep_wide = settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide;
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     BvhLayouts& l = blas_[m];
@@ -196,10 +199,15 @@ std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
       // One pass over the triangles in leaf order, both layouts, straight
       // into the kernel arrays (blas_refit.h).
       const LayoutBases& b = blas_bases_[m];
-      const BlasRefit::Result r = blas_refit_[m].refit(l, g, b, ks.bvh_nodes.data() + b.node,
-                                                       ks.bvh_wide_nodes.data() + b.wide_node);
+      BlasRefit::Result r =
+          blas_refit_[m].refit(l, g, b, ks.bvh_nodes.data() + b.node,
+                               keep_wide ? ks.bvh_wide_nodes.data() + b.wide_node : nullptr,
+                               ks.bvh_leaf_triangles.data() + b.prim);
       refit_emitted_[m] = 1;
+      host_stale_[m] = 1;
+      wide_stale_[m] = keep_wide ? 0 : 1;
       refit_spans_[m] = r.spans;
+      refit_leaf_spans_[m] = std::move(r.leaf_spans);
       poor[i] = r.members_changed || refit_too_poor(r.quality, blas_built_quality_[m]);
       return;
     }
@@ -242,9 +250,31 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
     out[i] = make_leaf_triangle(g, prims[i]);
 }
 
+const BvhLayouts& AccelStructure::blas(uint32_t mesh) const {
+  std::lock_guard<std::mutex> lock(host_sync_mutex_);
+  if (arrays_) sync_host_copy(*arrays_, mesh);
+  return blas_[mesh];
+}
+
+void AccelStructure::sync_host_copy(const KernelScene& ks, uint32_t m) const {
+  if (m >= host_stale_.size() || !host_stale_[m]) return;
+  const LayoutBases& b = blas_bases_[m];
+  BlasRefit::copy_boxes_to_host(blas_[m], ks.bvh_nodes.data() + b.node,
+                                ks.bvh_wide_nodes.data() + b.wide_node);
+  // The kernel's wide nodes lag: refit the host copy's from the vertices
+  // (the general refit, equal to BlasRefit's; rare: a relayout or blas()
+  // while the wide layout is not in use).
+  if (wide_stale_[m]) refit_layouts(blas_[m], triangle_boxes(mesh_geometry(ks, m)));
+  host_stale_[m] = 0;
+}
+
 // Places every BLAS and the TLAS region in fresh arrays.
 void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   const uint32_t n = uint32_t(blas_.size());
+  // The arrays are about to be replaced: refit boxes that live only there
+  // go back to the host copies they are emitted from.
+  for (uint32_t m = 0; m < n; ++m)
+    sync_host_copy(ks, m);
   blas_bases_.assign(n, LayoutBases{});
   uint64_t node = 0, prim = 0, wide_node = 0, wide_prim = 0;
   for (uint32_t m = 0; m < n; ++m) {
@@ -294,6 +324,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   mark_all(up.delta.bvh_leaf_triangles);
   mark_all(up.delta.bvh_wide_nodes);
   mark_all(up.delta.bvh_wide_prim_indices);
+  wide_stale_.assign(n, 0);  // every BLAS emitted from a current host copy
   laid_out_ = true;
 }
 
@@ -410,6 +441,7 @@ void AccelStructure::emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_chan
 
 AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   AccelUpdate up;
+  arrays_ = &ks;
   const uint32_t n = uint32_t(ks.meshes.size());
   std::vector<uint32_t> rebuild;
   bool relayout = false;
@@ -418,7 +450,10 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     blas_built_quality_.assign(n, kQualityUnknown);
     blas_refit_.assign(n, BlasRefit{});
     blas_refit_state_.assign(n, FastRefit::kNotTried);
+    host_stale_.assign(n, 0);
+    wide_stale_.assign(n, 0);
     refit_spans_.assign(n, NodeSpans{});
+    refit_leaf_spans_.assign(n, {});
     refit_emitted_.assign(n, 0);
     rebuild.resize(n);
     for (uint32_t m = 0; m < n; ++m)
@@ -435,6 +470,14 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   std::vector<uint32_t> refit;
   for (uint32_t m : delta.meshes_refit) {
     if (m < n && !std::binary_search(rebuild.begin(), rebuild.end(), m)) refit.push_back(m);
+  }
+  // Wide nodes left behind while the binary layout was in use catch up once
+  // they are (a refit of an unchanged mesh re-quantises them).
+  if (settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide) {
+    for (uint32_t m = 0; m < wide_stale_.size() && m < n; ++m) {
+      if (wide_stale_[m] && !std::binary_search(rebuild.begin(), rebuild.end(), m))
+        refit.push_back(m);
+    }
   }
   std::sort(refit.begin(), refit.end());
   refit.erase(std::unique(refit.begin(), refit.end()), refit.end());
@@ -476,10 +519,16 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
       up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
       up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
                                    b.wide_node + spans.wide_nodes.end);
-      // The leaves' records hold the vertices: rewrite the moved ones.
-      emit_changed_leaf_triangles(blas_[m].prims, mesh_geometry(ks, m), b.prim,
-                                  ks.bvh_leaf_triangles.data() + b.prim,
-                                  up.delta.bvh_leaf_triangles);
+      // The leaves' records hold the vertices: rewrite the moved ones
+      // (BlasRefit did, in its leaf pass).
+      if (refit_emitted_[m]) {
+        for (const NodeSpan& span : refit_leaf_spans_[m])
+          up.delta.bvh_leaf_triangles.mark(b.prim + span.begin, b.prim + span.end);
+      } else {
+        emit_changed_leaf_triangles(blas_[m].prims, mesh_geometry(ks, m), b.prim,
+                                    ks.bvh_leaf_triangles.data() + b.prim,
+                                    up.delta.bvh_leaf_triangles);
+      }
     }
   }
 

@@ -23,6 +23,7 @@
 
 #include <chrono>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "accstruc/blas_refit.h"
@@ -39,6 +40,15 @@ struct AccelSettings {
   // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
   BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};
   KBvhLayout layout = kBvhLayoutBinary;  // what BvhTracer traverses (kd.bvh.layout)
+  // false: refit frames keep only the layout in use (kd.bvh.layout) current
+  // in the kernel arrays. The binary nodes are refit either way (the wide
+  // boxes are made from them), so this skips the wide layout's refit while
+  // the binary one is in use; the wide nodes catch up at the update() after
+  // set_layout() selects them, and at a relayout. For callers whose every
+  // consumer of the arrays follows kd.bvh.layout (CoreTracer's backends, on
+  // the host or a device, do); true (both layouts every frame) for those
+  // that read the other layout directly.
+  bool refit_unused_layout = true;
   BvhCacheSettings cache;
 };
 
@@ -74,8 +84,11 @@ class AccelStructure {
   void set_layout(KBvhLayout layout) { settings_.layout = layout; }
   const AccelSettings& settings() const { return settings_; }
 
-  // Per-mesh BLAS and the TLAS with indices relative to themselves.
-  const BvhLayouts& blas(uint32_t mesh) const { return blas_[mesh]; }
+  // Per-mesh BLAS and the TLAS with indices relative to themselves. A BLAS
+  // refit by BlasRefit keeps its current boxes only in the kernel arrays;
+  // this copies them into the host copy first (once per refit), from the
+  // KernelScene of the last update(), which must still exist.
+  const BvhLayouts& blas(uint32_t mesh) const;
   size_t blas_count() const { return blas_.size(); }
   const BvhLayouts& tlas() const { return tlas_; }
   // The directory in use, or nullptr when the disk cache is off.
@@ -89,6 +102,9 @@ class AccelStructure {
   // spans in refit_spans_); the others are left to emit_refit_nodes().
   std::vector<uint32_t> refit_blas(KernelScene& ks, const std::vector<uint32_t>& meshes);
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
+  // Brings a BLAS's host copy up to date from `ks`'s arrays if a refit
+  // left it stale.
+  void sync_host_copy(const KernelScene& ks, uint32_t mesh) const;
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
   // Refits the TLAS to moved instances (`moved`, or every instance when
@@ -100,7 +116,11 @@ class AccelStructure {
 
   AccelSettings settings_;
   std::unique_ptr<BvhCache> cache_;
-  std::vector<BvhLayouts> blas_;
+  // mutable: blas() brings a stale host copy up to date (host_stale_).
+  mutable std::vector<BvhLayouts> blas_;
+  mutable std::vector<uint8_t> host_stale_;  // per BLAS: boxes only in the kernel arrays
+  mutable std::mutex host_sync_mutex_;
+  const KernelScene* arrays_ = nullptr;     // the KernelScene of the last update()
   std::vector<double> blas_built_quality_;  // refit_quality() right after each BLAS's build
   std::vector<LayoutBases> blas_bases_;
   // Per BLAS: its BlasRefit index (built at its first refit), whether that
@@ -109,6 +129,10 @@ class AccelStructure {
   std::vector<BlasRefit> blas_refit_;
   std::vector<FastRefit> blas_refit_state_;
   std::vector<NodeSpans> refit_spans_;
+  std::vector<std::vector<NodeSpan>> refit_leaf_spans_;  // leaf records it rewrote
+  // Per BLAS: its wide nodes in the kernel arrays lag its binary ones (a
+  // refit left them out: refit_unused_layout false).
+  std::vector<uint8_t> wide_stale_;
   std::vector<uint8_t> refit_emitted_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;

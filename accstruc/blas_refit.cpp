@@ -9,10 +9,6 @@
 
 #include "accstruc/wide_bvh.h"
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 namespace tandem {
 
 namespace {
@@ -34,8 +30,7 @@ uint32_t wide_leaf_count(uint32_t meta) {
 
 // The box triangle_boxes() gives the triangle, and whether aabb_valid()
 // holds for it: every coordinate finite and within kMaxCoordinate.
-inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
-  const Vec3 a = p[v[0]], c = p[v[1]], d = p[v[2]];
+inline bool triangle_box(const Vec3& a, const Vec3& c, const Vec3& d, Aabb& b) {
   b = Aabb{};
   b.grow(a);
   b.grow(c);
@@ -46,27 +41,27 @@ inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
   };
   return ok(a) & ok(c) & ok(d);
 }
-
-// Writes a whole node with non-temporal stores: the kernel arrays are not
-// read again this frame (the sweep reads the host copy), so they need not
-// displace the sweep's data from the caches, nor be read before written.
-template <class Node>
-inline void stream_node(Node* dst, const Node& src) {
-  static_assert(sizeof(Node) % 16 == 0 && alignof(Node) == 16, "whole 16-byte lanes");
-#if defined(__SSE2__)
-  const float* s = reinterpret_cast<const float*>(&src);
-  float* d = reinterpret_cast<float*>(dst);
-  for (size_t k = 0; k < sizeof(Node) / 16; ++k)
-    _mm_stream_ps(d + 4 * k, _mm_load_ps(s + 4 * k));
-#else
-  *dst = src;
-#endif
+inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
+  return triangle_box(p[v[0]], p[v[1]], p[v[2]], b);
 }
 
-inline void stream_fence() {
-#if defined(__SSE2__)
-  _mm_sfence();
-#endif
+// The record's vertices (xyz of p0, p1, p2) set to the triangle's current
+// ones, the rest (the triangle index in p0.w, the zeros) kept as the
+// records' writer put them: true when that changed the record.
+inline bool update_leaf_record(KLeafTriangle& r, const Vec3& a, const Vec3& b, const Vec3& c) {
+  KLeafTriangle n = r;
+  n.p0.x = a.x;
+  n.p0.y = a.y;
+  n.p0.z = a.z;
+  n.p1.x = b.x;
+  n.p1.y = b.y;
+  n.p1.z = b.z;
+  n.p2.x = c.x;
+  n.p2.y = c.y;
+  n.p2.z = c.z;
+  if (std::memcmp(&n, &r, sizeof n) == 0) return false;
+  r = n;
+  return true;
 }
 
 }  // namespace
@@ -255,14 +250,15 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
 }
 
 BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const LayoutBases& bases,
-                                   KBvhNode* nodes, KWideBvhNode* wide_nodes) const {
+                                   KBvhNode* nodes, KWideBvhNode* wide_nodes,
+                                   KLeafTriangle* leaf_triangles) const {
   Result result;
   if (!indexed_ || g.vertex_count != vertex_count_ || g.triangle_count != triangle_count_) {
     result.members_changed = true;
     return result;
   }
   struct Out {
-    uint32_t lo = kNone, hi = 0, wide_lo = kNone, wide_hi = 0;
+    uint32_t lo = kNone, hi = 0, wide_lo = kNone, wide_hi = 0, leaf_lo = kNone, leaf_hi = 0;
     double area = 0.0;
     bool invalid = false;
   };
@@ -281,17 +277,40 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     }
     return box;
   };
+  // leaf_box() of a binary leaf, rewriting its records from the vertices
+  // it reads anyway.
+  const auto leaf_box_and_records = [&](uint32_t first, uint32_t count, Out& o) {
+    Aabb box;
+    for (uint32_t e = first; e < first + count; ++e) {
+      const uint32_t* v = tris + 3 * size_t(e);
+      const Vec3 a = positions[v[0]], b = positions[v[1]], c = positions[v[2]];
+      Aabb t;
+      if (triangle_box(a, b, c, t)) {
+        box.grow(t);
+      } else {
+        o.invalid = true;
+      }
+      if (update_leaf_record(leaf_triangles[e], a, b, c)) {
+        o.leaf_lo = std::min(o.leaf_lo, e);
+        o.leaf_hi = std::max(o.leaf_hi, e + 1);
+      }
+    }
+    return box;
+  };
 
+  // Child references in the kernel arrays include the bases.
   const auto refit_node = [&](uint32_t i, Out& o) {
-    KBvhNode& node = l.nodes[i];
+    KBvhNode& node = nodes[i];
     Aabb box[2];
     for (uint32_t c = 0; c < 2; ++c) {
       const uint32_t ref = node.child[c];
       if (ref & kBvhLeafFlag) {
-        box[c] = leaf_box(ref & ~kBvhLeafFlag, node.count[c], o);
+        const uint32_t first = (ref & ~kBvhLeafFlag) - bases.prim;
+        box[c] = leaf_triangles ? leaf_box_and_records(first, node.count[c], o)
+                                : leaf_box(first, node.count[c], o);
       } else {
         // Refit before its parent (larger index), so exact already.
-        const KBvhNode& child = l.nodes[ref];
+        const KBvhNode& child = nodes[ref - bases.node];
         box[c] = binary_child_box(child, 0);
         box[c].grow(binary_child_box(child, 1));
       }
@@ -301,17 +320,15 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     set_binary_child_box(updated, 0, box[0]);
     set_binary_child_box(updated, 1, box[1]);
     if (std::memcmp(&updated, &node, kBinaryBoxBytes) == 0) return;
-    node = updated;
-    for (uint32_t c = 0; c < 2; ++c) {
-      updated.child[c] += (updated.child[c] & kBvhLeafFlag) ? bases.prim : bases.node;
-    }
-    stream_node(nodes + i, updated);
+    // Only the boxes: the line is in the cache (just read), and the parent
+    // reads these boxes back soon.
+    std::memcpy(&node, &updated, kBinaryBoxBytes);
     o.lo = std::min(o.lo, i);
     o.hi = std::max(o.hi, i + 1);
   };
 
   const auto requantize = [&](uint32_t w, Out& o) {
-    KWideBvhNode& node = l.wide_nodes[w];
+    KWideBvhNode& node = wide_nodes[w];
     Aabb boxes[kWideBvhWidth];
     uint32_t used = 0;
     const uint32_t* src = wide_src_.data() + size_t(kWideBvhWidth) * w;
@@ -320,18 +337,16 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       if (kind == kSlotEmpty) continue;
       used |= 1u << s;
       if (kind == kSlotNode) {
-        boxes[s] = binary_child_box(l.nodes[at >> 1], at & 1u);
+        boxes[s] = binary_child_box(nodes[at >> 1], at & 1u);
       } else {
         boxes[s] = leaf_box(at, wide_leaf_count(node.meta[s]), o);
       }
     }
+    // quantize_wide_node() sets only the boxes (origin, exponents, planes).
     KWideBvhNode updated = node;
     quantize_wide_node(updated, boxes, used);
     if (std::memcmp(&updated, &node, sizeof(KWideBvhNode)) == 0) return;
     node = updated;
-    updated.child_base += bases.wide_node;
-    updated.prim_base += bases.wide_prim;
-    stream_node(wide_nodes + w, updated);
     o.wide_lo = std::min(o.wide_lo, w);
     o.wide_hi = std::max(o.wide_hi, w + 1);
   };
@@ -343,17 +358,18 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     uint32_t next = task.wide_lo;
     for (uint32_t i = task.hi; i-- > task.lo;) {
       refit_node(i, o);
+      if (!wide_nodes) continue;
       for (; next < task.wide_hi && anchored_[next].anchor >= i; ++next)
         requantize(anchored_[next].wide, o);
     }
-    stream_fence();
   });
   Out& top = outs.back();
   for (uint32_t i : top_)
     refit_node(i, top);
-  for (uint32_t w : wide_deferred_)
-    requantize(w, top);
-  stream_fence();
+  if (wide_nodes) {
+    for (uint32_t w : wide_deferred_)
+      requantize(w, top);
+  }
 
   // In task order, then the top: the same sum whatever ran where.
   double area = 0.0;
@@ -366,6 +382,14 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     all.wide_hi = std::max(all.wide_hi, o.wide_hi);
     all.invalid = all.invalid || o.invalid;
   }
+  // Tasks hold disjoint leaf ranges; the top's span (leaves of the nodes
+  // above the tasks) may cover some of them, which a mark merges.
+  std::vector<NodeSpan>& leaves = result.leaf_spans;
+  for (const Out& o : outs) {
+    if (o.leaf_hi > 0) leaves.push_back({o.leaf_lo, o.leaf_hi});
+  }
+  std::sort(leaves.begin(), leaves.end(),
+            [](const NodeSpan& a, const NodeSpan& b) { return a.begin < b.begin; });
   for (uint32_t t : non_members_) {
     const KTriangle& tri = g.triangles[t];
     const uint32_t v[3] = {tri.v0, tri.v1, tri.v2};
@@ -376,14 +400,32 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       break;
     }
   }
-  l.bounds = binary_child_box(l.nodes[0], 0);
-  l.bounds.grow(binary_child_box(l.nodes[0], 1));
+  l.bounds = binary_child_box(nodes[0], 0);
+  l.bounds.grow(binary_child_box(nodes[0], 1));
   const double root = l.bounds.half_area();
   result.members_changed = all.invalid;
   result.quality = root > 0.0 ? area / root : 0.0;
   if (all.hi > 0) result.spans.nodes = {all.lo, all.hi};
   if (all.wide_hi > 0) result.spans.wide_nodes = {all.wide_lo, all.wide_hi};
   return result;
+}
+
+void BlasRefit::copy_boxes_to_host(BvhLayouts& l, const KBvhNode* nodes,
+                                   const KWideBvhNode* wide_nodes) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, l.nodes.size(), 16384), [&](auto r) {
+    for (size_t i = r.begin(); i < r.end(); ++i)
+      std::memcpy(&l.nodes[i], &nodes[i], kBinaryBoxBytes);
+  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, l.wide_nodes.size(), 16384), [&](auto r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      KWideBvhNode& h = l.wide_nodes[i];
+      const KWideBvhNode& k = wide_nodes[i];
+      h.origin = k.origin;
+      std::memcpy(h.exponent, k.exponent, sizeof h.exponent);
+      std::memcpy(h.qlo, k.qlo, sizeof h.qlo);
+      std::memcpy(h.qhi, k.qhi, sizeof h.qhi);
+    }
+  });
 }
 
 }  // namespace tandem

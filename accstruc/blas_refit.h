@@ -22,6 +22,16 @@
 // (same exact unions, same quantisation); only the child-area sum of the
 // quality measure is added in another order.
 //
+// The kernel arrays are the refit's only copy: it reads the old boxes (and
+// the topology) from them and writes the new ones there, and leaves the
+// host copy in BvhLayouts (nodes, wide_nodes) as it was; copy_boxes_to_host()
+// brings that up to date when someone reads it. Reading and writing both
+// copies every frame doubled the bytes the refit moves, and the frame loop
+// only consumes the kernel arrays. The same leaf-order pass that takes the
+// leaf boxes also rewrites the binary leaves' vertex records
+// (bvh_leaf_triangles), which a second pass used to read the same vertices
+// again for.
+//
 // index() refuses (returns false) hierarchies it cannot map that way; the
 // caller then keeps using refit_layouts().
 #pragma once
@@ -48,13 +58,29 @@ class BlasRefit {
     bool members_changed = false;
     double quality = 0.0;  // refit_quality() of the refit tree
     NodeSpans spans;       // nodes rewritten, relative to the bases
+    // Leaf records rewritten (relative to bases.prim), ascending, one span
+    // per task at most; empty when no records were given.
+    std::vector<NodeSpan> leaf_spans;
   };
-  // Refits `l` (the hierarchy indexed) to the mesh's current positions, in
-  // l and in the kernel arrays at `bases` (nodes / wide_nodes point at the
-  // array starts), and updates l.bounds. mesh.positions must have one
-  // readable element past the last vertex (KernelScene's positions do).
+  // Refits the hierarchy indexed to the mesh's current positions in the
+  // kernel arrays: nodes / wide_nodes / leaf_triangles point at this BLAS's
+  // first node / wide node / leaf record (bases.node etc. of the arrays),
+  // and hold it as emit_layouts() and the leaf records' writer put it there
+  // (child references include `bases`). leaf_triangles may be null: then
+  // no records are written; wide_nodes may be null: then the wide layout is
+  // left as it was (its boxes are re-quantised from the binary ones, so a
+  // later refit with it, even of an unchanged mesh, brings it up to date). Updates l.bounds, and
+  // only that of `l`: the host copy of the nodes goes stale (copy_boxes_to_host()). mesh.positions
+  // must have one readable element past the last vertex (KernelScene's positions do).
   Result refit(BvhLayouts& l, const MeshGeometry& mesh, const LayoutBases& bases, KBvhNode* nodes,
-               KWideBvhNode* wide_nodes) const;
+               KWideBvhNode* wide_nodes, KLeafTriangle* leaf_triangles) const;
+
+  // Copies the boxes (binary: c0_xy, c1_xy, c01_z; wide: origin, exponents,
+  // quantised planes) of the kernel arrays' copy of `l` (pointers as for
+  // refit()) into l, whose topology they share: l is then what an eager
+  // refit of the host copy would have made, byte for byte.
+  static void copy_boxes_to_host(BvhLayouts& l, const KBvhNode* nodes,
+                                 const KWideBvhNode* wide_nodes);
 
  private:
   struct Task {

@@ -30,8 +30,17 @@ int choose_exponent(float lo, float hi) {
   const float ext = hi - lo;
   int e = kMinExponent;
   if (ext > 0.0f) {
+    // frexp's exponent (ext / 255 <= 2^exp2), from the bits when the
+    // quotient is a normal finite float: a refit re-quantises every node
+    // every frame, and frexp is a library call.
+    const float q = ext / 255.0f;
+    const uint32_t biased = (float_as_uint(q) >> 23) & 0xffu;
     int exp2 = 0;
-    std::frexp(ext / 255.0f, &exp2);  // ext / 255 <= 2^exp2
+    if (biased != 0 && biased != 0xffu) {
+      exp2 = int(biased) - 126;
+    } else {
+      std::frexp(q, &exp2);
+    }
     e = std::max(exp2, kMinExponent);
   }
   while (e < kMaxExponent && decode(lo, 255, exp2_int(e)) < hi)
@@ -68,12 +77,19 @@ void quantize(KWideBvhNode& n, const Aabb boxes[kWideBvhWidth], uint32_t used) {
       }
       const float o = component(n.origin, a), sc = scale[a], inv = inverse[a];
       const float lo = component(boxes[s].lo, a), hi = component(boxes[s].hi, a);
-      float f = std::floor((lo - o) * inv);
-      uint32_t qlo = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
+      // floor and ceil clamped to [0, 255], by truncation (which is floor
+      // for the positive values that reach it): std::floor and std::ceil
+      // are library calls without SSE4.1.
+      float f = (lo - o) * inv;
+      uint32_t qlo = f > 0.0f ? (f >= 255.0f ? 255u : uint32_t(f)) : 0u;
       while (qlo > 0 && decode(o, qlo, sc) > lo)
         --qlo;
-      f = std::ceil((hi - o) * inv);
-      uint32_t qhi = f <= 0.0f ? 0u : (f >= 255.0f ? 255u : uint32_t(f));
+      f = (hi - o) * inv;
+      uint32_t qhi = 0;
+      if (f > 0.0f) {
+        qhi = f >= 255.0f ? 255u : uint32_t(f);
+        qhi += qhi < 255u && float(qhi) < f ? 1u : 0u;
+      }
       while (qhi < 255 && decode(o, qhi, sc) < hi)
         ++qhi;
       n.qlo[a][s] = uint8_t(qlo);

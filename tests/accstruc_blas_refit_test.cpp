@@ -29,6 +29,7 @@ struct Blas {
   std::vector<uint32_t> prims;
   std::vector<KWideBvhNode> wide;
   std::vector<uint32_t> wide_prims;
+  std::vector<KLeafTriangle> leaf;  // bvh_leaf_triangles, at bases.prim
 
   explicit Blas(const Mesh& m) {
     for (const glm::vec3& p : m.positions)
@@ -44,6 +45,29 @@ struct Blas {
     wide_prims.resize(bases.wide_prim + layouts.wide_prims.size());
     emit_layouts(layouts, bases, nodes.data() + bases.node, prims.data() + bases.prim,
                  wide.data() + bases.wide_node, wide_prims.data() + bases.wide_prim);
+    leaf = expected_leaf_records();
+  }
+  // The records as AccelStructure writes them at a layout (and its second
+  // pass over the leaves rewrote them after a refit): the binary leaves'
+  // triangles in order, with their current vertices and index.
+  std::vector<KLeafTriangle> expected_leaf_records() const {
+    std::vector<KLeafTriangle> r(bases.prim + layouts.prims.size());
+    for (size_t e = 0; e < layouts.prims.size(); ++e) {
+      const uint32_t t = layouts.prims[e];
+      const Vec3 a = positions[triangles[t].v0], b = positions[triangles[t].v1],
+                 c = positions[triangles[t].v2];
+      r[bases.prim + e] = {
+          {a.x, a.y, a.z, uint_as_float(t)}, {b.x, b.y, b.z, 0}, {c.x, c.y, c.z, 0}};
+    }
+    return r;
+  }
+  BlasRefit::Result refit_with(const BlasRefit& refit, bool records = true) {
+    return refit.refit(layouts, geometry(), bases, nodes.data() + bases.node,
+                       wide.data() + bases.wide_node, records ? leaf.data() + bases.prim : nullptr);
+  }
+  void sync_host() {
+    BlasRefit::copy_boxes_to_host(layouts, nodes.data() + bases.node,
+                                  wide.data() + bases.wide_node);
   }
   MeshGeometry geometry() const {
     return {positions.data(), uint32_t(positions.size() - 1), triangles.data(),
@@ -105,9 +129,15 @@ TEST(BlasRefit, EqualsTheGeneralRefitFrameAfterFrame) {
     const NodeSpans s_general =
         emit_refit_nodes(general.layouts, general.bases, general.nodes.data() + general.bases.node,
                          general.wide.data() + general.bases.wide_node);
-    const BlasRefit::Result r =
-        refit.refit(fast.layouts, fast.geometry(), fast.bases, fast.nodes.data() + fast.bases.node,
-                    fast.wide.data() + fast.bases.wide_node);
+    const std::vector<KLeafTriangle> leaf_before = fast.leaf;
+    const BlasRefit::Result r = fast.refit_with(refit);
+    // The refit leaves the host copy as it was; copied back, it is what the
+    // general (eager) refit made of its own.
+    if (frame < 6) {
+      EXPECT_NE(std::memcmp(&fast.layouts.nodes[0], &general.layouts.nodes[0], sizeof(KBvhNode)), 0)
+          << "frame " << frame;
+    }
+    fast.sync_host();
     EXPECT_FALSE(r.members_changed) << "frame " << frame;
     EXPECT_NEAR(r.quality, q_general, 1e-9 * q_general) << "frame " << frame;
     EXPECT_NEAR(r.quality, refit_quality(fast.layouts), 1e-9 * q_general) << "frame " << frame;
@@ -116,16 +146,39 @@ TEST(BlasRefit, EqualsTheGeneralRefitFrameAfterFrame) {
     EXPECT_EQ(r.spans.wide_nodes.begin, s_general.wide_nodes.begin) << "frame " << frame;
     EXPECT_EQ(r.spans.wide_nodes.end, s_general.wide_nodes.end) << "frame " << frame;
     expect_same_arrays(general, fast, "frame");
+    // The leaf records written in the leaf pass are the second pass's, and
+    // every record outside the reported spans kept its bytes.
+    const std::vector<KLeafTriangle> records = fast.expected_leaf_records();
+    ASSERT_EQ(std::memcmp(records.data(), fast.leaf.data(), records.size() * sizeof(KLeafTriangle)),
+              0)
+        << "frame " << frame;
+    std::vector<uint8_t> reported(fast.layouts.prims.size(), 0);
+    for (const NodeSpan& span : r.leaf_spans) {
+      for (uint32_t e = span.begin; e < span.end; ++e)
+        reported[e] = 1;
+    }
+    for (size_t e = 0; e < reported.size(); ++e) {
+      if (!reported[e]) {
+        ASSERT_EQ(std::memcmp(&leaf_before[fast.bases.prim + e], &fast.leaf[fast.bases.prim + e],
+                              sizeof(KLeafTriangle)),
+                  0)
+            << "frame " << frame << ", record " << e;
+      }
+    }
+    ASSERT_FALSE(r.leaf_spans.empty());
     if (frame == 6) {
+      size_t count = 0;
+      for (uint8_t x : reported)
+        count += x;
+      EXPECT_LT(count, fast.layouts.prims.size() / 4);
       EXPECT_LT(r.spans.nodes.end - r.spans.nodes.begin, fast.layouts.nodes.size() / 4);
     }
   }
   // The same pose again: nothing to write, empty spans.
-  const BlasRefit::Result again =
-      refit.refit(fast.layouts, fast.geometry(), fast.bases, fast.nodes.data() + fast.bases.node,
-                  fast.wide.data() + fast.bases.wide_node);
+  const BlasRefit::Result again = fast.refit_with(refit);
   EXPECT_EQ(again.spans.nodes.end, 0u);
   EXPECT_EQ(again.spans.wide_nodes.end, 0u);
+  EXPECT_TRUE(again.leaf_spans.empty());
 }
 
 TEST(BlasRefit, SmallTreesAndSplitLeavesToo) {
@@ -143,9 +196,13 @@ TEST(BlasRefit, SmallTreesAndSplitLeavesToo) {
     refit_layouts(general.layouts, triangle_boxes(general.geometry()));
     emit_refit_nodes(general.layouts, general.bases, general.nodes.data() + general.bases.node,
                      general.wide.data() + general.bases.wide_node);
-    refit.refit(fast.layouts, fast.geometry(), fast.bases, fast.nodes.data() + fast.bases.node,
-                fast.wide.data() + fast.bases.wide_node);
+    fast.refit_with(refit);
+    fast.sync_host();
     expect_same_arrays(general, fast, "small grid");
+    const std::vector<KLeafTriangle> records = fast.expected_leaf_records();
+    EXPECT_EQ(std::memcmp(records.data(), fast.leaf.data(), records.size() * sizeof(KLeafTriangle)),
+              0)
+        << cells;
   }
 }
 
@@ -158,11 +215,7 @@ TEST(BlasRefit, MembersChangingAskForARebuild) {
   ASSERT_EQ(fast.layouts.prims.size(), mesh.triangles.size() - 1);
   BlasRefit refit;
   ASSERT_TRUE(refit.index(fast.layouts, fast.geometry()));
-  const auto run = [&] {
-    return refit.refit(fast.layouts, fast.geometry(), fast.bases,
-                       fast.nodes.data() + fast.bases.node,
-                       fast.wide.data() + fast.bases.wide_node);
-  };
+  const auto run = [&] { return fast.refit_with(refit); };
   EXPECT_FALSE(run().members_changed);
   // The left-out triangle becomes valid: it must join, by a rebuild.
   fast.positions[0].x = -1.0f;
@@ -226,6 +279,167 @@ TEST(BlasRefit, AccelStructureRefitsThroughItAndReportsWhatItWrote) {
       }
     }
   }
+}
+
+// A wave grid (mesh 0) and a still one (mesh 1), one instance each.
+Scene two_grids(const WaveGrid& g) {
+  Scene scene;
+  scene.add_material(Material{});
+  scene.add_mesh(make_wave_grid(g));
+  WaveGrid other = g;
+  other.cells = 8;
+  scene.add_mesh(make_wave_grid(other));
+  scene.add_instance({"wave", 0, glm::mat4(1.0f)});
+  scene.add_instance({"still", 1, glm::translate(glm::mat4(1.0f), glm::vec3(5, 0, 0))});
+  return scene;
+}
+// A delta that rebuilds mesh 1 alone, so lays the arrays out anew.
+SceneDelta rebuild_mesh_1() {
+  SceneDelta d;
+  d.meshes_rebuilt = {1};
+  return d;
+}
+
+TEST(BlasRefit, AStaleHostCopyIsBroughtBackBeforeARelayout) {
+  // Refit frames leave the boxes only in the kernel arrays; a relayout
+  // (here: another mesh rebuilt, as when its refit got too poor) emits
+  // every BLAS from its host copy, which must then hold the refit boxes,
+  // not the build's.
+  WaveGrid g{.cells = 60, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+  TracedScene s(two_grids(g));
+  for (uint32_t frame = 1; frame <= 2; ++frame) {
+    g.amplitude = 0.05f + 0.01f * float(frame);
+    deform_wave_grid(s.scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
+    ASSERT_EQ(s.recompile().blas_refit, 1u);
+  }
+  const uint32_t root = s.ks.blas_roots[0].bvh_root, wroot = s.ks.blas_roots[0].wide_root;
+  const std::vector<KBvhNode> nodes = s.ks.bvh_nodes;
+  const std::vector<KWideBvhNode> wide = s.ks.bvh_wide_nodes;
+  const std::vector<KLeafTriangle> leaf = s.ks.bvh_leaf_triangles;
+  const AccelUpdate up = s.accel.update(s.ks, rebuild_mesh_1());
+  ASSERT_EQ(up.blas_built, 1u);
+  ASSERT_TRUE(up.delta.bvh_nodes.reallocated);
+  ASSERT_EQ(s.ks.blas_roots[0].bvh_root, root);
+  ASSERT_EQ(s.ks.blas_roots[0].wide_root, wroot);
+  const size_t n = s.accel.blas(0).nodes.size(), wn = s.accel.blas(0).wide_nodes.size();
+  EXPECT_EQ(std::memcmp(nodes.data() + root, s.ks.bvh_nodes.data() + root, n * sizeof(KBvhNode)),
+            0);
+  EXPECT_EQ(std::memcmp(wide.data() + wroot, s.ks.bvh_wide_nodes.data() + wroot,
+                        wn * sizeof(KWideBvhNode)),
+            0);
+  const size_t records = s.accel.blas(0).prims.size();
+  EXPECT_EQ(
+      std::memcmp(leaf.data(), s.ks.bvh_leaf_triangles.data(), records * sizeof(KLeafTriangle)), 0);
+  // And blas() (the lazily copied host copy) is what an eager refit of the
+  // build's host copy to this pose gives.
+  BvhLayouts eager = s.accel.blas(0);
+  refit_layouts(eager, triangle_boxes(mesh_geometry(s.ks, 0)));
+  EXPECT_EQ(std::memcmp(eager.nodes.data(), s.accel.blas(0).nodes.data(), n * sizeof(KBvhNode)), 0);
+  for (size_t i = 0; i < wn; ++i)
+    ASSERT_TRUE(same_wide(eager.wide_nodes[i], s.accel.blas(0).wide_nodes[i])) << i;
+}
+
+// A scene's kernel arrays kept by an AccelStructure with given settings.
+struct Updated {
+  KernelScene ks;
+  SceneCompiler compiler;
+  RenderSettings settings;
+  AccelStructure accel;
+  explicit Updated(AccelSettings a) : accel(a) {}
+  AccelUpdate update(Scene& scene, SceneDelta* out = nullptr) {
+    SceneDelta delta = compiler.compile(scene, settings, ks);
+    const AccelUpdate up = accel.update(ks, delta);
+    if (out) *out = delta | up.delta;
+    return up;
+  }
+};
+
+TEST(BlasRefit, TheLayoutNotInUseIsLeftAloneAndCatchesUpWhenSelected) {
+  WaveGrid g{.cells = 60, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+  Scene scene;
+  scene.add_material(Material{});
+  scene.add_mesh(make_wave_grid(g));
+  scene.add_instance({"wave", 0, glm::mat4(1.0f)});
+  Scene same = scene;
+  AccelSettings both = test_settings(), in_use = test_settings();
+  in_use.refit_unused_layout = false;  // binary in use
+  Updated eager(both), lazy(in_use);
+  eager.update(scene);
+  lazy.update(same);
+  const std::vector<KWideBvhNode> built = lazy.ks.bvh_wide_nodes;
+  const size_t wn = lazy.accel.blas(0).wide_nodes.size();
+  const uint32_t wroot = lazy.ks.blas_roots[0].wide_root;
+  const auto same_wide_region = [&](const std::vector<KWideBvhNode>& a,
+                                    const std::vector<KWideBvhNode>& b) {
+    return std::memcmp(a.data() + wroot, b.data() + wroot, wn * sizeof(KWideBvhNode)) == 0;
+  };
+  for (uint32_t frame = 1; frame <= 3; ++frame) {
+    g.amplitude = 0.05f + 0.01f * float(frame);
+    deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
+    deform_wave_grid(same.edit_mesh_vertices(0), g, 0.1f * float(frame));
+    eager.update(scene);
+    SceneDelta delta;
+    ASSERT_EQ(lazy.update(same, &delta).blas_refit, 1u);
+    // The binary layout (in use) and the leaf records as the eager one's;
+    // the wide nodes not touched, nor sent.
+    EXPECT_EQ(lazy.ks.bvh_nodes.size(), eager.ks.bvh_nodes.size());
+    EXPECT_EQ(std::memcmp(lazy.ks.bvh_nodes.data(), eager.ks.bvh_nodes.data(),
+                          lazy.ks.bvh_nodes.size() * sizeof(KBvhNode)),
+              0);
+    EXPECT_EQ(std::memcmp(lazy.ks.bvh_leaf_triangles.data(), eager.ks.bvh_leaf_triangles.data(),
+                          lazy.ks.bvh_leaf_triangles.size() * sizeof(KLeafTriangle)),
+              0);
+    EXPECT_TRUE(same_wide_region(built, lazy.ks.bvh_wide_nodes)) << frame;
+    EXPECT_FALSE(same_wide_region(built, eager.ks.bvh_wide_nodes)) << frame;
+    bool wide_sent = false;
+    delta.bvh_wide_nodes.for_each_range(
+        [&](uint32_t b, uint32_t e) { wide_sent = wide_sent || (b < wroot + wn && e > wroot); });
+    EXPECT_FALSE(wide_sent) << frame;
+  }
+  // blas() is current in both layouts all the same.
+  for (size_t i = 0; i < wn; ++i)
+    ASSERT_TRUE(same_wide(eager.accel.blas(0).wide_nodes[i], lazy.accel.blas(0).wide_nodes[i]))
+        << i;
+  // The wide layout selected: the next update brings it up and sends it.
+  lazy.accel.set_layout(kBvhLayoutWide);
+  SceneDelta delta;
+  lazy.update(same, &delta);
+  EXPECT_TRUE(same_wide_region(eager.ks.bvh_wide_nodes, lazy.ks.bvh_wide_nodes));
+  EXPECT_TRUE(delta.bvh_wide_nodes.any());
+  EXPECT_TRUE(delta.bvh_constants);
+  EXPECT_EQ(lazy.ks.bvh.layout, uint32_t(kBvhLayoutWide));
+  // And with the wide layout in use both are refit every frame.
+  deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.7f);
+  deform_wave_grid(same.edit_mesh_vertices(0), g, 0.7f);
+  eager.update(scene);
+  lazy.update(same);
+  EXPECT_TRUE(same_wide_region(eager.ks.bvh_wide_nodes, lazy.ks.bvh_wide_nodes));
+}
+
+TEST(BlasRefit, ARelayoutEmitsTheWideNodesASkippedRefitLeftBehind) {
+  WaveGrid g{.cells = 40, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+  Scene scene = two_grids(g), same = two_grids(g);
+  AccelSettings in_use = test_settings();
+  in_use.refit_unused_layout = false;
+  Updated eager(test_settings()), lazy(in_use);
+  eager.update(scene);
+  lazy.update(same);
+  for (uint32_t frame = 1; frame <= 2; ++frame) {
+    g.amplitude = 0.05f + 0.01f * float(frame);
+    deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.2f * float(frame));
+    deform_wave_grid(same.edit_mesh_vertices(0), g, 0.2f * float(frame));
+    eager.update(scene);
+    lazy.update(same);
+  }
+  // Mesh 1 rebuilt: the arrays are laid out anew from the host copies.
+  ASSERT_EQ(eager.accel.update(eager.ks, rebuild_mesh_1()).blas_built, 1u);
+  ASSERT_EQ(lazy.accel.update(lazy.ks, rebuild_mesh_1()).blas_built, 1u);
+  const uint32_t wroot = lazy.ks.blas_roots[0].wide_root;
+  const size_t wn = lazy.accel.blas(0).wide_nodes.size();
+  ASSERT_EQ(eager.ks.blas_roots[0].wide_root, wroot);
+  // (The general refit made lazy's host copy: zeros may differ in sign.)
+  for (size_t i = wroot; i < wroot + wn; ++i)
+    ASSERT_TRUE(same_wide(eager.ks.bvh_wide_nodes[i], lazy.ks.bvh_wide_nodes[i])) << i;
 }
 
 }  // namespace

@@ -51,6 +51,22 @@ TEST(BenchDeform, JsonHasTheFiguresOfEveryScene) {
     }
     // Moved vertices are committed every frame.
     EXPECT_GT(scenes[i]["delta_bytes"].number, 0.0) << i;
+    // Every configuration of backends, honestly: only those with a device
+    // upload anything, only those with Embree commit to it.
+    EXPECT_EQ(scenes[i]["backends"].string, "host") << i;
+    const json_test::Node& configs = scenes[i]["configurations"];
+    ASSERT_EQ(configs.items.size(), 4u) << i;
+    const char* names[4] = {"host", "cpu+cuda", "embree", "both-layouts"};
+    for (size_t c = 0; c < 4; ++c) {
+      EXPECT_EQ(configs[c]["backends"].string, names[c]) << i;
+      EXPECT_GT(configs[c]["delta_bytes"].number, 0.0) << i << " " << names[c];
+      const bool device = c == 1 || c == 3;
+      EXPECT_EQ(configs[c]["upload_bytes"].number > 0.0, device) << i << " " << names[c];
+      EXPECT_EQ(configs[c]["upload_bytes"].number, device ? configs[c]["delta_bytes"].number : 0.0)
+          << i << " " << names[c];
+    }
+    // Without Tandem's BVH the delta holds the compiler's arrays alone.
+    EXPECT_LT(configs[2]["delta_bytes"].number, configs[0]["delta_bytes"].number) << i;
   }
 }
 
@@ -59,6 +75,12 @@ TEST(BenchDeform, SceneWithoutMotionIsAnInputError) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("builtin:cornell: nothing in the scene moves"), std::string::npos)
       << r.output;
+}
+
+TEST(BenchDeform, UnknownBackendConfigurationIsAUsageError) {
+  const RunResult r = run_tandem("bench --deform --frames 1 --backends host,gpu");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("unknown configuration 'gpu'"), std::string::npos) << r.output;
 }
 
 TEST(BenchDeform, BadFramesIsAUsageError) {

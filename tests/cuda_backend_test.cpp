@@ -501,6 +501,10 @@ TEST(CudaGpu, OverlappedCommitsLeaveBothSetsExact) {
     for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
       const size_t bytes = kernel_array_host_count(fs.ks, a) * kernel_array_element_size(a);
       ASSERT_EQ(device[a].size(), bytes) << "set " << set << ", " << kernel_array_name(a);
+      // The tracer refits only the layout its backends trace (binary here):
+      // the wide nodes keep the build's boxes, which nothing reads, while
+      // the fresh compile's are refit to the final scene.
+      if (a == kArray_bvh_wide_nodes && fs.ks.bvh.layout == kBvhLayoutBinary) continue;
       EXPECT_TRUE(bytes == 0 ||
                   std::memcmp(device[a].data(), kernel_array_host_data(fs.ks, a), bytes) == 0)
           << "set " << set << ", " << kernel_array_name(a);

@@ -50,6 +50,31 @@ class SnapshotBackend final : public Backend {
   KernelData kd_{};
 };
 
+// A SnapshotBackend whose need of Tandem's BVH can be switched off and on
+// (a GPU falling back, a backend tracing the BVH coming back): it notes
+// whether it was sent BVH changes while it did not need them.
+class SwitchingBackend final : public Backend {
+ public:
+  explicit SwitchingBackend(const bool* needs) : needs_(needs) {}
+  std::string name() const override { return "switching"; }
+  BackendTraits traits() const override {
+    return {.needs_bvh = *needs_, .reads_host_scene_while_rendering = false};
+  }
+  void sync(const KernelScene& scene, const SceneDelta& delta) override {
+    if (!*needs_ && (delta.bvh_nodes.any() || delta.bvh_wide_nodes.any() || delta.bvh_constants))
+      bvh_changes_while_not_needed = true;
+    inner_.sync(scene, delta);
+  }
+  BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
+    return inner_.render(pass, tiles, film);
+  }
+  bool bvh_changes_while_not_needed = false;
+
+ private:
+  const bool* needs_;
+  SnapshotBackend inner_;
+};
+
 TracerSettings small_settings(float split, bool stealing) {
   TracerSettings s;
   s.render.width = 64;
@@ -248,6 +273,31 @@ TEST(CoreTracer, PreparingTheNextFrameDuringRenderGivesTheSameFrames) {
   }
   EXPECT_TRUE(overlapped_every_frame);
   EXPECT_TRUE(bitwise_equal(plain.image(), piped.image()));
+}
+
+TEST(CoreTracer, ABvhNoBackendNeedsIsLeftAloneAndCatchesUpWhenOneDoes) {
+  // Frames 2 and 3 no backend needs the BVH while the instance moves; the
+  // frame it is needed again must render as if it had been kept all along.
+  const TracerSettings s = small_settings(-1.0f, true);
+  Scene kept_scene = make_cornell_box(), switched_scene = make_cornell_box();
+  bool needs = true;
+  std::vector<std::unique_ptr<Backend>> backends;
+  backends.push_back(std::make_unique<SwitchingBackend>(&needs));
+  const SwitchingBackend* switching = static_cast<const SwitchingBackend*>(backends[0].get());
+  CoreTracer kept(make({"snapshot"}), s), switched(std::move(backends), s);
+  for (int f = 0; f < 5; ++f) {
+    move_first_instance(kept_scene, f);
+    move_first_instance(switched_scene, f);
+    if (f == 3) {
+      darken_first_material(kept_scene);
+      darken_first_material(switched_scene);
+    }
+    needs = f < 2 || f == 4;
+    kept.render_frame(kept_scene);
+    switched.render_frame(switched_scene);
+  }
+  EXPECT_FALSE(switching->bvh_changes_while_not_needed);
+  EXPECT_TRUE(bitwise_equal(kept.image(), switched.image()));
 }
 
 TEST(CoreTracer, NoOverlapWhenABackendReadsTheHostScene) {

@@ -47,9 +47,36 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
   refresh_traits();
   // Only at the start: a BVH built from some later frame on would need a
   // full build, and backends only ever lose the need (a GPU falling back).
+  // Every backend traces the layout kd.bvh.layout names, so refit frames
+  // keep only that one.
+  AccelSettings accel;
+  accel.refit_unused_layout = false;
   for (const BackendTraits& t : traits_) {
-    if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>();
+    if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>(accel);
   }
+}
+
+// While no backend traces Tandem's BVH (the GPU that needed it fell back to
+// Embree), nobody reads it: it is not updated, and the deltas it missed are
+// kept, merged, so that the frame a backend needs it again brings it to
+// what every update would have made of it.
+SceneDelta CoreTracer::update_accstruc(const SceneDelta& delta) {
+  if (!accel_) return delta;
+  bool needed = false;
+  for (const BackendTraits& t : traits_)
+    needed = needed || t.needs_bvh;
+  if (!needed) {
+    if (!accel_missed_) accel_missed_.emplace();
+    accel_missed_->merge(delta);
+    return delta;
+  }
+  if (accel_missed_) {
+    SceneDelta missed = std::move(*accel_missed_);
+    accel_missed_.reset();
+    missed.merge(delta);
+    return delta | accel_->update(kernel_scene_, missed).delta;
+  }
+  return delta | accel_->update(kernel_scene_, delta).delta;
 }
 
 void CoreTracer::refresh_traits() {
@@ -148,7 +175,7 @@ void CoreTracer::begin_frame(Scene& scene) {
   SceneDelta late = compiler_.compile(scene, settings_.render, kernel_scene_);
   m.sync_scene_seconds = seconds_since(t);
   t = Clock::now();
-  if (accel_) late = late | accel_->update(kernel_scene_, late).delta;
+  late = update_accstruc(late);
   m.update_accstruc_seconds = seconds_since(t);
   SceneDelta delta = late;
   if (prepared_delta_) {
@@ -292,7 +319,7 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   SceneDelta delta = compiler_.compile(scene, next, kernel_scene_);
   prepared_sync_seconds_ = seconds_since(t);
   t = Clock::now();
-  if (accel_) delta = delta | accel_->update(kernel_scene_, delta).delta;
+  delta = update_accstruc(delta);
   prepared_accstruc_seconds_ = seconds_since(t);
 
   // SyncAccStruc ahead, for backends that commit into a copy this frame's

@@ -148,6 +148,9 @@ class CoreTracer {
  private:
   void apply_settings(const TracerSettings& settings);
   void refresh_traits();
+  // UpdateAccStruc of `delta` (as the compiler reported it) when a backend
+  // needs the BVH; returns it united with the BVH arrays' changes.
+  SceneDelta update_accstruc(const SceneDelta& delta);
   void choose_host_core_backends();
   void complete_incomplete_renders();
   void record_host_core_probe();
@@ -175,6 +178,8 @@ class CoreTracer {
   SceneCompiler compiler_;
   KernelScene kernel_scene_;
   std::unique_ptr<AccelStructure> accel_;  // null when no backend needs it
+  // The deltas accel_ missed while no backend needed it (update_accstruc()).
+  std::optional<SceneDelta> accel_missed_;
   TileScheduler scheduler_;
   Film film_;
   FrameMetrics metrics_;
