@@ -52,7 +52,7 @@ inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
 // displace the sweep's data from the caches, nor be read before written.
 template <class Node>
 inline void stream_node(Node* dst, const Node& src) {
-  static_assert(sizeof(Node) % 16 == 0 && alignof(Node) == 16, "whole 16-byte lanes");
+  static_assert(sizeof(Node) % 16 == 0 && alignof(Node) % 16 == 0, "whole 16-byte lanes");
 #if defined(__SSE2__)
   const float* s = reinterpret_cast<const float*>(&src);
   float* d = reinterpret_cast<float*>(dst);

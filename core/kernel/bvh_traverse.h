@@ -526,13 +526,26 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
   }
 }
 
+}  // namespace tandem
+
+// The host's own loop over the binary layout (same hits, fewer node visits),
+// wherever the compiler is not nvcc.
+#if !defined(__CUDACC__)
+#define TANDEM_BVH_HOST_TRAVERSAL 1
+#include "core/kernel/bvh_traverse_host.h"
+#endif
+
+namespace tandem {
+
 // ---------------------------------------------------------------------------
 // Queries.
 
 // Closest (any_hit = false) or any (any_hit = true) hit along the ray in the
 // given layout. Returns a miss when the scene has no BVH. With kCount the
-// query's traversal work is added to *counters.
-template <bool kCount>
+// query's traversal work is added to *counters. kPortable: the loops the GPU
+// runs even where the host has its own (bvh_traverse_host.h), which finds the
+// same hits; for tests and measurements.
+template <bool kCount, bool kPortable = false>
 TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t alpha_key,
                                 uint32_t layout, bool any_hit, BvhCounters* counters) {
   const bool wide = layout == kBvhLayoutWide;
@@ -551,10 +564,19 @@ TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t a
   tr.any_hit = any_hit;
   tr.box = make_box_ray(ray.origin, ray.dir);
   tr.counters = counters;
-  if (wide)
+  if (wide) {
     trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
-  else
+  } else {
+#if defined(TANDEM_BVH_HOST_TRAVERSAL)
+    if constexpr (!kPortable) {
+      host_trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+    } else {
+      trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+    }
+#else
     trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+#endif
+  }
   Hit hit = make_miss();
   hit.instance = frame[kFrameHitInstance];
   if (hit_valid(hit)) {
