@@ -1,4 +1,5 @@
-// Host-only traversal of the binary layout: the same tree, the same visiting
+// Host-only traversal of the binary layout (and the wide layout's box tests,
+// at the end of this file): the same tree, the same visiting
 // order and the same hits as trace_two_level_binary (bit for bit, which of
 // two equal-t hits wins included), written for a CPU instead of for GPU
 // registers. Included by bvh_traverse.h in translation units that nvcc does
@@ -229,6 +230,110 @@ inline bool host_trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNod
     node_index = host_next_node(n, hits & ~leaf_bits, t_entry, tr.tmax, nodes, stack, sp);
   } while (node_index != kInvalidIndex);
   return false;
+}
+
+// ---------------------------------------------------------------------------
+// Wide layout: the portable loop (trace_two_level_wide) decodes and tests its
+// eight child boxes one at a time in scalar code; on the host they are
+// decoded and tested four at a time. Each lane does the portable test's
+// float operations in its order (origin + q * scale, then (plane - o) * inv,
+// the far distance scaled, x then y then z), so the hit slots are the same
+// bits and the loop around it visits the same nodes in the same order. The
+// interior children hit are prefetched as soon as they are known, since the
+// loop visits them later from its stack.
+
+#if defined(__SSE2__)
+
+// Slots 0..3 and 4..7 of an axis's eight plane bytes, as floats.
+inline void host_wide_planes(const uint8_t* q, __m128* slots_lo, __m128* slots_hi) {
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i bytes = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(q));
+  const __m128i words = _mm_unpacklo_epi8(bytes, zero);
+  *slots_lo = _mm_cvtepi32_ps(_mm_unpacklo_epi16(words, zero));
+  *slots_hi = _mm_cvtepi32_ps(_mm_unpackhi_epi16(words, zero));
+}
+
+// Bit s: slot s of n holds a child (empty slots are not tested, as in the
+// portable loop) and the ray hits its box within [tmin, tmax].
+inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, float tmin, float tmax,
+                                    uint32_t live) {
+  __m128 tn[2] = {_mm_set1_ps(tmin), _mm_set1_ps(tmin)};
+  __m128 tf[2] = {_mm_set1_ps(tmax), _mm_set1_ps(tmax)};
+  const __m128 far_scale = _mm_set1_ps(kBoxFarScale);
+  for (int a = 0; a < 3; ++a) {
+    const bool negative = ((r.octant >> a) & 1u) != 0;
+    __m128 qn[2], qf[2];
+    host_wide_planes(negative ? n.qhi[a] : n.qlo[a], &qn[0], &qn[1]);
+    host_wide_planes(negative ? n.qlo[a] : n.qhi[a], &qf[0], &qf[1]);
+    const __m128 origin = _mm_set1_ps(component(n.origin, a));
+    const __m128 scale = _mm_set1_ps(wide_node_scale(n, a));
+    const __m128 ray_origin = _mm_set1_ps(component(r.origin, a));
+    const __m128 inv = _mm_set1_ps(component(r.inv_dir, a));
+    for (int h = 0; h < 2; ++h) {
+      const __m128 near_plane = _mm_add_ps(origin, _mm_mul_ps(qn[h], scale));
+      const __m128 far_plane = _mm_add_ps(origin, _mm_mul_ps(qf[h], scale));
+      const __m128 t_near = _mm_mul_ps(_mm_sub_ps(near_plane, ray_origin), inv);
+      const __m128 t_far =
+          _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(far_plane, ray_origin), inv), far_scale);
+      tn[h] = _mm_max_ps(t_near, tn[h]);
+      tf[h] = _mm_min_ps(t_far, tf[h]);
+    }
+  }
+  const uint32_t hits = uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn[0], tf[0]))) |
+                        (uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn[1], tf[1]))) << 4);
+  return hits & live;
+}
+
+#else
+
+inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, float tmin, float tmax,
+                                    uint32_t live) {
+  const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
+  uint32_t hits = 0;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if (!((live >> s) & 1u)) continue;
+    const Vec3 lo = make_vec3(n.origin.x + float(n.qlo[0][s]) * scale.x,
+                              n.origin.y + float(n.qlo[1][s]) * scale.y,
+                              n.origin.z + float(n.qlo[2][s]) * scale.z);
+    const Vec3 hi = make_vec3(n.origin.x + float(n.qhi[0][s]) * scale.x,
+                              n.origin.y + float(n.qhi[1][s]) * scale.y,
+                              n.origin.z + float(n.qhi[2][s]) * scale.z);
+    float t;
+    if (intersect_box(r, lo, hi, tmin, tmax, &t)) hits |= 1u << s;
+  }
+  return hits;
+}
+
+#endif
+
+// The portable loop's per-slot tests of wide node n (one of `nodes`): the
+// interior children hit as bits 24 + (slot ^ octant) of *node_hits, the
+// leaf primitives hit as bits of *prim_hits.
+template <bool kCount>
+inline void host_wide_child_hits(TwoLevelTrace<kCount>& tr, const KWideBvhNode& n,
+                                 const KWideBvhNode* nodes, uint32_t* node_hits,
+                                 uint32_t* prim_hits) {
+  uint32_t live = 0;
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s)
+    live |= (n.meta[s] != 0 ? 1u : 0u) << s;
+  if constexpr (kCount) tr.counters->boxes += uint64_t(popcount(live));
+  const uint32_t hits = host_wide_slot_hits(n, tr.box, tr.tmin, tr.tmax, live);
+  uint32_t nh = 0, ph = 0;
+  for (uint32_t bits = hits; bits != 0; bits &= bits - 1u) {
+    const uint32_t s = count_trailing_zeros(bits);
+    const uint32_t meta = n.meta[s];
+    if ((n.imask >> s) & 1u) {
+      nh |= 1u << (24u + (s ^ tr.octant()));
+      const char* child = reinterpret_cast<const char*>(
+          nodes + n.child_base + popcount(uint32_t(n.imask) & ((1u << s) - 1u)));
+      prefetch_readonly(child);
+      prefetch_readonly(child + sizeof(KWideBvhNode) - 1);
+    } else {
+      ph |= (meta >> 5) << (meta & 31u);
+    }
+  }
+  *node_hits = nh;
+  *prim_hits = ph;
 }
 
 }  // namespace tandem
