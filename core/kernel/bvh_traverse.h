@@ -314,6 +314,17 @@ struct TwoLevelTrace {
   }
 };
 
+}  // namespace tandem
+
+// The host's own loop over the binary layout and SSE box tests of the wide
+// layout (same hits, fewer node visits), wherever the compiler is not nvcc.
+#if !defined(__CUDACC__)
+#define TANDEM_BVH_HOST_TRAVERSAL 1
+#include "core/kernel/bvh_traverse_host.h"
+#endif
+
+namespace tandem {
+
 // Binary layout. In a BLAS, leaf triangles are tested as soon as their node
 // is; in the TLAS a hit leaf's instance range goes on the stack (two entries:
 // its count, then kBvhLeafFlag | first entry) above the node's interior
@@ -434,8 +445,10 @@ TANDEM_HD void wide_child_box(const KWideBvhNode& n, Vec3 scale, uint32_t slot, 
 // node is; in the TLAS the hit instances go on the stack as an instance group
 // (prim_base, prim_hits: bits 0..23 only, so its top byte, unlike a node
 // group's, is zero) above the node's group, so they come first, in order.
-// Returns true when an any-hit query stopped.
-template <bool kCount>
+// Returns true when an any-hit query stopped. kHostSimd (host only): the
+// child boxes are decoded and tested four at a time in SSE
+// (host_wide_child_hits), same bits, same order.
+template <bool kCount, bool kHostSimd = false>
 TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
                                     uint32_t root) {
   const uint32_t* prim_indices = tr.kd->bvh_wide_prim_indices;
@@ -453,19 +466,24 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
     }
     const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
     uint32_t node_hits = 0, prim_hits = 0;
-    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
-      const uint32_t meta = n.meta[s];
-      if (meta == 0) continue;
-      if constexpr (kCount) tr.counters->boxes += 1;
-      Vec3 lo, hi;
-      wide_child_box(n, scale, s, &lo, &hi);
-      float t_entry;
-      if (!intersect_box(tr.box, lo, hi, tr.tmin, tr.tmax, &t_entry)) continue;
-      if ((n.imask >> s) & 1u)
-        node_hits |= 1u << (24u + (s ^ tr.octant()));
-      else
-        prim_hits |= (meta >> 5) << (meta & 31u);
-    }
+#if defined(TANDEM_BVH_HOST_TRAVERSAL)
+    if constexpr (kHostSimd)
+      host_wide_child_hits(tr, n, nodes, &node_hits, &prim_hits);
+    else
+#endif
+      for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+        const uint32_t meta = n.meta[s];
+        if (meta == 0) continue;
+        if constexpr (kCount) tr.counters->boxes += 1;
+        Vec3 lo, hi;
+        wide_child_box(n, scale, s, &lo, &hi);
+        float t_entry;
+        if (!intersect_box(tr.box, lo, hi, tr.tmin, tr.tmax, &t_entry)) continue;
+        if ((n.imask >> s) & 1u)
+          node_hits |= 1u << (24u + (s ^ tr.octant()));
+        else
+          prim_hits |= (meta >> 5) << (meta & 31u);
+      }
     if (node_hits != 0 && sp + 2 <= kBvhFrameWords) {
       stack[sp] = n.child_base;
       stack[sp + 1] = node_hits | n.imask;
@@ -531,8 +549,10 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
 
 // Closest (any_hit = false) or any (any_hit = true) hit along the ray in the
 // given layout. Returns a miss when the scene has no BVH. With kCount the
-// query's traversal work is added to *counters.
-template <bool kCount>
+// query's traversal work is added to *counters. kPortable: the loops the GPU
+// runs even where the host has its own (bvh_traverse_host.h), which finds the
+// same hits; for tests and measurements.
+template <bool kCount, bool kPortable = false>
 TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t alpha_key,
                                 uint32_t layout, bool any_hit, BvhCounters* counters) {
   const bool wide = layout == kBvhLayoutWide;
@@ -551,10 +571,19 @@ TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t a
   tr.any_hit = any_hit;
   tr.box = make_box_ray(ray.origin, ray.dir);
   tr.counters = counters;
-  if (wide)
-    trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
-  else
+  if (wide) {
+    trace_two_level_wide<kCount, !kPortable>(tr, kd.bvh_wide_nodes, root);
+  } else {
+#if defined(TANDEM_BVH_HOST_TRAVERSAL)
+    if constexpr (!kPortable) {
+      host_trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+    } else {
+      trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+    }
+#else
     trace_two_level_binary<kCount>(tr, kd.bvh_nodes, root);
+#endif
+  }
   Hit hit = make_miss();
   hit.instance = frame[kFrameHitInstance];
   if (hit_valid(hit)) {
