@@ -3,7 +3,8 @@
 // machine without the source tree (tools/gpu/make_bundle.sh) find the copy
 // shipped next to them; otherwise the directory configured at build time.
 //
-// tests/CMakeLists.txt force-includes this header and defines the macro
+// tests/CMakeLists.txt force-includes this header (in each test binary's
+// precompiled header) and defines the macro
 // TANDEM_SHARED_DIR as a call of shared_dir(), so every test that writes
 // fs::path(TANDEM_SHARED_DIR) or std::string(TANDEM_SHARED_DIR) honours the
 // variable without knowing about it.
