@@ -431,7 +431,9 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   std::vector<Out> outs(tasks_.size() + 1);
   tbb::parallel_for(size_t(0), tasks_.size(), [&](size_t t) {
     const Task& task = tasks_[t];
-    Out& o = outs[t];
+    // A local, not outs[t]: the node writes could alias a reference, which
+    // kept the running area sum in memory, one dependent load and store a node.
+    Out o;
     // Per worker thread, reused: a task's boxes stay in its core's L2
     // between the two passes (a few hundred KB at most).
     static thread_local std::vector<Aabb> task_boxes;
@@ -446,6 +448,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       for (; next < task.wide_hi && anchored_[next].anchor >= i; ++next)
         requantize(anchored_[next].wide, tb, o);
     }
+    outs[t] = o;
   });
   Out& top = outs.back();
   const TaskBoxes none;
