@@ -188,11 +188,21 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
     std::sort(tasks_.begin(), tasks_.end(),
               [](const Task& a, const Task& b) { return a.lo < b.lo; });
     // A subtree's leaf entries are one contiguous range (checked above for
-    // every node but the root): the task's leaf pass walks it front to back.
+    // every node but the root; an empty child, as a one-triangle tree's
+    // root has, holds none): the task's leaf pass walks it front to back.
     for (Task& t : tasks_) {
-      if (rend[2 * size_t(t.lo)] != rbeg[2 * size_t(t.lo) + 1]) return false;
-      t.leaf_lo = rbeg[2 * size_t(t.lo)];
-      t.leaf_hi = rend[2 * size_t(t.lo) + 1];
+      uint32_t lo = kNone, hi = 0, total = 0;
+      for (uint32_t c = 0; c < 2; ++c) {
+        const size_t x = 2 * size_t(t.lo) + c;
+        if (rend[x] <= rbeg[x]) continue;
+        lo = std::min(lo, rbeg[x]);
+        hi = std::max(hi, rend[x]);
+        total += rend[x] - rbeg[x];
+      }
+      if (lo == kNone) lo = hi = 0;
+      if (hi - lo != total) return false;
+      t.leaf_lo = lo;
+      t.leaf_hi = hi;
     }
     std::sort(top_.begin(), top_.end(), std::greater<uint32_t>());
     for (uint32_t t = 0; t < tasks_.size(); ++t) {
