@@ -86,6 +86,7 @@ class BlasRefit {
   struct Task {
     uint32_t lo = 0, hi = 0;            // binary nodes [lo, hi): one subtree
     uint32_t wide_lo = 0, wide_hi = 0;  // its wide nodes in anchored_
+    uint32_t leaf_lo = 0, leaf_hi = 0;  // its leaf entries, contiguous (preorder)
   };
   // A wide node re-quantised once binary node `anchor` is refit.
   struct Anchored {

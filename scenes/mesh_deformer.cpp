@@ -157,7 +157,11 @@ void deform_block(const Job& job, size_t begin, size_t end) {
       const v4 k0 = cross(c1, c2), k1 = cross(c2, c0), k2 = cross(c0, c1);
       const float sign = dot3(c0, k0) < 0.0f ? -1.0f : 1.0f;
       const v4 sn = splat(sign) * (k0 * splat(n.x) + k1 * splat(n.y) + k2 * splat(n.z));
-      job.out.normals[v] = normalised_or_kept(sn, kMorph ? normalised_or_kept(n, n) : n);
+      if (kMorph) {
+        job.out.normals[v] = normalised_or_kept(sn, normalised_or_kept(n, n));
+      } else {
+        job.out.normals[v] = store3(sn);  // normalised below, four at a time
+      }
     }
     if (kTangents) {
       const v4 st = c0 * splat(t.x) + c1 * splat(t.y) + c2 * splat(t.z);
@@ -166,10 +170,51 @@ void deform_block(const Job& job, size_t begin, size_t end) {
   }
 }
 
+// normalised_or_kept() of the skinned normals a block left in out.normals,
+// the unmorphed base normal kept where one collapsed. Four at a time: one
+// vertex at a time, the chain of dot product, reciprocal square root and
+// Newton step was half the skinning time, each vertex waiting for its own.
+// Bit for bit the one-at-a-time result: the packed estimate and the same
+// operations in the same order, lane by lane.
+void normalise_block(const Job& job, size_t begin, size_t end) {
+  glm::vec3* out = job.out.normals.data();
+  const glm::vec3* base = job.d.base_normals.data();
+  size_t v = begin;
+#if defined(__SSE__)
+  for (; v + 4 <= end; v += 4) {
+    alignas(16) float len2[4], inv[4];
+    for (int k = 0; k < 4; ++k)
+      len2[k] = dot3(load3(out[v + k]), load3(out[v + k]));
+    const __m128 x = _mm_load_ps(len2);
+    const __m128 r = _mm_rsqrt_ps(x);
+    const __m128 nr =
+        _mm_mul_ps(r, _mm_sub_ps(_mm_set1_ps(1.5f),
+                                 _mm_mul_ps(_mm_mul_ps(_mm_mul_ps(_mm_set1_ps(0.5f), x), r), r)));
+    _mm_store_ps(inv, nr);
+    for (int k = 0; k < 4; ++k) {
+      out[v + k] = len2[k] > 1e-30f && len2[k] < 1e30f ? store3(load3(out[v + k]) * splat(inv[k]))
+                                                       : base[v + k];
+    }
+  }
+#endif
+  for (; v < end; ++v)
+    out[v] = normalised_or_kept(load3(out[v]), base[v]);
+}
+
+template <bool kSkin, bool kMorph, bool kNormals, bool kTangents>
+void deform_and_normalise_block(const Job& job, size_t begin, size_t end) {
+  deform_block<kSkin, kMorph, kNormals, kTangents>(job, begin, end);
+  normalise_block(job, begin, end);
+}
+
 using BlockFn = void (*)(const Job&, size_t, size_t);
 
 template <bool kSkin, bool kMorph>
 BlockFn pick(bool normals, bool tangents) {
+  if (normals && kSkin && !kMorph) {
+    return tangents ? &deform_and_normalise_block<kSkin, kMorph, true, true>
+                    : &deform_and_normalise_block<kSkin, kMorph, true, false>;
+  }
   if (normals) {
     return tangents ? &deform_block<kSkin, kMorph, true, true>
                     : &deform_block<kSkin, kMorph, true, false>;

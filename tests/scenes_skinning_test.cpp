@@ -536,6 +536,57 @@ TEST(MeshDeformer, NormalsUseTheInverseTransposeAndStayUnit) {
   EXPECT_EQ(out.tangents[0].w, -1.0f);
 }
 
+TEST(MeshDeformer, NormalsNormalisedFourAtATimeEqualTheOneAtATimePath) {
+  // The unmorphed skinned path normalises its normals four at a time after
+  // each block; the morphed path one at a time, right after skinning. A
+  // morph target of zero deltas at weight 1 changes no bit of the input, so
+  // both must give the same bits: over several blocks and a ragged tail.
+  const size_t n = 2 * 4096 + 4099;
+  MeshDeformation d;
+  d.palette_size = 3;
+  d.influences = 4;
+  for (size_t v = 0; v < n; ++v) {
+    const float a = 0.001f * float(v);
+    d.base_positions.push_back({std::sin(a) * 3.0f, std::cos(0.7f * a), 0.01f * float(v % 97)});
+    d.base_normals.push_back(glm::normalize(glm::vec3(std::cos(a), 1.0f, std::sin(3.0f * a))));
+    const float w0 = float(v % 5) / 8.0f, w1 = float(v % 3) / 8.0f;
+    d.joints.insert(d.joints.end(), {0, 1, 2, 1});
+    d.weights.insert(d.weights.end(), {w0, w1, 1.0f - w0 - w1, 0.0f});
+  }
+  const JointMatrix palette[3] = {
+      joint_matrix(glm::rotate(glm::mat4(1.0f), 0.4f, glm::vec3(0, 0, 1))),
+      joint_matrix(glm::scale(glm::translate(glm::mat4(1.0f), glm::vec3(1, 2, 3)),
+                              glm::vec3(2.0f, 0.5f, 1.0f))),
+      joint_matrix(glm::rotate(glm::mat4(1.0f), -1.1f, glm::vec3(1, 1, 0)))};
+  const auto mesh = [&] {
+    Mesh m;
+    m.positions.resize(n);
+    m.normals.resize(n);
+    return m;
+  };
+  Mesh batched = mesh();
+  deform_mesh(d, palette, nullptr, batched);
+  MeshDeformation morphed = d;
+  morphed.targets = 1;
+  morphed.position_deltas.assign(n, glm::vec3(0.0f));
+  morphed.normal_deltas.assign(n, glm::vec3(0.0f));
+  const float weight = 1.0f;
+  Mesh single = mesh();
+  deform_mesh(morphed, palette, &weight, single);
+  EXPECT_EQ(std::memcmp(batched.positions.data(), single.positions.data(), n * sizeof(glm::vec3)),
+            0);
+  EXPECT_EQ(std::memcmp(batched.normals.data(), single.normals.data(), n * sizeof(glm::vec3)), 0);
+  for (size_t v = 0; v < n; v += 1013)
+    EXPECT_NEAR(glm::length(batched.normals[v]), 1.0f, 1e-6f) << v;
+
+  // A blend that collapses (a zero matrix) keeps the base normal, in the
+  // batch and in the tail alike.
+  const JointMatrix zero[3] = {};
+  Mesh collapsed = mesh();
+  deform_mesh(d, zero, nullptr, collapsed);
+  EXPECT_EQ(std::memcmp(collapsed.normals.data(), d.base_normals.data(), n * sizeof(glm::vec3)), 0);
+}
+
 TEST(MeshDeformer, WalkerAndGridRigsStayFiniteAndMove) {
   for (int rig_kind = 0; rig_kind < 2; ++rig_kind) {
     ProceduralRig rig = rig_kind == 0 ? make_walker_rig(0) : make_skinned_grid_rig(64, 0);
