@@ -524,6 +524,39 @@ TEST(Denoise, CpuPlanesGiveTheImageOfTheRecordsPath) {
   }
 }
 
+// A caller that keeps the CPU driver's compact guide from frame to frame
+// (TemporalDenoiser) has the reprojection read it instead of last frame's
+// feature records: the same values, so the same image, bit for bit, over a
+// sequence (a guide from the wrong frame would reject or accept other taps).
+TEST(Denoise, KeptCompactGuideGivesTheImageOfTheFeatureRecords) {
+  const uint32_t w = 96, h = 64;
+  const size_t n = size_t(w) * h;
+  const SvgfParams params = svgf_default_params(w, h);
+  FilterRun kept(n), records(n);
+  SvgfCpuGuide guides[2];
+  std::mt19937 rng(7);
+  for (int frame = 0; frame < 5; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    const int cur = frame & 1;
+    std::vector<PixelFeatures> f;
+    std::vector<Vec3> radiance;
+    make_square_frame(frame, w, h, rng, f, radiance);
+    kept.features[cur] = f;
+    records.features[cur] = f;
+    SvgfFrame with_guide = kept.frame(cur, frame > 0, radiance);
+    with_guide.guide_out = &guides[cur];
+    if (frame > 0) with_guide.prev_guide = &guides[1 - cur];
+    svgf_run_cpu(params, with_guide);
+    svgf_run_cpu(params, records.frame(cur, frame > 0, radiance));
+    for (size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(kept.moments[cur][i].z, records.moments[cur][i].z) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].x, records.output[i].x) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].y, records.output[i].y) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].z, records.output[i].z) << "pixel " << i;
+    }
+  }
+}
+
 // The filter's row loops run as AVX2 + FMA clones where the CPU has them,
 // and as the baseline x86-64 (SSE2) build elsewhere: the two must give the
 // same image within float rounding, on a first frame (the spatial variance

@@ -3,9 +3,22 @@
 // functions. backends/cuda/svgf_device.h runs the same sequence on the GPU.
 #pragma once
 
+#include <vector>
+
 #include "core/kernel/svgf.h"
 
 namespace tandem {
+
+// The compact per-pixel guide the CPU driver's temporal stage writes: what
+// the spatial stages read at every tap (normal, depth, material) and what
+// the next frame's reprojection test reads at its bilinear taps (those and
+// the instance), one plane per component: 24 bytes a pixel instead of the
+// 64 of a PixelFeatures record.
+struct SvgfCpuGuide {
+  std::vector<float> normal_x, normal_y, normal_z, depth;
+  std::vector<uint32_t> material, instance;
+  void resize(size_t n);
+};
 
 // Host buffers of one filter frame, all width * height elements.
 struct SvgfFrame {
@@ -26,6 +39,13 @@ struct SvgfFrame {
   // driver's structure-of-arrays planes; null: svgf_run_cpu allocates it
   // per call (the device driver does not use it).
   float* planes = nullptr;
+  // Optional, CPU driver only: this frame's compact guide (out), kept for the
+  // next frame, and last frame's, which the reprojection then reads instead
+  // of prev_features (still required: its presence says there is history).
+  // Null guide_out: work space of svgf_run_cpu's own; null prev_guide: the
+  // temporal stage compacts prev_features first.
+  SvgfCpuGuide* guide_out = nullptr;
+  const SvgfCpuGuide* prev_guide = nullptr;
 };
 
 size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height);
