@@ -557,6 +557,25 @@ TEST(Denoise, KeptCompactGuideGivesTheImageOfTheFeatureRecords) {
   }
 }
 
+// The CPU driver's planes are svgf_cpu_plane_stride apart: at least the
+// pixel count, and one cache line further modulo 4 KiB each, so that a
+// loop over a dozen planes at one index does not map them all to one L1
+// set (at 640x360, 1280x720, 1920x1080 n floats are a multiple of 4 KiB).
+TEST(Denoise, CpuPlanesStartOneCacheLineApartModulo4KiB) {
+  for (size_t n : {size_t(1), size_t(96 * 64), size_t(640 * 360), size_t(1280 * 720),
+                   size_t(1920 * 1080), size_t(1000003)}) {
+    const size_t stride = svgf_cpu_plane_stride(n);
+    EXPECT_GE(stride, n);
+    EXPECT_LE(stride, n + 1024 + 16);
+    EXPECT_EQ(stride * sizeof(float) % 4096, 64u) << n << " pixels";
+  }
+  SvgfCpuGuide guide;
+  guide.resize(640 * 360);
+  const auto offset = [](const void* p) { return reinterpret_cast<uintptr_t>(p) % 4096; };
+  EXPECT_NE(offset(guide.normal_x()), offset(guide.normal_y()));
+  EXPECT_NE(offset(guide.material()), offset(guide.instance()));
+}
+
 // The filter's row loops run as AVX2 + FMA clones where the CPU has them,
 // and as the baseline x86-64 (SSE2) build elsewhere: the two must give the
 // same image within float rounding, on a first frame (the spatial variance

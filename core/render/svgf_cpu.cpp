@@ -60,8 +60,8 @@ double for_each_row(uint32_t height, const F& f) {
 // features and radiance split into planes for the temporal loop, the temporal
 // illumination, its variance and moments that the spatial variance reads at
 // its taps, and two sets of illumination + variance planes that the a-trous
-// iterations ping-pong between. The guide has planes of its own
-// (SvgfCpuGuide), kept from one frame to the next.
+// iterations ping-pong between, svgf_cpu_plane_stride apart. The guide has
+// planes of its own (SvgfCpuGuide), kept from one frame to the next.
 enum SvgfPlane : size_t {
   kAlbedoR,
   kAlbedoG,
@@ -90,9 +90,9 @@ struct IllumPlanes {
   float* var;
 };
 
-IllumPlanes illum_planes(float* planes, size_t n, size_t first) {
-  return IllumPlanes{planes + first * n, planes + (first + 1) * n, planes + (first + 2) * n,
-                     planes + (first + 3) * n};
+IllumPlanes illum_planes(float* planes, size_t stride, size_t first) {
+  return IllumPlanes{planes + first * stride, planes + (first + 1) * stride,
+                     planes + (first + 2) * stride, planes + (first + 3) * stride};
 }
 
 // The temporal stage's buffers in the CPU driver's form (the overloads of
@@ -487,15 +487,19 @@ const char* svgf_cpu_isa_name(SvgfCpuIsa isa) {
   return "?";
 }
 
+size_t svgf_cpu_plane_stride(size_t n) {
+  return (n + 1023) / 1024 * 1024 + 16;
+}
+
 void SvgfCpuGuide::resize(size_t n) {
-  for (std::vector<float>* v : {&normal_x, &normal_y, &normal_z, &depth})
-    v->resize(n);
-  material.resize(n);
-  instance.resize(n);
+  pixels_ = n;
+  stride_ = svgf_cpu_plane_stride(n);
+  floats_.assign(4 * stride_, 0.0f);
+  ids_.assign(kIdLead + 2 * stride_, 0u);
 }
 
 size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height) {
-  return kPlaneCount * size_t(width) * height;
+  return kPlaneCount * svgf_cpu_plane_stride(size_t(width) * height);
 }
 
 SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuIsa isa) {
@@ -512,47 +516,66 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
   SvgfCpuGuide own_guide, own_prev_guide;
   SvgfCpuGuide* guide_out = fr.guide_out;
   if (!guide_out) guide_out = &own_guide;
-  if (guide_out->depth.size() != n) guide_out->resize(n);
+  if (guide_out->size() != n) guide_out->resize(n);
+  const size_t ps = svgf_cpu_plane_stride(n);
   const auto temporal_start = Clock::now();
   const SvgfCpuGuide* prev = fr.prev_guide;
   if (fr.prev_features && !prev) {
     // No compact guide of last frame (a caller with records only): made
     // here from its feature records.
     own_prev_guide.resize(n);
+    float* nx = own_prev_guide.normal_x();
+    float* ny = own_prev_guide.normal_y();
+    float* nz = own_prev_guide.normal_z();
+    float* depth = own_prev_guide.depth();
+    uint32_t* material = own_prev_guide.material();
+    uint32_t* instance = own_prev_guide.instance();
     for_each_row(p.height, [&](int y) {
       for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
         const PixelFeatures& f = fr.prev_features[i];
-        own_prev_guide.normal_x[i] = f.normal.x;
-        own_prev_guide.normal_y[i] = f.normal.y;
-        own_prev_guide.normal_z[i] = f.normal.z;
-        own_prev_guide.depth[i] = f.depth;
-        own_prev_guide.material[i] = f.material;
-        own_prev_guide.instance[i] = f.instance;
+        nx[i] = f.normal.x;
+        ny[i] = f.normal.y;
+        nz[i] = f.normal.z;
+        depth[i] = f.depth;
+        material[i] = f.material;
+        instance[i] = f.instance;
       }
     });
     prev = &own_prev_guide;
   }
   const bool history = fr.prev_features != nullptr;
-  float* albedo_r = planes + kAlbedoR * n;
-  float* albedo_g = planes + kAlbedoG * n;
-  float* albedo_b = planes + kAlbedoB * n;
-  float* reprojected_depth = planes + kReprojectedDepth * n;
-  float* motion_x = planes + kMotionX * n;
-  float* motion_y = planes + kMotionY * n;
-  float* radiance_r = planes + kRadianceR * n;
-  float* radiance_g = planes + kRadianceG * n;
-  float* radiance_b = planes + kRadianceB * n;
-  SvgfCpuGuide& g = *guide_out;
+  float* albedo_r = planes + kAlbedoR * ps;
+  float* albedo_g = planes + kAlbedoG * ps;
+  float* albedo_b = planes + kAlbedoB * ps;
+  float* reprojected_depth = planes + kReprojectedDepth * ps;
+  float* motion_x = planes + kMotionX * ps;
+  float* motion_y = planes + kMotionY * ps;
+  float* radiance_r = planes + kRadianceR * ps;
+  float* radiance_g = planes + kRadianceG * ps;
+  float* radiance_b = planes + kRadianceB * ps;
+  SvgfTemporalPlanes tp{};
+  tp.normal_x = guide_out->normal_x();
+  tp.normal_y = guide_out->normal_y();
+  tp.normal_z = guide_out->normal_z();
+  tp.depth = guide_out->depth();
+  tp.material = guide_out->material();
+  tp.instance = guide_out->instance();
+  float* g_nx = guide_out->normal_x();
+  float* g_ny = guide_out->normal_y();
+  float* g_nz = guide_out->normal_z();
+  float* g_depth = guide_out->depth();
+  uint32_t* g_material = guide_out->material();
+  uint32_t* g_instance = guide_out->instance();
   // This frame's records into planes (the guide among them).
   for_each_row(p.height, [&](int y) {
     for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
       const PixelFeatures& f = fr.features[i];
-      g.normal_x[i] = f.normal.x;
-      g.normal_y[i] = f.normal.y;
-      g.normal_z[i] = f.normal.z;
-      g.depth[i] = f.depth;
-      g.material[i] = f.material;
-      g.instance[i] = f.instance;
+      g_nx[i] = f.normal.x;
+      g_ny[i] = f.normal.y;
+      g_nz[i] = f.normal.z;
+      g_depth[i] = f.depth;
+      g_material[i] = f.material;
+      g_instance[i] = f.instance;
       albedo_r[i] = f.albedo.x;
       albedo_g[i] = f.albedo.y;
       albedo_b[i] = f.albedo.z;
@@ -564,13 +587,6 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
       radiance_b[i] = fr.radiance[i].z;
     }
   });
-  SvgfTemporalPlanes tp{};
-  tp.normal_x = g.normal_x.data();
-  tp.normal_y = g.normal_y.data();
-  tp.normal_z = g.normal_z.data();
-  tp.depth = g.depth.data();
-  tp.material = g.material.data();
-  tp.instance = g.instance.data();
   tp.albedo_r = albedo_r;
   tp.albedo_g = albedo_g;
   tp.albedo_b = albedo_b;
@@ -583,20 +599,20 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
   if (history) {
     tp.prev_color = fr.prev_color;
     tp.prev_moments = fr.prev_moments;
-    tp.prev_normal_x = prev->normal_x.data();
-    tp.prev_normal_y = prev->normal_y.data();
-    tp.prev_normal_z = prev->normal_z.data();
-    tp.prev_depth = prev->depth.data();
-    tp.prev_material = prev->material.data();
-    tp.prev_instance = prev->instance.data();
+    tp.prev_normal_x = prev->normal_x();
+    tp.prev_normal_y = prev->normal_y();
+    tp.prev_normal_z = prev->normal_z();
+    tp.prev_depth = prev->depth();
+    tp.prev_material = prev->material();
+    tp.prev_instance = prev->instance();
   }
   tp.depth_slope = fr.depth_slope;
-  tp.r = planes + kTemporalR * n;
-  tp.g = planes + kTemporalG * n;
-  tp.b = planes + kTemporalB * n;
-  tp.var = planes + kTemporalVar * n;
-  tp.m1 = planes + kM1 * n;
-  tp.m2 = planes + kM2 * n;
+  tp.r = planes + kTemporalR * ps;
+  tp.g = planes + kTemporalG * ps;
+  tp.b = planes + kTemporalB * ps;
+  tp.var = planes + kTemporalVar * ps;
+  tp.m1 = planes + kM1 * ps;
+  tp.m2 = planes + kM2 * ps;
   tp.moments = fr.moments_out;
   const auto temporal = k.temporal[history ? 1 : 0];
   for_each_row(p.height, [&](int y) { temporal(p, tp, y); });
@@ -604,7 +620,7 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
   const SvgfGuidePlanes guide{tp.normal_x, tp.normal_y, tp.normal_z,
                               tp.depth,    tp.material, fr.depth_slope};
   const SvgfVariancePlanes vp{guide, tp.r, tp.g, tp.b, tp.m1, tp.m2, fr.moments_out};
-  const IllumPlanes pa = illum_planes(planes, n, kIllumA), pb = illum_planes(planes, n, kIllumB);
+  const IllumPlanes pa = illum_planes(planes, ps, kIllumA), pb = illum_planes(planes, ps, kIllumB);
   t.variance = for_each_row(p.height, [&](int y) { k.variance(p, vp, tp.var, pa, y); });
   // pa holds the input of the first iteration; the first iteration's
   // output is also written as records: the next frame's colour history.
