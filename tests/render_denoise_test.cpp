@@ -524,6 +524,58 @@ TEST(Denoise, CpuPlanesGiveTheImageOfTheRecordsPath) {
   }
 }
 
+// A caller that keeps the CPU driver's compact guide from frame to frame
+// (TemporalDenoiser) has the reprojection read it instead of last frame's
+// feature records: the same values, so the same image, bit for bit, over a
+// sequence (a guide from the wrong frame would reject or accept other taps).
+TEST(Denoise, KeptCompactGuideGivesTheImageOfTheFeatureRecords) {
+  const uint32_t w = 96, h = 64;
+  const size_t n = size_t(w) * h;
+  const SvgfParams params = svgf_default_params(w, h);
+  FilterRun kept(n), records(n);
+  SvgfCpuGuide guides[2];
+  std::mt19937 rng(7);
+  for (int frame = 0; frame < 5; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    const int cur = frame & 1;
+    std::vector<PixelFeatures> f;
+    std::vector<Vec3> radiance;
+    make_square_frame(frame, w, h, rng, f, radiance);
+    kept.features[cur] = f;
+    records.features[cur] = f;
+    SvgfFrame with_guide = kept.frame(cur, frame > 0, radiance);
+    with_guide.guide_out = &guides[cur];
+    if (frame > 0) with_guide.prev_guide = &guides[1 - cur];
+    svgf_run_cpu(params, with_guide);
+    svgf_run_cpu(params, records.frame(cur, frame > 0, radiance));
+    for (size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(kept.moments[cur][i].z, records.moments[cur][i].z) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].x, records.output[i].x) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].y, records.output[i].y) << "pixel " << i;
+      ASSERT_EQ(kept.output[i].z, records.output[i].z) << "pixel " << i;
+    }
+  }
+}
+
+// The CPU driver's planes are svgf_cpu_plane_stride apart: at least the
+// pixel count, and one cache line further modulo 4 KiB each, so that a
+// loop over a dozen planes at one index does not map them all to one L1
+// set (at 640x360, 1280x720, 1920x1080 n floats are a multiple of 4 KiB).
+TEST(Denoise, CpuPlanesStartOneCacheLineApartModulo4KiB) {
+  for (size_t n : {size_t(1), size_t(96 * 64), size_t(640 * 360), size_t(1280 * 720),
+                   size_t(1920 * 1080), size_t(1000003)}) {
+    const size_t stride = svgf_cpu_plane_stride(n);
+    EXPECT_GE(stride, n);
+    EXPECT_LE(stride, n + 1024 + 16);
+    EXPECT_EQ(stride * sizeof(float) % 4096, 64u) << n << " pixels";
+  }
+  SvgfCpuGuide guide;
+  guide.resize(640 * 360);
+  const auto offset = [](const void* p) { return reinterpret_cast<uintptr_t>(p) % 4096; };
+  EXPECT_NE(offset(guide.normal_x()), offset(guide.normal_y()));
+  EXPECT_NE(offset(guide.material()), offset(guide.instance()));
+}
+
 // The filter's row loops run as AVX2 + FMA clones where the CPU has them,
 // and as the baseline x86-64 (SSE2) build elsewhere: the two must give the
 // same image within float rounding, on a first frame (the spatial variance

@@ -125,36 +125,6 @@ struct SvgfGuide {
   float depth;  // 0 for a miss
 };
 
-// Depth slope of the current frame at (x, y): per axis the smaller one-sided
-// difference to a neighbour on the same surface kind (so an edge does not
-// count as slope), as a bound on how much depth may change per pixel.
-// Branch-free (neighbours outside the image are read clamped and weigh
-// nothing), so that the CPU's temporal row loop vectorises.
-TANDEM_SVGF_INLINE Vec2 svgf_depth_slope(const PixelFeatures* features, uint32_t width,
-                                         uint32_t height, uint32_t x, uint32_t y) {
-  const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(width) + ptrdiff_t(x);
-  const float depth = features[i].depth;
-  const bool hit = features[i].instance != kInvalidIndex;
-  float g[2];
-  TANDEM_SVGF_UNROLL
-  for (int axis = 0; axis < 2; ++axis) {
-    float best = kFloatMax;
-    TANDEM_SVGF_UNROLL
-    for (int s = -1; s <= 1; s += 2) {
-      const int c = (axis == 0 ? int(x) : int(y)) + s;
-      const int limit = axis == 0 ? int(width) : int(height);
-      const bool inside = c >= 0 && c < limit;
-      const ptrdiff_t step = axis == 0 ? 1 : ptrdiff_t(width);
-      const ptrdiff_t j = i + (inside ? ptrdiff_t(s) * step : 0);
-      const bool same_kind = (features[j].instance != kInvalidIndex) == hit;
-      const float d = fabsf(features[j].depth - depth);
-      best = inside && same_kind ? min_f(best, d) : best;
-    }
-    g[axis] = best == kFloatMax ? 0.0f : best;
-  }
-  return make_vec2(g[0], g[1]);
-}
-
 // --- temporal accumulation ---------------------------------------------------
 
 struct SvgfTemporalBuffers {
@@ -170,18 +140,107 @@ struct SvgfTemporalBuffers {
   uint32_t* material;                  // out: material (kInvalidIndex: miss)
 };
 
+// The temporal stage's reads of this frame, one overload per buffer form
+// (the CPU driver's, over planes, are in core/render/svgf_cpu.cpp): the
+// pixel functions below are the same code for both.
+TANDEM_HD const PixelFeatures& svgf_cur_pixel(const SvgfTemporalBuffers& b, size_t i) {
+  return b.features[i];
+}
+TANDEM_HD Vec3 svgf_cur_radiance(const SvgfTemporalBuffers& b, size_t i) {
+  return b.radiance[i];
+}
+TANDEM_HD float svgf_cur_depth(const SvgfTemporalBuffers& b, ptrdiff_t j) {
+  return b.features[j].depth;
+}
+TANDEM_HD bool svgf_cur_hit(const SvgfTemporalBuffers& b, ptrdiff_t j) {
+  return b.features[j].instance != kInvalidIndex;
+}
+
+// Depth slope of the current frame at (x, y): per axis the smaller one-sided
+// difference to a neighbour on the same surface kind (so an edge does not
+// count as slope), as a bound on how much depth may change per pixel.
+// Branch-free (neighbours outside the image are read clamped and weigh
+// nothing), so that the CPU's temporal row loop vectorises.
+// kCheckBorder = false is for pixels not on the image's edge (the CPU
+// driver's vectorised loop: neighbour addresses then follow the row).
+template <bool kCheckBorder = true, class B>
+TANDEM_SVGF_INLINE Vec2 svgf_depth_slope(const B& b, uint32_t width, uint32_t height, uint32_t x,
+                                         uint32_t y) {
+  const ptrdiff_t i = ptrdiff_t(y) * ptrdiff_t(width) + ptrdiff_t(x);
+  const float depth = svgf_cur_depth(b, i);
+  const bool hit = svgf_cur_hit(b, i);
+  float g[2];
+  TANDEM_SVGF_UNROLL
+  for (int axis = 0; axis < 2; ++axis) {
+    float best = kFloatMax;
+    TANDEM_SVGF_UNROLL
+    for (int s = -1; s <= 1; s += 2) {
+      const int c = (axis == 0 ? int(x) : int(y)) + s;
+      const int limit = axis == 0 ? int(width) : int(height);
+      const bool inside = !kCheckBorder || (c >= 0 && c < limit);
+      const ptrdiff_t step = axis == 0 ? 1 : ptrdiff_t(width);
+      const ptrdiff_t j = i + (!kCheckBorder || inside ? ptrdiff_t(s) * step : 0);
+      const bool same_kind = svgf_cur_hit(b, j) == hit;
+      const float d = fabsf(svgf_cur_depth(b, j) - depth);
+      best = inside && same_kind ? min_f(best, d) : best;
+    }
+    g[axis] = best == kFloatMax ? 0.0f : best;
+  }
+  return make_vec2(g[0], g[1]);
+}
+
+// What the reprojection test reads of last frame's pixel: the device reads
+// it from last frame's feature records, the CPU driver from a compact guide
+// (6 planes instead of 64-byte records at each of the 4 bilinear taps).
+struct SvgfPrevSurface {
+  Vec3 normal;
+  float depth;
+  uint32_t instance, material;
+};
+TANDEM_HD SvgfPrevSurface svgf_prev_surface(const PixelFeatures& f) {
+  SvgfPrevSurface s;
+  s.normal = make_vec3(f.normal.x, f.normal.y, f.normal.z);
+  s.depth = f.depth;
+  s.instance = f.instance;
+  s.material = f.material;
+  return s;
+}
+
 // Whether last frame's pixel `prev` shows the surface this frame's `cur` sees.
-TANDEM_HD bool svgf_history_consistent(const SvgfParams& p, const PixelFeatures& cur,
-                                       const PixelFeatures& prev, float depth_tolerance) {
+// 1 if so, else 0.
+TANDEM_HD float svgf_history_consistent(const SvgfParams& p, const PixelFeatures& cur,
+                                        const SvgfPrevSurface& prev, float depth_tolerance) {
   // Also: miss against hit. The material too: a light and the ceiling
   // around it are often one instance, with illumination orders of magnitude
   // apart, and bilinear taps at a fractional motion straddle their edge.
-  // The environment on both is consistent. Bitwise operators, not && and
-  // ||: no branches, for the vectorised row loop of the CPU.
-  const bool same_id = (cur.instance == prev.instance) & (cur.material == prev.material);
-  const bool same_surface = (fabsf(prev.depth - cur.prev_depth) <= depth_tolerance) &
-                            (dot(prev.normal, cur.normal) >= p.reproject_normal_cos);
-  return same_id & (!features_hit(cur) | same_surface);
+  // The environment on both is consistent. Float arithmetic on the tests,
+  // not && and || (nor & and | on bools, which GCC turns back into
+  // branches): no branches, and no loads under a condition (which the
+  // CPU's vectorised row loop cannot gather).
+  const float same_id =
+      (cur.instance == prev.instance) & (cur.material == prev.material) ? 1.0f : 0.0f;
+  // depth difference <= tolerance and cosine >= the threshold, both at once
+  // (a - b <= 0 exactly when a <= b, for finite floats).
+  const float surface_excess = max_f(fabsf(prev.depth - cur.prev_depth) - depth_tolerance,
+                                     p.reproject_normal_cos - dot(prev.normal, cur.normal));
+  const float same_surface = surface_excess <= 0.0f ? 1.0f : 0.0f;
+  const float miss = features_hit(cur) ? 0.0f : 1.0f;
+  return same_id * max_f(miss, same_surface);
+}
+
+// The temporal stage's reads of last frame and writes, one overload per
+// buffer form (the CPU driver's are in core/render/svgf_cpu.cpp): the
+// pixel function below is the same code for both.
+TANDEM_HD SvgfPrevSurface svgf_prev_surface(const SvgfTemporalBuffers& b, int j) {
+  return svgf_prev_surface(b.prev_features[j]);
+}
+TANDEM_HD void svgf_store_temporal(const SvgfTemporalBuffers& b, size_t i, const PixelFeatures& f,
+                                   Vec2 slope, Vec4 color, Vec4 moments) {
+  b.depth_slope[i] = slope;
+  b.guide[i] = SvgfGuide{make_vec3(f.normal.x, f.normal.y, f.normal.z), f.depth};
+  b.material[i] = f.material;
+  b.color[i] = color;
+  b.moments[i] = moments;
 }
 
 // floor(v) for |v| < 2^31 without a library call (floorf is one on
@@ -191,20 +250,19 @@ TANDEM_HD int svgf_floor_int(float v) {
   return n - (float(n) > v ? 1 : 0);
 }
 
-template <bool kHasHistory>
-TANDEM_SVGF_INLINE void svgf_temporal_pixel_h(const SvgfParams& p, const SvgfTemporalBuffers& b,
-                                              uint32_t x, uint32_t y) {
+// kCheckBorder: see svgf_depth_slope.
+template <bool kHasHistory, bool kCheckBorder = true, class B>
+TANDEM_SVGF_INLINE void svgf_temporal_pixel_h(const SvgfParams& p, const B& b, uint32_t x,
+                                              uint32_t y) {
   const size_t i = size_t(y) * p.width + x;
-  const PixelFeatures& f = b.features[i];
-  Vec3 illum = b.radiance[i] / svgf_guard_albedo(f.albedo);
+  // A reference to the record, or (planes) to a temporary put together.
+  const PixelFeatures& f = svgf_cur_pixel(b, i);
+  Vec3 illum = svgf_cur_radiance(b, i) / svgf_guard_albedo(f.albedo);
   float lum = luminance(illum);
 
   Vec3 hist_color = make_vec3(0.0f);
   float hist_m1 = 0.0f, hist_m2 = 0.0f, hist_len = 0.0f, weight_sum = 0.0f;
-  const Vec2 slope = svgf_depth_slope(b.features, p.width, p.height, x, y);
-  b.depth_slope[i] = slope;
-  b.guide[i] = SvgfGuide{make_vec3(f.normal.x, f.normal.y, f.normal.z), f.depth};
-  b.material[i] = f.material;
+  const Vec2 slope = svgf_depth_slope<kCheckBorder>(b, p.width, p.height, x, y);
   if (kHasHistory) {
     const float tol = p.reproject_depth_rel * f.prev_depth + 2.0f * (slope.x + slope.y);
     // Previous position in pixel-index coordinates (centres at integers).
@@ -225,12 +283,17 @@ TANDEM_SVGF_INLINE void svgf_temporal_pixel_h(const SvgfParams& p, const SvgfTem
       const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
       const bool tap_inside =
           inside & (tx >= 0) & (ty >= 0) & (tx < int(p.width)) & (ty < int(p.height));
-      const int cx = tap_inside ? tx : 0, cy = tap_inside ? ty : 0;
-      const size_t j = size_t(cy) * p.width + uint32_t(cx);
+      // Clamped, not selected: a select of the index becomes a select of
+      // 64-bit addresses, which GCC's vectorised loop cannot gather from.
+      const int cx = tx < 0 ? 0 : (tx >= int(p.width) ? int(p.width) - 1 : tx);
+      const int cy = ty < 0 ? 0 : (ty >= int(p.height) ? int(p.height) - 1 : ty);
+      // A 32-bit index (images have fewer than 2^31 pixels): the CPU's
+      // vectorised loop gathers with 32-bit offsets.
+      const int j = cy * int(p.width) + cx;
       const float bw = ((k & 1) ? fx : 1.0f - fx) * ((k >> 1) ? fy : 1.0f - fy);
-      const bool use =
-          tap_inside & (bw > 0.0f) & svgf_history_consistent(p, f, b.prev_features[j], tol);
-      const float w = use ? bw : 0.0f;
+      // bw >= 0: a tap of bilinear weight 0 adds nothing either way.
+      const float w =
+          (tap_inside ? bw : 0.0f) * svgf_history_consistent(p, f, svgf_prev_surface(b, j), tol);
       const Vec4 pc = b.prev_color[j], pm = b.prev_moments[j];
       hist_color += make_vec3(pc.x, pc.y, pc.z) * w;
       hist_m1 += pm.x * w;
@@ -261,8 +324,9 @@ TANDEM_SVGF_INLINE void svgf_temporal_pixel_h(const SvgfParams& p, const SvgfTem
   const float m1 = has ? lerp_f(hist_m1, lum, am) : lum;
   const float m2 = has ? lerp_f(hist_m2, lum * lum, am) : lum * lum;
   const float len = has ? min_f(hist_frames, 65535.0f) : 1.0f;
-  b.color[i] = make_vec4(color, max_f(0.0f, m2 - m1 * m1) * p.variance_scale);
-  b.moments[i] = make_vec4(m1, m2, len, 0.0f);
+  svgf_store_temporal(b, i, f, slope,
+                      make_vec4(color, max_f(0.0f, m2 - m1 * m1) * p.variance_scale),
+                      make_vec4(m1, m2, len, 0.0f));
 }
 
 TANDEM_SVGF_INLINE void svgf_temporal_pixel(const SvgfParams& p, const SvgfTemporalBuffers& b,

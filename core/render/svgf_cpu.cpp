@@ -56,18 +56,26 @@ double for_each_row(uint32_t height, const F& f) {
 
 // --- the planes ----------------------------------------------------------------
 
-// The structure-of-arrays work space (SvgfFrame::planes): the guide and the
-// temporal illumination and moments that the spatial variance reads at its
-// taps, and two sets of illumination + variance planes that the a-trous
-// iterations ping-pong between.
+// The structure-of-arrays work space (SvgfFrame::planes): this frame's
+// features and radiance split into planes for the temporal loop, the temporal
+// illumination, its variance and moments that the spatial variance reads at
+// its taps, and two sets of illumination + variance planes that the a-trous
+// iterations ping-pong between, svgf_cpu_plane_stride apart. The guide has
+// planes of its own (SvgfCpuGuide), kept from one frame to the next.
 enum SvgfPlane : size_t {
-  kNormalX,
-  kNormalY,
-  kNormalZ,
-  kDepth,
+  kAlbedoR,
+  kAlbedoG,
+  kAlbedoB,
+  kReprojectedDepth,
+  kMotionX,
+  kMotionY,
+  kRadianceR,
+  kRadianceG,
+  kRadianceB,
   kTemporalR,
   kTemporalG,
   kTemporalB,
+  kTemporalVar,
   kM1,
   kM2,
   kIllumA,  // r, g, b, variance
@@ -82,51 +90,118 @@ struct IllumPlanes {
   float* var;
 };
 
-IllumPlanes illum_planes(float* planes, size_t n, size_t first) {
-  return IllumPlanes{planes + first * n, planes + (first + 1) * n, planes + (first + 2) * n,
-                     planes + (first + 3) * n};
+IllumPlanes illum_planes(float* planes, size_t stride, size_t first) {
+  return IllumPlanes{planes + first * stride, planes + (first + 1) * stride,
+                     planes + (first + 2) * stride, planes + (first + 3) * stride};
+}
+
+// The temporal stage's buffers in the CPU driver's form (the overloads of
+// svgf_cur_pixel ... svgf_store_temporal below). GCC vectorises no loop
+// that reads the 64-byte feature records (a stride of 16 floats), so the
+// first pass splits this frame's records into planes and the pixel loop
+// reads only those, last frame's compact guide at the reprojection taps
+// (gathers), and writes the planes the spatial stages read straight from
+// the pixel function, without a copy pass or intermediate records.
+struct SvgfTemporalPlanes {
+  const float* normal_x;  // this frame's guide (the first pass's output)
+  const float* normal_y;
+  const float* normal_z;
+  const float* depth;
+  const uint32_t* material;
+  const uint32_t* instance;
+  const float* albedo_r;  // the rest of this frame's features
+  const float* albedo_g;
+  const float* albedo_b;
+  const float* reprojected_depth;  // PixelFeatures::prev_depth
+  const float* motion_x;
+  const float* motion_y;
+  const float* radiance_r;
+  const float* radiance_g;
+  const float* radiance_b;
+  const Vec4* prev_color;
+  const Vec4* prev_moments;
+  const float* prev_normal_x;  // last frame's guide
+  const float* prev_normal_y;
+  const float* prev_normal_z;
+  const float* prev_depth;
+  const uint32_t* prev_material;
+  const uint32_t* prev_instance;
+  Vec2* depth_slope;  // out
+  float* r;           // out: temporal illumination, its variance, moments
+  float* g;
+  float* b;
+  float* var;
+  float* m1;
+  float* m2;
+  Vec4* moments;  // out: (m1, m2, length, 0), the next frame's history
+};
+
+TANDEM_SVGF_INLINE PixelFeatures svgf_cur_pixel(const SvgfTemporalPlanes& b, size_t i) {
+  PixelFeatures f;
+  f.albedo = make_vec3(b.albedo_r[i], b.albedo_g[i], b.albedo_b[i]);
+  f.depth = b.depth[i];
+  f.normal = make_vec3(b.normal_x[i], b.normal_y[i], b.normal_z[i]);
+  f.prev_depth = b.reprojected_depth[i];
+  f.motion = make_vec2(b.motion_x[i], b.motion_y[i]);
+  f.instance = b.instance[i];
+  f.prim = 0;
+  f.material = b.material[i];
+  f.pad[0] = f.pad[1] = f.pad[2] = 0;
+  return f;
+}
+TANDEM_SVGF_INLINE Vec3 svgf_cur_radiance(const SvgfTemporalPlanes& b, size_t i) {
+  return make_vec3(b.radiance_r[i], b.radiance_g[i], b.radiance_b[i]);
+}
+TANDEM_SVGF_INLINE float svgf_cur_depth(const SvgfTemporalPlanes& b, ptrdiff_t j) {
+  return b.depth[j];
+}
+TANDEM_SVGF_INLINE bool svgf_cur_hit(const SvgfTemporalPlanes& b, ptrdiff_t j) {
+  return b.instance[j] != kInvalidIndex;
+}
+TANDEM_SVGF_INLINE SvgfPrevSurface svgf_prev_surface(const SvgfTemporalPlanes& b, int j) {
+  SvgfPrevSurface s;
+  s.normal = make_vec3(b.prev_normal_x[j], b.prev_normal_y[j], b.prev_normal_z[j]);
+  s.depth = b.prev_depth[j];
+  s.instance = b.prev_instance[j];
+  s.material = b.prev_material[j];
+  return s;
+}
+
+TANDEM_SVGF_INLINE void svgf_store_temporal(const SvgfTemporalPlanes& b, size_t i,
+                                            const PixelFeatures& f, Vec2 slope, Vec4 color,
+                                            Vec4 moments) {
+  b.depth_slope[i] = slope;
+  b.r[i] = color.x;
+  b.g[i] = color.y;
+  b.b[i] = color.z;
+  b.var[i] = color.w;
+  b.m1[i] = moments.x;
+  b.m2[i] = moments.y;
+  b.moments[i] = moments;
 }
 
 // --- row bodies (always inlined into both clones) -------------------------
 
 // One row of the temporal stage: the branch-free pixel function in a loop
-// the compiler vectorises (gathers for the bilinear taps), restrict
-// pointers as in atrous_interior_body. Then the row's guide, illumination
-// and moments are copied into their planes for the spatial stages (while
-// they are in the cache).
+// the compiler vectorises (gathers for the bilinear taps; ivdep as in
+// variance_run_body).
+// The pixels of the image's edge (first and last row and column) go through
+// the checked function, scalar.
 template <bool kHasHistory>
-TANDEM_SVGF_INLINE void temporal_row_body(
-    const SvgfParams& params, const PixelFeatures* __restrict features,
-    const Vec3* __restrict radiance, const PixelFeatures* __restrict prev_features,
-    const Vec4* __restrict prev_color, const Vec4* __restrict prev_moments, Vec4* __restrict color,
-    Vec4* __restrict moments, Vec2* __restrict depth_slope, SvgfGuide* __restrict guide,
-    uint32_t* __restrict material, float* __restrict planes, int y) {
+TANDEM_SVGF_INLINE void temporal_row_body(const SvgfParams& params, const SvgfTemporalPlanes& tp,
+                                          int y) {
   const SvgfParams p = params;
-  const SvgfTemporalBuffers tb{features, radiance, prev_features, prev_color, prev_moments,
-                               color,    moments,  depth_slope,   guide,      material};
-  for (uint32_t x = 0; x < p.width; ++x)
-    svgf_temporal_pixel_h<kHasHistory>(p, tb, x, uint32_t(y));
-  const size_t n = size_t(p.width) * p.height, row = size_t(y) * p.width;
-  float* __restrict nx = planes + kNormalX * n;
-  float* __restrict ny = planes + kNormalY * n;
-  float* __restrict nz = planes + kNormalZ * n;
-  float* __restrict depth = planes + kDepth * n;
-  float* __restrict r = planes + kTemporalR * n;
-  float* __restrict g = planes + kTemporalG * n;
-  float* __restrict b = planes + kTemporalB * n;
-  float* __restrict m1 = planes + kM1 * n;
-  float* __restrict m2 = planes + kM2 * n;
-  for (size_t i = row; i < row + p.width; ++i) {
-    nx[i] = guide[i].normal.x;
-    ny[i] = guide[i].normal.y;
-    nz[i] = guide[i].normal.z;
-    depth[i] = guide[i].depth;
-    r[i] = color[i].x;
-    g[i] = color[i].y;
-    b[i] = color[i].z;
-    m1[i] = moments[i].x;
-    m2[i] = moments[i].y;
+  const SvgfTemporalPlanes b = tp;
+  if (y == 0 || uint32_t(y) + 1 >= p.height || p.width < 3) {
+    for (uint32_t x = 0; x < p.width; ++x)
+      svgf_temporal_pixel_h<kHasHistory, true>(p, b, x, uint32_t(y));
+    return;
   }
+  svgf_temporal_pixel_h<kHasHistory, true>(p, b, 0, uint32_t(y));
+  TANDEM_SVGF_IVDEP
+  for (uint32_t x = 1; x < p.width - 1; ++x)
+    svgf_temporal_pixel_h<kHasHistory, false>(p, b, x, uint32_t(y));
+  svgf_temporal_pixel_h<kHasHistory, true>(p, b, p.width - 1, uint32_t(y));
 }
 
 TANDEM_SVGF_INLINE void store(const IllumPlanes& out, size_t i, const Vec4& v) {
@@ -162,7 +237,7 @@ using VarianceRunFn = void (*)(const SvgfParams&, const SvgfVariancePlanes&, con
                                int y, int x0, int x1);
 
 TANDEM_SVGF_INLINE void variance_row_body(const SvgfParams& p, const SvgfVariancePlanes& vp,
-                                          const Vec4* color, const IllumPlanes& out, int y,
+                                          const float* temporal_var, const IllumPlanes& out, int y,
                                           VarianceRunFn run) {
   const int w = int(p.width), h = int(p.height);
   const size_t row = size_t(y) * p.width;
@@ -171,7 +246,8 @@ TANDEM_SVGF_INLINE void variance_row_body(const SvgfParams& p, const SvgfVarianc
   while (x < w) {
     const float history = vp.moments[row + size_t(x)].z;
     if (history >= kSvgfMinHistoryForVariance) {
-      store(out, row + size_t(x), color[row + size_t(x)]);
+      const size_t i = row + size_t(x);
+      store(out, i, make_vec4(vp.r[i], vp.g[i], vp.b[i], temporal_var[i]));
       ++x;
       continue;
     }
@@ -308,8 +384,8 @@ TANDEM_SVGF_INLINE void atrous_row_body(const SvgfParams& p, const SvgfAtrousPla
 
 // The row kernels of one instruction set.
 struct SvgfRowKernels {
-  void (*temporal)(const SvgfParams&, const SvgfTemporalBuffers&, float* planes, int y);
-  void (*variance)(const SvgfParams&, const SvgfVariancePlanes&, const Vec4* color,
+  void (*temporal[2])(const SvgfParams&, const SvgfTemporalPlanes&, int y);  // no history, history
+  void (*variance)(const SvgfParams&, const SvgfVariancePlanes&, const float* temporal_var,
                    const IllumPlanes& out, int y);
   void (*atrous[2])(const SvgfParams&, const SvgfAtrousPlanes&, uint32_t step,
                     const IllumPlanes& out, Vec4* history, int y);  // R = 1, 2
@@ -318,56 +394,42 @@ struct SvgfRowKernels {
 // The run loops (temporal, variance, a-trous interior) are functions of
 // their own: inlined into the row function, GCC loses the no-alias facts
 // and gives up vectorising.
-#define TANDEM_SVGF_ROW_KERNELS(suffix, target)                                                    \
-  template <bool kHasHistory>                                                                      \
-  target __attribute__((noinline)) void temporal_run_##suffix(                                     \
-      const SvgfParams& p, const PixelFeatures* __restrict features,                               \
-      const Vec3* __restrict radiance, const PixelFeatures* __restrict prev_features,              \
-      const Vec4* __restrict prev_color, const Vec4* __restrict prev_moments,                      \
-      Vec4* __restrict color, Vec4* __restrict moments, Vec2* __restrict depth_slope,              \
-      SvgfGuide* __restrict guide, uint32_t* __restrict material, float* __restrict planes,        \
-      int y) {                                                                                     \
-    temporal_row_body<kHasHistory>(p, features, radiance, prev_features, prev_color, prev_moments, \
-                                   color, moments, depth_slope, guide, material, planes, y);       \
-  }                                                                                                \
-  void temporal_row_##suffix(const SvgfParams& p, const SvgfTemporalBuffers& b, float* planes,     \
-                             int y) {                                                              \
-    (b.prev_features ? temporal_run_##suffix<true>                                                 \
-                     : temporal_run_##suffix<false>)(p, b.features, b.radiance, b.prev_features,   \
-                                                     b.prev_color, b.prev_moments, b.color,        \
-                                                     b.moments, b.depth_slope, b.guide,            \
-                                                     b.material, planes, y);                       \
-  }                                                                                                \
-  target __attribute__((noinline)) void variance_run_##suffix(                                     \
-      const SvgfParams& p, const SvgfVariancePlanes& vp, const IllumPlanes& out, int y, int x0,    \
-      int x1) {                                                                                    \
-    variance_run_body(p, vp, out, y, x0, x1);                                                      \
-  }                                                                                                \
-  target void variance_row_##suffix(const SvgfParams& p, const SvgfVariancePlanes& vp,             \
-                                    const Vec4* color, const IllumPlanes& out, int y) {            \
-    variance_row_body(p, vp, color, out, y, variance_run_##suffix);                                \
-  }                                                                                                \
-  template <int R>                                                                                 \
-  target __attribute__((noinline)) void atrous_interior_##suffix(                                  \
-      const SvgfParams& p, const SvgfAtrousPlanes& in, uint32_t step, int y, int x0, int x1,       \
-      const IllumPlanes& out) {                                                                    \
-    atrous_interior_body<R>(p, in, step, y, x0, x1, out);                                          \
-  }                                                                                                \
-  template <int R>                                                                                 \
-  target __attribute__((noinline)) void atrous_masked_##suffix(                                    \
-      const SvgfParams& p, const SvgfAtrousPlanes& in, uint32_t step, int y, int x0, int x1,       \
-      const IllumPlanes& out, const SvgfTapMask& mask) {                                           \
-    atrous_masked_body<R>(p, in, step, y, x0, x1, out, mask);                                      \
-  }                                                                                                \
-  template <int R>                                                                                 \
-  target void atrous_row_##suffix(const SvgfParams& p, const SvgfAtrousPlanes& ab, uint32_t step,  \
-                                  const IllumPlanes& out, Vec4* history, int y) {                  \
-    atrous_row_body<R>(p, ab, step, out, history, y, atrous_interior_##suffix<R>,                  \
-                       atrous_masked_##suffix<R>);                                                 \
-  }                                                                                                \
-  const SvgfRowKernels kRowKernels_##suffix = {temporal_row_##suffix,                              \
-                                               variance_row_##suffix,                              \
-                                               {atrous_row_##suffix<1>, atrous_row_##suffix<2>}};
+#define TANDEM_SVGF_ROW_KERNELS(suffix, target)                                                   \
+  template <bool kHasHistory>                                                                     \
+  target void temporal_row_##suffix(const SvgfParams& p, const SvgfTemporalPlanes& b, int y) {    \
+    temporal_row_body<kHasHistory>(p, b, y);                                                      \
+  }                                                                                               \
+  target __attribute__((noinline)) void variance_run_##suffix(                                    \
+      const SvgfParams& p, const SvgfVariancePlanes& vp, const IllumPlanes& out, int y, int x0,   \
+      int x1) {                                                                                   \
+    variance_run_body(p, vp, out, y, x0, x1);                                                     \
+  }                                                                                               \
+  target void variance_row_##suffix(const SvgfParams& p, const SvgfVariancePlanes& vp,            \
+                                    const float* temporal_var, const IllumPlanes& out, int y) {   \
+    variance_row_body(p, vp, temporal_var, out, y, variance_run_##suffix);                        \
+  }                                                                                               \
+  template <int R>                                                                                \
+  target __attribute__((noinline)) void atrous_interior_##suffix(                                 \
+      const SvgfParams& p, const SvgfAtrousPlanes& in, uint32_t step, int y, int x0, int x1,      \
+      const IllumPlanes& out) {                                                                   \
+    atrous_interior_body<R>(p, in, step, y, x0, x1, out);                                         \
+  }                                                                                               \
+  template <int R>                                                                                \
+  target __attribute__((noinline)) void atrous_masked_##suffix(                                   \
+      const SvgfParams& p, const SvgfAtrousPlanes& in, uint32_t step, int y, int x0, int x1,      \
+      const IllumPlanes& out, const SvgfTapMask& mask) {                                          \
+    atrous_masked_body<R>(p, in, step, y, x0, x1, out, mask);                                     \
+  }                                                                                               \
+  template <int R>                                                                                \
+  target void atrous_row_##suffix(const SvgfParams& p, const SvgfAtrousPlanes& ab, uint32_t step, \
+                                  const IllumPlanes& out, Vec4* history, int y) {                 \
+    atrous_row_body<R>(p, ab, step, out, history, y, atrous_interior_##suffix<R>,                 \
+                       atrous_masked_##suffix<R>);                                                \
+  }                                                                                               \
+  const SvgfRowKernels kRowKernels_##suffix = {                                                   \
+      {temporal_row_##suffix<false>, temporal_row_##suffix<true>},                                \
+      variance_row_##suffix,                                                                      \
+      {atrous_row_##suffix<1>, atrous_row_##suffix<2>}};
 
 TANDEM_SVGF_ROW_KERNELS(baseline, )
 #if TANDEM_SVGF_HAVE_AVX2
@@ -425,8 +487,19 @@ const char* svgf_cpu_isa_name(SvgfCpuIsa isa) {
   return "?";
 }
 
+size_t svgf_cpu_plane_stride(size_t n) {
+  return (n + 1023) / 1024 * 1024 + 16;
+}
+
+void SvgfCpuGuide::resize(size_t n) {
+  pixels_ = n;
+  stride_ = svgf_cpu_plane_stride(n);
+  floats_.assign(4 * stride_, 0.0f);
+  ids_.assign(kIdLead + 2 * stride_, 0u);
+}
+
 size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height) {
-  return kPlaneCount * size_t(width) * height;
+  return kPlaneCount * svgf_cpu_plane_stride(size_t(width) * height);
 }
 
 SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuIsa isa) {
@@ -440,21 +513,115 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
     own_planes.resize(svgf_cpu_plane_floats(p.width, p.height));
     planes = own_planes.data();
   }
-  const SvgfTemporalBuffers tb{fr.features,     fr.radiance,  fr.prev_features, fr.prev_color,
-                               fr.prev_moments, fr.scratch_a, fr.moments_out,   fr.depth_slope,
-                               fr.guide,        fr.material};
-  t.temporal = for_each_row(p.height, [&](int y) { k.temporal(p, tb, planes, y); });
-  const SvgfGuidePlanes guide{planes + kNormalX * n, planes + kNormalY * n, planes + kNormalZ * n,
-                              planes + kDepth * n,   fr.material,           fr.depth_slope};
-  const SvgfVariancePlanes vp{guide,
-                              planes + kTemporalR * n,
-                              planes + kTemporalG * n,
-                              planes + kTemporalB * n,
-                              planes + kM1 * n,
-                              planes + kM2 * n,
-                              fr.moments_out};
-  const IllumPlanes pa = illum_planes(planes, n, kIllumA), pb = illum_planes(planes, n, kIllumB);
-  t.variance = for_each_row(p.height, [&](int y) { k.variance(p, vp, fr.scratch_a, pa, y); });
+  SvgfCpuGuide own_guide, own_prev_guide;
+  SvgfCpuGuide* guide_out = fr.guide_out;
+  if (!guide_out) guide_out = &own_guide;
+  if (guide_out->size() != n) guide_out->resize(n);
+  const size_t ps = svgf_cpu_plane_stride(n);
+  const auto temporal_start = Clock::now();
+  const SvgfCpuGuide* prev = fr.prev_guide;
+  if (fr.prev_features && !prev) {
+    // No compact guide of last frame (a caller with records only): made
+    // here from its feature records.
+    own_prev_guide.resize(n);
+    float* nx = own_prev_guide.normal_x();
+    float* ny = own_prev_guide.normal_y();
+    float* nz = own_prev_guide.normal_z();
+    float* depth = own_prev_guide.depth();
+    uint32_t* material = own_prev_guide.material();
+    uint32_t* instance = own_prev_guide.instance();
+    for_each_row(p.height, [&](int y) {
+      for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
+        const PixelFeatures& f = fr.prev_features[i];
+        nx[i] = f.normal.x;
+        ny[i] = f.normal.y;
+        nz[i] = f.normal.z;
+        depth[i] = f.depth;
+        material[i] = f.material;
+        instance[i] = f.instance;
+      }
+    });
+    prev = &own_prev_guide;
+  }
+  const bool history = fr.prev_features != nullptr;
+  float* albedo_r = planes + kAlbedoR * ps;
+  float* albedo_g = planes + kAlbedoG * ps;
+  float* albedo_b = planes + kAlbedoB * ps;
+  float* reprojected_depth = planes + kReprojectedDepth * ps;
+  float* motion_x = planes + kMotionX * ps;
+  float* motion_y = planes + kMotionY * ps;
+  float* radiance_r = planes + kRadianceR * ps;
+  float* radiance_g = planes + kRadianceG * ps;
+  float* radiance_b = planes + kRadianceB * ps;
+  SvgfTemporalPlanes tp{};
+  tp.normal_x = guide_out->normal_x();
+  tp.normal_y = guide_out->normal_y();
+  tp.normal_z = guide_out->normal_z();
+  tp.depth = guide_out->depth();
+  tp.material = guide_out->material();
+  tp.instance = guide_out->instance();
+  float* g_nx = guide_out->normal_x();
+  float* g_ny = guide_out->normal_y();
+  float* g_nz = guide_out->normal_z();
+  float* g_depth = guide_out->depth();
+  uint32_t* g_material = guide_out->material();
+  uint32_t* g_instance = guide_out->instance();
+  // This frame's records into planes (the guide among them).
+  for_each_row(p.height, [&](int y) {
+    for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
+      const PixelFeatures& f = fr.features[i];
+      g_nx[i] = f.normal.x;
+      g_ny[i] = f.normal.y;
+      g_nz[i] = f.normal.z;
+      g_depth[i] = f.depth;
+      g_material[i] = f.material;
+      g_instance[i] = f.instance;
+      albedo_r[i] = f.albedo.x;
+      albedo_g[i] = f.albedo.y;
+      albedo_b[i] = f.albedo.z;
+      reprojected_depth[i] = f.prev_depth;
+      motion_x[i] = f.motion.x;
+      motion_y[i] = f.motion.y;
+      radiance_r[i] = fr.radiance[i].x;
+      radiance_g[i] = fr.radiance[i].y;
+      radiance_b[i] = fr.radiance[i].z;
+    }
+  });
+  tp.albedo_r = albedo_r;
+  tp.albedo_g = albedo_g;
+  tp.albedo_b = albedo_b;
+  tp.reprojected_depth = reprojected_depth;
+  tp.motion_x = motion_x;
+  tp.motion_y = motion_y;
+  tp.radiance_r = radiance_r;
+  tp.radiance_g = radiance_g;
+  tp.radiance_b = radiance_b;
+  if (history) {
+    tp.prev_color = fr.prev_color;
+    tp.prev_moments = fr.prev_moments;
+    tp.prev_normal_x = prev->normal_x();
+    tp.prev_normal_y = prev->normal_y();
+    tp.prev_normal_z = prev->normal_z();
+    tp.prev_depth = prev->depth();
+    tp.prev_material = prev->material();
+    tp.prev_instance = prev->instance();
+  }
+  tp.depth_slope = fr.depth_slope;
+  tp.r = planes + kTemporalR * ps;
+  tp.g = planes + kTemporalG * ps;
+  tp.b = planes + kTemporalB * ps;
+  tp.var = planes + kTemporalVar * ps;
+  tp.m1 = planes + kM1 * ps;
+  tp.m2 = planes + kM2 * ps;
+  tp.moments = fr.moments_out;
+  const auto temporal = k.temporal[history ? 1 : 0];
+  for_each_row(p.height, [&](int y) { temporal(p, tp, y); });
+  t.temporal = seconds_since(temporal_start);
+  const SvgfGuidePlanes guide{tp.normal_x, tp.normal_y, tp.normal_z,
+                              tp.depth,    tp.material, fr.depth_slope};
+  const SvgfVariancePlanes vp{guide, tp.r, tp.g, tp.b, tp.m1, tp.m2, fr.moments_out};
+  const IllumPlanes pa = illum_planes(planes, ps, kIllumA), pb = illum_planes(planes, ps, kIllumB);
+  t.variance = for_each_row(p.height, [&](int y) { k.variance(p, vp, tp.var, pa, y); });
   // pa holds the input of the first iteration; the first iteration's
   // output is also written as records: the next frame's colour history.
   IllumPlanes in = pa;
@@ -464,30 +631,33 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
       fr.history_color_out[i] = make_vec4(pa.r[i], pa.g[i], pa.b[i], pa.var[i]);
   }
   const auto atrous = k.atrous[p.kernel_radius <= 1 ? 0 : 1];
-  // Modulation stays a pass of its own: fused into the last iteration, the
-  // albedo read from the 64-byte feature records inside the vectorised loop
-  // cost more than the pass (callgrind, 640x360: about 80 M instructions a
-  // frame more in the a-trous loops, against 14 M for the separate pass).
+  // Modulation: each row of the last iteration as soon as it is done (in
+  // the cache), with the albedo from its plane (the temporal stage's first
+  // pass split it out of the records). The product is svgf_modulate_pixel's.
+  auto modulate_row = [&](const IllumPlanes& v, uint32_t y) {
+    for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
+      fr.output[i] = make_vec3(v.r[i], v.g[i], v.b[i]) *
+                     svgf_guard_albedo(make_vec3(albedo_r[i], albedo_g[i], albedo_b[i]));
+    }
+  };
   for (uint32_t it = 0; it < p.iterations; ++it) {
     const SvgfAtrousPlanes ab{guide, in.r, in.g, in.b, in.var};
     const uint32_t step = 1u << it;
     const IllumPlanes out = in.r == pa.r ? pb : pa;
     Vec4* history = it == 0 ? fr.history_color_out : nullptr;
+    const bool last = it + 1 == p.iterations;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, p.height, 4),
                       [&](const tbb::blocked_range<uint32_t>& rows) {
-                        for (uint32_t y = rows.begin(); y != rows.end(); ++y)
+                        for (uint32_t y = rows.begin(); y != rows.end(); ++y) {
                           atrous(p, ab, step, out, history, int(y));
+                          if (last) modulate_row(out, y);
+                        }
                       });
     in = out;
   }
   t.atrous = seconds_since(atrous_start);
-  t.modulate = for_each_row(p.height, [&](int y) {
-    for (uint32_t x = 0; x < p.width; ++x) {
-      const size_t i = size_t(y) * p.width + x;
-      fr.output[i] =
-          svgf_modulate_pixel(fr.features[i], make_vec4(in.r[i], in.g[i], in.b[i], 0.0f));
-    }
-  });
+  if (p.iterations == 0)
+    t.modulate = for_each_row(p.height, [&](int y) { modulate_row(in, uint32_t(y)); });
   return t;
 }
 

@@ -3,9 +3,49 @@
 // functions. backends/cuda/svgf_device.h runs the same sequence on the GPU.
 #pragma once
 
+#include <vector>
+
 #include "core/kernel/svgf.h"
 
 namespace tandem {
+
+// Distance in floats between the CPU driver's planes of n pixels: n rounded
+// up to 1024 plus 16, so that the planes start 64 bytes (one cache line)
+// apart modulo 4 KiB. Planes n floats apart start at the same offset
+// whenever 4 bytes * n is a multiple of 4 KiB (640x360, 1280x720, 1920x1080
+// all are): the pixel loops, which read and write a dozen or more planes at
+// the same index, then map them all to one set of the 8-way L1 cache.
+size_t svgf_cpu_plane_stride(size_t n);
+
+// The compact per-pixel guide the CPU driver's temporal stage writes: what
+// the spatial stages read at every tap (normal, depth, material) and what
+// the next frame's reprojection test reads at its bilinear taps (those and
+// the instance), one plane per component: 24 bytes a pixel instead of the
+// 64 of a PixelFeatures record.
+class SvgfCpuGuide {
+ public:
+  void resize(size_t n);  // pixels
+  size_t size() const { return pixels_; }
+  float* normal_x() { return floats_.data(); }
+  float* normal_y() { return floats_.data() + stride_; }
+  float* normal_z() { return floats_.data() + 2 * stride_; }
+  float* depth() { return floats_.data() + 3 * stride_; }
+  uint32_t* material() { return ids_.data() + kIdLead; }
+  uint32_t* instance() { return ids_.data() + kIdLead + stride_; }
+  const float* normal_x() const { return floats_.data(); }
+  const float* normal_y() const { return floats_.data() + stride_; }
+  const float* normal_z() const { return floats_.data() + 2 * stride_; }
+  const float* depth() const { return floats_.data() + 3 * stride_; }
+  const uint32_t* material() const { return ids_.data() + kIdLead; }
+  const uint32_t* instance() const { return ids_.data() + kIdLead + stride_; }
+
+ private:
+  // The id planes start 4 cache lines on, past the float planes' offsets.
+  static constexpr size_t kIdLead = 64;
+  size_t pixels_ = 0, stride_ = 0;
+  std::vector<float> floats_;  // normal x, y, z, depth
+  std::vector<uint32_t> ids_;  // material, instance
+};
 
 // Host buffers of one filter frame, all width * height elements.
 struct SvgfFrame {
@@ -26,6 +66,13 @@ struct SvgfFrame {
   // driver's structure-of-arrays planes; null: svgf_run_cpu allocates it
   // per call (the device driver does not use it).
   float* planes = nullptr;
+  // Optional, CPU driver only: this frame's compact guide (out), kept for the
+  // next frame, and last frame's, which the reprojection then reads instead
+  // of prev_features (still required: its presence says there is history).
+  // Null guide_out: work space of svgf_run_cpu's own; null prev_guide: the
+  // temporal stage compacts prev_features first.
+  SvgfCpuGuide* guide_out = nullptr;
+  const SvgfCpuGuide* prev_guide = nullptr;
 };
 
 size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height);

@@ -30,6 +30,8 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
     guide_.assign(n, SvgfGuide{});
     material_.assign(n, 0u);
     planes_.assign(svgf_cpu_plane_floats(width_, height_), 0.0f);
+    for (SvgfCpuGuide& g : cpu_guide_)
+      g.resize(n);
   }
   for (size_t i = 0; i < n; ++i)
     radiance_[i] = make_vec3(radiance.rgb[3 * i], radiance.rgb[3 * i + 1], radiance.rgb[3 * i + 2]);
@@ -38,20 +40,22 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
   SvgfParams p = params_;
   p.width = width_;
   p.height = height_;
-  const SvgfFrame frame{features_[next].data(),
-                        radiance_.data(),
-                        has_history_ ? features_[prev].data() : nullptr,
-                        color_[prev].data(),
-                        moments_[prev].data(),
-                        color_[next].data(),
-                        moments_[next].data(),
-                        output_.data(),
-                        scratch_a_.data(),
-                        scratch_b_.data(),
-                        depth_slope_.data(),
-                        guide_.data(),
-                        material_.data(),
-                        planes_.data()};
+  SvgfFrame frame{features_[next].data(),
+                  radiance_.data(),
+                  has_history_ ? features_[prev].data() : nullptr,
+                  color_[prev].data(),
+                  moments_[prev].data(),
+                  color_[next].data(),
+                  moments_[next].data(),
+                  output_.data(),
+                  scratch_a_.data(),
+                  scratch_b_.data(),
+                  depth_slope_.data(),
+                  guide_.data(),
+                  material_.data(),
+                  planes_.data()};
+  frame.guide_out = &cpu_guide_[next];
+  if (has_history_) frame.prev_guide = &cpu_guide_[prev];
   last_seconds_ = svgf_run_cpu(p, frame);
   current_ = next;
   has_history_ = true;

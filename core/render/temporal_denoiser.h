@@ -56,6 +56,8 @@ class TemporalDenoiser {
   std::vector<SvgfGuide> guide_;
   std::vector<uint32_t> material_;
   std::vector<float> planes_;  // svgf_run_cpu's work space
+  SvgfCpuGuide
+      cpu_guide_[2];  // double-buffered like the history: the reprojection reads last frame's
   SvgfStageSeconds last_seconds_;
 };
 
