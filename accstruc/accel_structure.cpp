@@ -243,6 +243,7 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
   emit_layouts(blas_[m], b, ks.bvh_nodes.data() + b.node, ks.bvh_prim_indices.data() + b.prim,
                ks.bvh_wide_nodes.data() + b.wide_node,
                ks.bvh_wide_prim_indices.data() + b.wide_prim);
+  emit_blas_wide_entries(blas_[m], b, ks.bvh_wide_prim_indices.data() + b.wide_prim);
   const MeshGeometry g = mesh_geometry(ks, m);
   const std::vector<uint32_t>& prims = blas_[m].prims;
   KLeafTriangle* out = ks.bvh_leaf_triangles.data() + b.prim;

@@ -383,4 +383,20 @@ void emit_layouts(const BvhLayouts& l, const LayoutBases& base, KBvhNode* nodes,
   std::copy(l.wide_prims.begin(), l.wide_prims.end(), wide_prims);
 }
 
+void emit_blas_wide_entries(const BvhLayouts& l, const LayoutBases& base, uint32_t* wide_prims) {
+  uint32_t ids = 0;
+  for (uint32_t p : l.prims)
+    ids = std::max(ids, p + 1);
+  std::vector<uint32_t> entry_of(ids, kInvalidIndex);
+  for (size_t i = 0; i < l.prims.size(); ++i)
+    entry_of[l.prims[i]] = base.prim + uint32_t(i);
+  for (size_t j = 0; j < l.wide_prims.size(); ++j) {
+    const uint32_t p = l.wide_prims[j];
+    // Both layouts list the same triangles; a foreign id (which
+    // validate_layouts() does not rule out) gets entry 0's record rather than
+    // an index out of range.
+    wide_prims[j] = p < ids && entry_of[p] != kInvalidIndex ? entry_of[p] : base.prim;
+  }
+}
+
 }  // namespace tandem

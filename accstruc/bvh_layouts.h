@@ -120,6 +120,16 @@ bool validate_layouts(const BvhLayouts& layouts, uint32_t prim_count);
 void emit_layouts(const BvhLayouts& layouts, const LayoutBases& bases, KBvhNode* nodes,
                   uint32_t* prims, KWideBvhNode* wide_nodes, uint32_t* wide_prims);
 
+// A BLAS's wide leaf entries as the kernel holds them: entry j of the wide
+// layout is written as the binary leaf entry (base.prim + position in
+// layouts.prims) of the same triangle, so that both layouts read a
+// triangle's vertices from its one leaf record (bvh_leaf_triangles) and a
+// refit, which rewrites those records, serves both. Overwrites what
+// emit_layouts() wrote to wide_prims for a BLAS (the TLAS keeps instance
+// indices).
+void emit_blas_wide_entries(const BvhLayouts& layouts, const LayoutBases& bases,
+                            uint32_t* wide_prims);
+
 // emit_layouts() for the listed nodes only (node indices relative to the
 // hierarchy; the primitive arrays are left alone).
 void emit_layout_nodes(const BvhLayouts& layouts, const LayoutBases& bases,

@@ -142,6 +142,7 @@ template <bool kCount>
 struct BvhTriangleLeaf {
   const KernelData* kd;
   const uint32_t* prim_indices;
+  bool wide_entries;  // prim_indices holds a wide BLAS's entries: binary leaf entries (bvh.h)
   const KMesh* mesh;
   uint32_t instance;
   uint32_t alpha_key;
@@ -152,15 +153,21 @@ struct BvhTriangleLeaf {
   Hit* hit;
   BvhCounters* counters;
 
+  // The triangle index of leaf entry `entry`.
+  TANDEM_HD uint32_t prim_of(uint32_t entry) const {
+    const uint32_t e = load_readonly(prim_indices + entry);
+    return wide_entries ? load_readonly(kd->bvh_prim_indices + e) : e;
+  }
+
   // The triangles first, then (once they arrive) their vertices.
   TANDEM_HD void prefetch(const uint32_t* entries, uint32_t count) const {
 #if !defined(__CUDA_ARCH__)
     const KTriangle* tris = kd->triangles + mesh->triangle_offset;
     const Vec3* pos = kd->positions + mesh->vertex_offset;
     for (uint32_t i = 0; i < count; ++i)
-      prefetch_readonly(tris + prim_indices[entries[i]]);
+      prefetch_readonly(tris + prim_of(entries[i]));
     for (uint32_t i = 0; i < count; ++i) {
-      const KTriangle& t = tris[prim_indices[entries[i]]];
+      const KTriangle& t = tris[prim_of(entries[i])];
       prefetch_readonly(pos + t.v0);
       prefetch_readonly(pos + t.v1);
       prefetch_readonly(pos + t.v2);
@@ -172,7 +179,7 @@ struct BvhTriangleLeaf {
   }
 
   TANDEM_HD bool operator()(uint32_t entry, float* tmax) {
-    const uint32_t prim = load_readonly(prim_indices + entry);
+    const uint32_t prim = prim_of(entry);
     const KTriangle tri = load_readonly(kd->triangles + mesh->triangle_offset + prim);
     const Vec3* pos = kd->positions + mesh->vertex_offset;
     if constexpr (kCount) counters->triangles += 1;
@@ -229,6 +236,7 @@ struct BvhInstanceLeaf {
     const BoxRay box_ray = make_box_ray(o, d);
     BvhTriangleLeaf<kCount> tri_leaf{kd,
                                      nullptr,
+                                     false,
                                      &mesh,
                                      instance,
                                      alpha_key,
@@ -243,10 +251,12 @@ struct BvhInstanceLeaf {
     bool stop;
     if (layout == kBvhLayoutWide) {
       tri_leaf.prim_indices = kd->bvh_wide_prim_indices;
+      tri_leaf.wide_entries = true;
       stop = traverse_wide<kCount>(kd->bvh_wide_nodes, root, box_ray, world_ray.tmin, tmax,
                                    tri_leaf, counters);
     } else {
       tri_leaf.prim_indices = kd->bvh_prim_indices;
+      tri_leaf.wide_entries = false;
       stop = traverse_binary<kCount>(kd->bvh_nodes, root, box_ray, world_ray.tmin, tmax, tri_leaf,
                                      counters);
     }

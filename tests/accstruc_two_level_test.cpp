@@ -8,7 +8,11 @@
 //
 // The host has its own loop over the binary layout (bvh_traverse_host.h, what
 // bvh_trace runs outside nvcc): it must find the same bits as the single
-// loop, and visit no more nodes.
+// loop, and visit no more nodes. Its loop over the wide layout visits
+// children in distance order instead of octant order: the closest hit's t
+// must be the same bits and any-hit queries the same answer; a different
+// triangle may win only a tie at exactly equal t, and over all rays it must
+// do no more work (within 5%).
 #include <cstring>
 #include <filesystem>
 
@@ -40,8 +44,9 @@ void expect_same_traversal(const TracedScene& s, const std::string& name) {
   for (const auto& list : {diffuse_rays(s, kRaysPerKind, 12), shadow_rays(s, kRaysPerKind, 13)})
     rays.insert(rays.end(), list.begin(), list.end());
   for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
-    uint32_t hits = 0, mismatches = 0;
-    uint64_t host_nodes = 0, portable_nodes = 0;
+    const bool wide = layout == kBvhLayoutWide;
+    uint32_t hits = 0, mismatches = 0, ties = 0;
+    uint64_t host_nodes = 0, portable_nodes = 0, host_triangles = 0, portable_triangles = 0;
     for (const bool any_hit : {false, true}) {
       for (const RaySample& r : rays) {
         BvhCounters ours, reference;
@@ -56,9 +61,21 @@ void expect_same_traversal(const TracedScene& s, const std::string& name) {
         hits += hit_valid(a) ? 1u : 0u;
         host_nodes += host.nodes;
         portable_nodes += ours.nodes;
-        if (!same_bits(a, b) || !same_bits(a, c) || !same_bits(a, d) ||
-            !same_counters(ours, reference) || host.nodes > ours.nodes ||
-            host.triangles > ours.triangles) {
+        host_triangles += host.triangles;
+        portable_triangles += ours.triangles;
+        bool host_agrees = same_bits(a, c) && same_bits(a, d);
+        if (wide && !host_agrees) {
+          // Same answer: the same closest t (any hit: a hit or not); the
+          // host loop's own two queries agree with each other.
+          const bool same_answer = hit_valid(a) == hit_valid(d) &&
+                                   (any_hit || std::memcmp(&a.t, &d.t, sizeof(float)) == 0) &&
+                                   same_bits(c, d);
+          const bool same_triangle = a.instance == d.instance && a.prim == d.prim;
+          host_agrees = same_answer && (any_hit || !same_triangle);
+          ties += host_agrees && !any_hit ? 1u : 0u;
+        }
+        if (!same_bits(a, b) || !host_agrees || !same_counters(ours, reference) ||
+            (!wide && (host.nodes > ours.nodes || host.triangles > ours.triangles))) {
           if (++mismatches <= 5) {
             ADD_FAILURE() << name << " " << layout_name(layout) << (any_hit ? " any" : " closest")
                           << ": t " << a.t << " vs " << b.t << ", prim " << a.prim << " vs "
@@ -71,11 +88,24 @@ void expect_same_traversal(const TracedScene& s, const std::string& name) {
       }
     }
     EXPECT_EQ(mismatches, 0u) << name << " " << layout_name(layout);
+    if (wide) {
+      // Distance order must not cost more work over the whole set than
+      // octant order (0.83-0.99 of its nodes on most scenes, 1.02 on
+      // cornell-spheres, where the two orders rarely differ and any-hit
+      // queries favour neither), and a different winner is a tie, which is
+      // rare.
+      EXPECT_LE(double(host_nodes), 1.05 * double(portable_nodes)) << name;
+      EXPECT_LE(double(host_triangles), 1.05 * double(portable_triangles)) << name;
+      EXPECT_LE(ties, rays.size() / 50) << name;
+    }
     // A comparison where nothing is hit proves nothing.
     EXPECT_GT(hits, 0u) << name << " " << layout_name(layout);
-    std::printf("[two-level] %s %s: host loop visits %.3f of the portable loop's nodes\n",
-                name.c_str(), layout_name(layout),
-                portable_nodes ? double(host_nodes) / double(portable_nodes) : 1.0);
+    std::printf(
+        "[two-level] %s %s: host loop visits %.3f of the portable loop's nodes, tests %.3f of "
+        "its triangles; %u closest hits won by another triangle at equal t\n",
+        name.c_str(), layout_name(layout),
+        portable_nodes ? double(host_nodes) / double(portable_nodes) : 1.0,
+        portable_triangles ? double(host_triangles) / double(portable_triangles) : 1.0, ties);
   }
 }
 

@@ -117,6 +117,44 @@ TEST(AccelUpdate, RefitMatchesFreshBuildAndEmbree) {
       "refit vs Embree");
 }
 
+// A BLAS's wide leaf entries in the kernel arrays name the binary layout's
+// leaf records (bvh.h), which hold the same triangle: checked entry by entry,
+// as built and after a frame that refits one mesh and rebuilds another
+// (whose arrays are emitted again).
+void expect_wide_entries_name_leaf_records(const TracedScene& s, const char* what) {
+  uint32_t base = 0;  // both layouts' primitive bases (layout_arrays: equal sizes)
+  for (uint32_t m = 0; m < s.ks.meshes.size(); ++m) {
+    const BvhLayouts& l = s.accel.blas(m);
+    ASSERT_EQ(l.prims.size(), l.wide_prims.size()) << what;
+    for (size_t j = 0; j < l.wide_prims.size(); ++j) {
+      const uint32_t e = s.ks.bvh_wide_prim_indices[base + j];
+      ASSERT_TRUE(e >= base && e < base + l.prims.size())
+          << what << " mesh " << m << " entry " << j;
+      ASSERT_EQ(s.ks.bvh_prim_indices[e], l.wide_prims[j]) << what << " mesh " << m;
+      ASSERT_EQ(float_as_uint(s.ks.bvh_leaf_triangles[e].p0.w), l.wide_prims[j]) << what;
+    }
+    base += uint32_t(l.prims.size());
+  }
+}
+
+TEST(AccelUpdate, WideEntriesNameTheBinaryLeafRecords) {
+  TracedScene s(make_procedural_scene(40000, 5));
+  expect_wide_entries_name_leaf_records(s, "as built");
+  // A light deformation refits the terrain; a heavy one rebuilds the rock.
+  uint32_t rock = 0;
+  for (uint32_t m = 0; m < s.scene.meshes().size(); ++m) {
+    if (s.scene.meshes()[m].name == "rock") rock = m;
+  }
+  deform(s.scene.edit_mesh_vertices(0), 0.2f);
+  deform(s.scene.edit_mesh_vertices(rock), 3.0f);
+  const AccelUpdate up = s.recompile();
+  EXPECT_GE(up.blas_refit + up.blas_built, 2u);
+  expect_wide_entries_name_leaf_records(s, "after a refit and a rebuild");
+  expect_same_hits(
+      s, [&](const RaySample& r) { return s.embree.intersect(r.ray, r.alpha_key); },
+      "wide entries after an update vs Embree");
+}
+
 TEST(AccelUpdate, MovingInstancesRebuildsOnlyTheTlas) {
   TracedScene s(make_procedural_scene(80000, 22));
   const std::vector<KBvhNode> blas_nodes(s.ks.bvh_nodes.begin(), s.ks.bvh_nodes.end());

@@ -146,22 +146,6 @@ constexpr uint32_t kBvhFrameWords =
 // blas_sp while the loop is in the TLAS.
 constexpr uint32_t kBvhInTlas = ~0u;
 
-// What the leaves of the current BLAS need, from its instance record.
-struct BlasLeafContext {
-  Vec3 shear;  // sx, sy, sz
-  uint32_t triangle_offset, vertex_offset, instance;
-};
-
-TANDEM_HD BlasLeafContext blas_leaf_context(const uint32_t* record) {
-  BlasLeafContext c;
-  c.shear = make_vec3(uint_as_float(record[kRecordShear]), uint_as_float(record[kRecordShear + 1]),
-                      uint_as_float(record[kRecordShear + 2]));
-  c.triangle_offset = record[kRecordTriangleOffset];
-  c.vertex_offset = record[kRecordVertexOffset];
-  c.instance = record[kRecordInstance];
-  return c;
-}
-
 TANDEM_HD void store_vec3(uint32_t* words, Vec3 v) {
   words[0] = float_as_uint(v.x);
   words[1] = float_as_uint(v.y);
@@ -224,43 +208,11 @@ struct TwoLevelTrace {
     box = make_box_ray(load_vec3(record + kRecordWorldOrigin), load_vec3(frame + kFrameWorldDir));
   }
 
-  // Host only: the triangles of a leaf first, then (once they arrive) their
-  // vertices.
-  TANDEM_HD void prefetch_triangles(const uint32_t* prim_indices, const uint32_t* entries,
-                                    uint32_t count, const BlasLeafContext& leaf) const {
-#if !defined(__CUDA_ARCH__)
-    const KTriangle* tris = kd->triangles + leaf.triangle_offset;
-    const Vec3* pos = kd->positions + leaf.vertex_offset;
-    for (uint32_t i = 0; i < count; ++i)
-      prefetch_readonly(tris + prim_indices[entries[i]]);
-    for (uint32_t i = 0; i < count; ++i) {
-      const KTriangle& t = tris[prim_indices[entries[i]]];
-      prefetch_readonly(pos + t.v0);
-      prefetch_readonly(pos + t.v1);
-      prefetch_readonly(pos + t.v2);
-    }
-#else
-    (void)prim_indices;
-    (void)entries;
-    (void)count;
-    (void)leaf;
-#endif
-  }
-
-  // Tests primitive entry `entry` of the current BLAS, whose instance record
-  // is `record` (wide layout: indexed triangles); true: stop (an any-hit query
-  // found a hit).
-  TANDEM_HD bool triangle(const uint32_t* prim_indices, uint32_t entry, const uint32_t* record) {
-    const uint32_t prim = load_readonly(prim_indices + entry);
-    const KTriangle tri = load_readonly(kd->triangles + record[kRecordTriangleOffset] + prim);
-    const Vec3* pos = kd->positions + record[kRecordVertexOffset];
-    return test_triangle(load_readonly(pos + tri.v0), load_readonly(pos + tri.v1),
-                         load_readonly(pos + tri.v2), prim, record);
-  }
-
-  // triangle() for entry `entry` of the binary layout, whose vertices are in
-  // its leaf record (bvh_leaf_triangles): one load instead of three
-  // dependent ones.
+  // Tests the triangle of leaf record `entry` (bvh_leaf_triangles: an entry
+  // of the binary layout, or what a BLAS's wide entry holds) of the current
+  // BLAS, whose instance record is `record`; true: stop (an any-hit query
+  // found a hit). The record holds the vertices: one load instead of the
+  // three dependent ones of an indexed triangle.
   TANDEM_HD bool leaf_triangle(uint32_t entry, const uint32_t* record) {
     const KLeafTriangle lt = load_readonly_16(kd->bvh_leaf_triangles + entry);
     return test_triangle(make_vec3(lt.p0.x, lt.p0.y, lt.p0.z), make_vec3(lt.p1.x, lt.p1.y, lt.p1.z),
@@ -316,8 +268,9 @@ struct TwoLevelTrace {
 
 }  // namespace tandem
 
-// The host's own loop over the binary layout and SSE box tests of the wide
-// layout (same hits, fewer node visits), wherever the compiler is not nvcc.
+// The host's own loops: the binary layout's (same hits, fewer node visits)
+// and the wide layout's in distance order (same closest t, fewer node
+// visits and triangle tests), wherever the compiler is not nvcc.
 #if !defined(__CUDACC__)
 #define TANDEM_BVH_HOST_TRAVERSAL 1
 #include "core/kernel/bvh_traverse_host.h"
@@ -445,10 +398,13 @@ TANDEM_HD void wide_child_box(const KWideBvhNode& n, Vec3 scale, uint32_t slot, 
 // node is; in the TLAS the hit instances go on the stack as an instance group
 // (prim_base, prim_hits: bits 0..23 only, so its top byte, unlike a node
 // group's, is zero) above the node's group, so they come first, in order.
-// Returns true when an any-hit query stopped. kHostSimd (host only): the
-// child boxes are decoded and tested four at a time in SSE
-// (host_wide_child_hits), same bits, same order.
-template <bool kCount, bool kHostSimd = false>
+// In a BLAS, an entry of bvh_wide_prim_indices is not a triangle index but
+// the triangle's entry in bvh_leaf_triangles, the binary layout's leaf
+// records (accstruc's emit_blas_wide_entries), so both layouts test a
+// triangle from one record that the refit keeps current; in the TLAS it is
+// an instance index. Returns true when an any-hit query stopped. (The host
+// has its own loop in distance order, host_trace_two_level_wide.)
+template <bool kCount>
 TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
                                     uint32_t root) {
   const uint32_t* prim_indices = tr.kd->bvh_wide_prim_indices;
@@ -466,24 +422,19 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
     }
     const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
     uint32_t node_hits = 0, prim_hits = 0;
-#if defined(TANDEM_BVH_HOST_TRAVERSAL)
-    if constexpr (kHostSimd)
-      host_wide_child_hits(tr, n, nodes, &node_hits, &prim_hits);
-    else
-#endif
-      for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
-        const uint32_t meta = n.meta[s];
-        if (meta == 0) continue;
-        if constexpr (kCount) tr.counters->boxes += 1;
-        Vec3 lo, hi;
-        wide_child_box(n, scale, s, &lo, &hi);
-        float t_entry;
-        if (!intersect_box(tr.box, lo, hi, tr.tmin, tr.tmax, &t_entry)) continue;
-        if ((n.imask >> s) & 1u)
-          node_hits |= 1u << (24u + (s ^ tr.octant()));
-        else
-          prim_hits |= (meta >> 5) << (meta & 31u);
-      }
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      const uint32_t meta = n.meta[s];
+      if (meta == 0) continue;
+      if constexpr (kCount) tr.counters->boxes += 1;
+      Vec3 lo, hi;
+      wide_child_box(n, scale, s, &lo, &hi);
+      float t_entry;
+      if (!intersect_box(tr.box, lo, hi, tr.tmin, tr.tmax, &t_entry)) continue;
+      if ((n.imask >> s) & 1u)
+        node_hits |= 1u << (24u + (s ^ tr.octant()));
+      else
+        prim_hits |= (meta >> 5) << (meta & 31u);
+    }
     if (node_hits != 0 && sp + 2 <= kBvhFrameWords) {
       stack[sp] = n.child_base;
       stack[sp + 1] = node_hits | n.imask;
@@ -497,18 +448,16 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
         sp += 2;
       }
     } else if (prim_hits != 0) {
+      // A BLAS's wide entries name leaf records (bvh.h).
       const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
 #if !defined(__CUDA_ARCH__)
-      uint32_t entries[32];
-      uint32_t count = 0;
       for (uint32_t bits = prim_hits; bits != 0; bits &= bits - 1u)
-        entries[count++] = prim_base + count_trailing_zeros(bits);
-      tr.prefetch_triangles(prim_indices, entries, count, blas_leaf_context(record));
+        tr.prefetch_leaf_triangles(prim_indices[prim_base + count_trailing_zeros(bits)], 1);
 #endif
       while (prim_hits != 0) {
         const uint32_t p = count_trailing_zeros(prim_hits);
         prim_hits &= prim_hits - 1u;
-        if (tr.triangle(prim_indices, prim_base + p, record)) return true;
+        if (tr.leaf_triangle(load_readonly(prim_indices + prim_base + p), record)) return true;
       }
     }
     // Next node: the nearest remaining child of the innermost group, or the
@@ -551,7 +500,8 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
 // given layout. Returns a miss when the scene has no BVH. With kCount the
 // query's traversal work is added to *counters. kPortable: the loops the GPU
 // runs even where the host has its own (bvh_traverse_host.h), which finds the
-// same hits; for tests and measurements.
+// same hits (in the wide layout the same closest t; of hits at exactly equal
+// t it may report another); for tests and measurements.
 template <bool kCount, bool kPortable = false>
 TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t alpha_key,
                                 uint32_t layout, bool any_hit, BvhCounters* counters) {
@@ -572,7 +522,15 @@ TANDEM_HD Hit bvh_trace_counted(const KernelData& kd, const Ray& ray, uint32_t a
   tr.box = make_box_ray(ray.origin, ray.dir);
   tr.counters = counters;
   if (wide) {
-    trace_two_level_wide<kCount, !kPortable>(tr, kd.bvh_wide_nodes, root);
+#if defined(TANDEM_BVH_HOST_TRAVERSAL)
+    if constexpr (!kPortable) {
+      host_trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
+    } else {
+      trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
+    }
+#else
+    trace_two_level_wide<kCount>(tr, kd.bvh_wide_nodes, root);
+#endif
   } else {
 #if defined(TANDEM_BVH_HOST_TRAVERSAL)
     if constexpr (!kPortable) {

@@ -1,5 +1,5 @@
-// Host-only traversal of the binary layout (and the wide layout's box tests,
-// at the end of this file): the same tree, the same visiting
+// Host-only traversal of the binary layout (and of the wide layout in
+// distance order, at the end of this file): the same tree, the same visiting
 // order and the same hits as trace_two_level_binary (bit for bit, which of
 // two equal-t hits wins included), written for a CPU instead of for GPU
 // registers. Included by bvh_traverse.h in translation units that nvcc does
@@ -233,14 +233,30 @@ inline bool host_trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNod
 }
 
 // ---------------------------------------------------------------------------
-// Wide layout: the portable loop (trace_two_level_wide) decodes and tests its
-// eight child boxes one at a time in scalar code; on the host they are
-// decoded and tested four at a time. Each lane does the portable test's
-// float operations in its order (origin + q * scale, then (plane - o) * inv,
-// the far distance scaled, x then y then z), so the hit slots are the same
-// bits and the loop around it visits the same nodes in the same order. The
-// interior children hit are prefetched as soon as they are known, since the
-// loop visits them later from its stack.
+// Wide layout: a loop per level in distance order. The portable loop
+// (trace_two_level_wide) visits a node's children in octant order (slot ^
+// octant, roughly front to back) from a stack of node groups, because a GPU
+// thread has no registers for sorting. The host decodes and tests the eight
+// child boxes four at a time in SSE, keeps each hit child's entry distance,
+// and visits the children nearest first:
+//   - a hit leaf's triangles are tested before any child is descended into,
+//     leaves in order of entry distance, so the closest hit found shrinks the
+//     interval of every box test after it;
+//   - the interior children hit go on the stack farthest first with their
+//     entry distances, and one waiting behind the closest hit found since is
+//     dropped (its box test would fail);
+//   - a BLAS node's leaf entries (bvh_wide_prim_indices) are prefetched as
+//     the node is visited, and the leaf records they name
+//     (bvh_leaf_triangles, the binary layout's) as soon as a leaf is hit.
+// The box tests are the portable test's float operations lane for lane
+// (origin + q * scale, then (plane - o) * inv, the far distance scaled, x then
+// y then z), so a child is hit exactly when the portable loop hits it. The
+// closest hit's t is the same bits as the portable loop's; of two hits at
+// exactly the same t either may be reported, since the order differs.
+
+// Entries of the wide host stacks: up to seven children wait per level, and
+// a wide tree is no deeper than its binary tree (kBvhStackSize levels).
+constexpr uint32_t kHostWideStackSize = (kWideBvhWidth - 1) * kBvhStackSize;
 
 #if defined(__SSE2__)
 
@@ -263,9 +279,10 @@ inline uint32_t host_wide_live_slots(const KWideBvhNode& n) {
 }
 
 // Bit s: slot s of n holds a child (empty slots are not tested, as in the
-// portable loop) and the ray hits its box within [tmin, tmax].
+// portable loop) and the ray hits its box within [tmin, tmax], entering it
+// at t_entry[s].
 inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, float tmin, float tmax,
-                                    uint32_t live) {
+                                    uint32_t live, float t_entry[kWideBvhWidth]) {
   __m128 tn[2] = {_mm_set1_ps(tmin), _mm_set1_ps(tmin)};
   __m128 tf[2] = {_mm_set1_ps(tmax), _mm_set1_ps(tmax)};
   const __m128 far_scale = _mm_set1_ps(kBoxFarScale);
@@ -288,6 +305,8 @@ inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, floa
       tf[h] = _mm_min_ps(t_far, tf[h]);
     }
   }
+  _mm_storeu_ps(t_entry, tn[0]);
+  _mm_storeu_ps(t_entry + 4, tn[1]);
   const uint32_t hits = uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn[0], tf[0]))) |
                         (uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn[1], tf[1]))) << 4);
   return hits & live;
@@ -303,10 +322,11 @@ inline uint32_t host_wide_live_slots(const KWideBvhNode& n) {
 }
 
 inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, float tmin, float tmax,
-                                    uint32_t live) {
+                                    uint32_t live, float t_entry[kWideBvhWidth]) {
   const Vec3 scale = {wide_node_scale(n, 0), wide_node_scale(n, 1), wide_node_scale(n, 2)};
   uint32_t hits = 0;
   for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    t_entry[s] = tmax;
     if (!((live >> s) & 1u)) continue;
     const Vec3 lo = make_vec3(n.origin.x + float(n.qlo[0][s]) * scale.x,
                               n.origin.y + float(n.qlo[1][s]) * scale.y,
@@ -314,40 +334,157 @@ inline uint32_t host_wide_slot_hits(const KWideBvhNode& n, const BoxRay& r, floa
     const Vec3 hi = make_vec3(n.origin.x + float(n.qhi[0][s]) * scale.x,
                               n.origin.y + float(n.qhi[1][s]) * scale.y,
                               n.origin.z + float(n.qhi[2][s]) * scale.z);
-    float t;
-    if (intersect_box(r, lo, hi, tmin, tmax, &t)) hits |= 1u << s;
+    if (intersect_box(r, lo, hi, tmin, tmax, &t_entry[s])) hits |= 1u << s;
   }
   return hits;
 }
 
 #endif
 
-// The portable loop's per-slot tests of wide node n (one of `nodes`): the
-// interior children hit as bits 24 + (slot ^ octant) of *node_hits, the
-// leaf primitives hit as bits of *prim_hits.
+// The children of a wide node that the ray hits, nearest first.
+struct HostWideHits {
+  uint32_t slot[kWideBvhWidth];
+  float t[kWideBvhWidth];
+  uint32_t count;
+  uint32_t leaves;  // bit i: hit i (in this order) is a leaf slot
+};
+
 template <bool kCount>
-inline void host_wide_child_hits(TwoLevelTrace<kCount>& tr, const KWideBvhNode& n,
-                                 const KWideBvhNode* nodes, uint32_t* node_hits,
-                                 uint32_t* prim_hits) {
+inline void host_wide_visit(TwoLevelTrace<kCount>& tr, const KWideBvhNode& n, bool in_blas,
+                            HostWideHits& out) {
   const uint32_t live = host_wide_live_slots(n);
-  if constexpr (kCount) tr.counters->boxes += uint64_t(popcount(live));
-  const uint32_t hits = host_wide_slot_hits(n, tr.box, tr.tmin, tr.tmax, live);
-  uint32_t nh = 0, ph = 0;
+  if constexpr (kCount) {
+    tr.counters->nodes += 1;
+    tr.counters->boxes += uint64_t(popcount(live));
+    if (in_blas) tr.counters->blas_nodes += 1;
+  }
+  float t_entry[kWideBvhWidth];
+  const uint32_t hits = host_wide_slot_hits(n, tr.box, tr.tmin, tr.tmax, live, t_entry);
+  // Insertion by entry distance, ties in octant order (the portable loop's).
+  const uint32_t octant = tr.octant();
+  uint32_t count = 0;
   for (uint32_t bits = hits; bits != 0; bits &= bits - 1u) {
     const uint32_t s = count_trailing_zeros(bits);
-    const uint32_t meta = n.meta[s];
-    if ((n.imask >> s) & 1u) {
-      nh |= 1u << (24u + (s ^ tr.octant()));
-      const char* child = reinterpret_cast<const char*>(
-          nodes + n.child_base + popcount(uint32_t(n.imask) & ((1u << s) - 1u)));
-      prefetch_readonly(child);
-      prefetch_readonly(child + sizeof(KWideBvhNode) - 1);
-    } else {
-      ph |= (meta >> 5) << (meta & 31u);
+    const float t = t_entry[s];
+    uint32_t j = count++;
+    for (; j > 0; --j) {
+      const float tp = out.t[j - 1];
+      if (tp < t || (tp == t && (out.slot[j - 1] ^ octant) < (s ^ octant))) break;
+      out.slot[j] = out.slot[j - 1];
+      out.t[j] = tp;
     }
+    out.slot[j] = s;
+    out.t[j] = t;
   }
-  *node_hits = nh;
-  *prim_hits = ph;
+  out.count = count;
+  uint32_t leaves = 0;
+  for (uint32_t i = 0; i < count; ++i)
+    leaves |= (((n.imask >> out.slot[i]) & 1u) ^ 1u) << i;
+  out.leaves = leaves;
+}
+
+// First entry and number of primitives of leaf slot s.
+inline uint32_t host_wide_leaf_first(const KWideBvhNode& n, uint32_t s) {
+  return n.prim_base + (n.meta[s] & 31u);
+}
+inline uint32_t host_wide_leaf_count(const KWideBvhNode& n, uint32_t s) {
+  return uint32_t(popcount(uint32_t(n.meta[s]) >> 5));
+}
+
+// The interior children among h, nearest next (returned), the others onto
+// the stack farthest first; then the nearest waiting node still in front of
+// the closest hit. Returns kInvalidIndex when the loop is done.
+inline uint32_t host_wide_next_node(const KWideBvhNode& n, const HostWideHits& h, float tmax,
+                                    const KWideBvhNode* nodes, HostBvhStackEntry* stack,
+                                    uint32_t& sp) {
+  uint32_t next = kInvalidIndex;
+  float t_next = 0.0f;
+  for (uint32_t i = h.count; i-- > 0;) {
+    if (((h.leaves >> i) & 1u) || h.t[i] > tmax) continue;
+    const uint32_t s = h.slot[i];
+    if (next != kInvalidIndex && sp < kHostWideStackSize) stack[sp++] = {next, t_next};
+    next = n.child_base + popcount(uint32_t(n.imask) & ((1u << s) - 1u));
+    t_next = h.t[i];
+    // Both cache lines of the 80-byte node.
+    const KWideBvhNode* child = nodes + next;
+    prefetch_readonly(child);
+    prefetch_readonly(reinterpret_cast<const char*>(child) + sizeof(KWideBvhNode) - 1);
+  }
+  if (next != kInvalidIndex) return next;
+  while (sp != 0) {
+    const HostBvhStackEntry e = stack[--sp];
+    if (!(e.t_entry > tmax)) return e.node;
+  }
+  return kInvalidIndex;
+}
+
+// A BLAS of the wide layout from `root`, the ray in its object space
+// (enter_instance's record). True: an any-hit query stopped.
+template <bool kCount>
+inline bool host_trace_wide_blas(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
+                                 uint32_t root, const uint32_t* record) {
+  const uint32_t* entries = tr.kd->bvh_wide_prim_indices;  // leaf record indices (bvh.h)
+  HostBvhStackEntry stack[kHostWideStackSize];
+  uint32_t sp = 0;
+  uint32_t node_index = root;
+  do {
+    const KWideBvhNode& n = nodes[node_index];
+    prefetch_readonly(entries + n.prim_base);
+    HostWideHits h;
+    host_wide_visit(tr, n, true, h);
+    if (h.leaves != 0u) {
+      for (uint32_t bits = h.leaves; bits != 0; bits &= bits - 1u) {
+        const uint32_t s = h.slot[count_trailing_zeros(bits)];
+        const uint32_t first = host_wide_leaf_first(n, s), count = host_wide_leaf_count(n, s);
+        for (uint32_t k = 0; k < count; ++k)
+          tr.prefetch_leaf_triangles(entries[first + k], 1);
+      }
+      for (uint32_t bits = h.leaves; bits != 0; bits &= bits - 1u) {
+        const uint32_t i = count_trailing_zeros(bits);
+        if (h.t[i] > tr.tmax) continue;  // behind a hit of a nearer leaf
+        const uint32_t s = h.slot[i];
+        const uint32_t first = host_wide_leaf_first(n, s), count = host_wide_leaf_count(n, s);
+        for (uint32_t k = 0; k < count; ++k) {
+          if (tr.leaf_triangle(entries[first + k], record)) return true;
+        }
+      }
+    }
+    node_index = host_wide_next_node(n, h, tr.tmax, nodes, stack, sp);
+  } while (node_index != kInvalidIndex);
+  return false;
+}
+
+// The TLAS of the wide layout from `root`, in world space: a node's hit
+// instances, nearest first, each BLAS to its end, then its interior
+// children. True: an any-hit query stopped.
+template <bool kCount>
+inline bool host_trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
+                                      uint32_t root) {
+  const uint32_t* prim_indices = tr.kd->bvh_wide_prim_indices;
+  HostBvhStackEntry stack[kHostWideStackSize];
+  uint32_t record[kBvhInstanceRecordWords];
+  uint32_t sp = 0;
+  uint32_t node_index = root;
+  do {
+    const KWideBvhNode& n = nodes[node_index];
+    HostWideHits h;
+    host_wide_visit(tr, n, false, h);
+    for (uint32_t bits = h.leaves; bits != 0; bits &= bits - 1u) {
+      const uint32_t i = count_trailing_zeros(bits);
+      if (h.t[i] > tr.tmax) continue;
+      const uint32_t s = h.slot[i];
+      const uint32_t first = host_wide_leaf_first(n, s), count = host_wide_leaf_count(n, s);
+      for (uint32_t k = 0; k < count; ++k) {
+        const uint32_t blas = tr.enter_instance(prim_indices[first + k], true, record);
+        if (blas == kInvalidIndex) continue;
+        const bool stop = host_trace_wide_blas(tr, nodes, blas, record);
+        tr.leave_instance(record);
+        if (stop) return true;
+      }
+    }
+    node_index = host_wide_next_node(n, h, tr.tmax, nodes, stack, sp);
+  } while (node_index != kInvalidIndex);
+  return false;
 }
 
 }  // namespace tandem
