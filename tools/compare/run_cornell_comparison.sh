@@ -185,7 +185,8 @@ if [[ "$control" != 0 ]]; then
     printf "sigma: Tandem %.6g, Cycles %.6g (%s); ratio Cycles / Tandem %.3f\n", st, sc, how, sc / st
     if (cc != "nan") {
       b = tc * tc - st * st - sc * sc
-      printf "Tandem-Cycles difference beyond noise (RMS): %.6g (%.2f sigma_T)\n", b > 0 ? sqrt(b) : 0, (b > 0 ? sqrt(b) : 0) / st
+      d = (b > 0) ? sqrt(b) : 0
+      printf "Tandem-Cycles difference beyond noise (RMS): %.6g (%.2f sigma_T)\n", d, d / st
     }
     r = sc * sc / (st * st)  # Tandem needs 1 / r times Cycles samples for equal noise
     printf "to equal noise (Cycles / Tandem time): render %.2fx", cs / ts * r
