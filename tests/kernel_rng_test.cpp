@@ -129,6 +129,47 @@ TEST(KernelRng, TwoDimensionalDrawsEqualTheirOneDimensionalParts) {
   }
 }
 
+// The CPU tile loop's cache of the sample-independent hashes gives exactly
+// the numbers of the plain draws, for bounces in any order (the cache fills
+// lazily), past its last cached bounce too, and for several samples of a
+// pixel in a row.
+TEST(KernelRng, PixelCacheDrawsEqualThePlainDraws) {
+  PixelRngCache cache;
+  for (uint32_t pixel : {0u, 17u, 65535u, 123457u}) {
+    for (uint32_t seed : {0u, 9u}) {
+      pixel_rng_cache_reset(&cache, pixel, seed);
+      for (uint32_t s = 0; s < 24; ++s) {
+        const PathRng r = make_path_rng(pixel, s, seed);
+        ASSERT_EQ(r.key, cache.key);
+        const CachedPathRng c{r, &cache};
+        const Vec2 j = rng_jitter_2d(c), l = rng_lens_2d(c);
+        ASSERT_EQ(j.x, rng_2d(r, kDimPixelJitter).x);
+        ASSERT_EQ(j.y, rng_2d(r, kDimPixelJitter).y);
+        ASSERT_EQ(l.x, rng_2d(r, kDimLens).x);
+        ASSERT_EQ(l.y, rng_2d(r, kDimLens).y);
+        // Sample 0 visits bounces 3 then 0 (out of order), later ones up to 23.
+        const uint32_t deepest = s == 0 ? 3u : s;
+        for (uint32_t k = 0; k <= deepest; ++k) {
+          const uint32_t b = s == 0 ? deepest - k : k;
+          for (uint32_t which : {uint32_t(kBounceLightU), uint32_t(kBounceBsdfU)}) {
+            const Vec2 a = bounce_rng_2d(c, b, which), e = rng_2d(r, bounce_dimension(b, which));
+            ASSERT_EQ(a.x, e.x) << "bounce " << b << " which " << which;
+            ASSERT_EQ(a.y, e.y) << "bounce " << b << " which " << which;
+          }
+          for (uint32_t which :
+               {uint32_t(kBounceLightSelect), uint32_t(kBounceLobe), uint32_t(kBounceRoulette)}) {
+            ASSERT_EQ(bounce_rng_1d(c, b, which), rng_1d(r, bounce_dimension(b, which)))
+                << "bounce " << b << " which " << which;
+          }
+          for (uint32_t which : {uint32_t(kBounceAlpha), uint32_t(kBounceShadowAlpha)})
+            ASSERT_EQ(bounce_rng_bits(c, b, which), rng_bits(r, bounce_dimension(b, which)));
+        }
+      }
+      EXPECT_EQ(cache.bounces_filled, PixelRngCache::kMaxBounces);
+    }
+  }
+}
+
 TEST(KernelRng, ValuesAreAPureFunctionOfTheirKey) {
   const PathRng a = make_path_rng(42, 1000, 9), b = make_path_rng(42, 1000, 9);
   for (uint32_t d = 0; d < 64; ++d)

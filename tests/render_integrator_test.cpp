@@ -185,6 +185,37 @@ TEST(RenderIntegrator, StagesGiveTheSingleLoopsImagesBitForBit) {
   }
 }
 
+// The CPU tile loop's megakernel with the pixel's seed cache gives the
+// plain megakernel's bits and rays, also for paths deeper than the cache
+// (max depth 40 between the mirror and the glass sphere).
+TEST(RenderIntegrator, PixelRngCacheGivesThePlainMegakernelsBits) {
+  const uint32_t width = 24, height = 16, spp = 4;
+  for (const char* spec : {"builtin:cornell", "builtin:cornell-spheres", "builtin:sky-plane"}) {
+    for (uint32_t max_depth : {8u, 40u}) {
+      SCOPED_TRACE(std::string(spec) + " max depth " + std::to_string(max_depth));
+      Compiled c(test_scene(spec), width, height, 3);
+      KernelData kd = c.ks.view();
+      kd.constants.integrator.max_depth = max_depth;
+      PixelRngCache cache;
+      size_t same = 0;
+      uint32_t rays_plain = 0, rays_cached = 0;
+      for (uint32_t y = 0; y < height; ++y) {
+        for (uint32_t x = 0; x < width; ++x) {
+          pixel_rng_cache_reset(&cache, y * width + x, kd.constants.integrator.seed);
+          for (uint32_t s = 7; s < 7 + spp; ++s) {
+            const Vec3 a = render_pixel_sample(kd, BvhTracer{&kd}, x, y, s, &rays_plain);
+            const Vec3 b =
+                render_pixel_sample_cached(kd, BvhTracer{&kd}, x, y, s, &cache, &rays_cached);
+            same += std::memcmp(&a, &b, sizeof a) == 0;
+          }
+        }
+      }
+      EXPECT_EQ(same, size_t(width) * height * spp);
+      EXPECT_EQ(rays_plain, rays_cached);
+    }
+  }
+}
+
 // The wavefront queues with few slots (each regenerated many times, paths
 // of every length in flight together) compute each item's radiance exactly
 // as the megakernel does, and count the same rays.

@@ -22,6 +22,9 @@ BackendStats render_tiles_on_cpu(const KernelData& kd, const Tracer& tracer, con
   std::vector<BackendStats> per_worker(static_cast<size_t>(workers));
   tbb::parallel_for(0, workers, [&](int w) {
     BackendStats& st = per_worker[size_t(w)];
+    // A pixel's samples of the pass run in a row: their sample-independent
+    // random-number seeds are computed once per pixel (and bounce).
+    PixelRngCache rng_cache;
     Tile tile;
     while (tiles.next(&tile)) {
       const auto tile_start = std::chrono::steady_clock::now();
@@ -29,10 +32,13 @@ BackendStats render_tiles_on_cpu(const KernelData& kd, const Tracer& tracer, con
         for (uint32_t x = tile.x0; x < tile.x1; ++x) {
           uint32_t rays = 0;
           double sum[3] = {0.0, 0.0, 0.0};
+          pixel_rng_cache_reset(&rng_cache, y * kd.constants.camera.width + x,
+                                kd.constants.integrator.seed);
           // Samples are summed in index order, so a pixel's value never
           // depends on which worker rendered it.
           for (uint32_t s = 0; s < pass.sample_count; ++s) {
-            const Vec3 l = render_pixel_sample(kd, tracer, x, y, pass.sample_begin + s, &rays);
+            const Vec3 l = render_pixel_sample_cached(kd, tracer, x, y, pass.sample_begin + s,
+                                                      &rng_cache, &rays);
             sum[0] += l.x;
             sum[1] += l.y;
             sum[2] += l.z;

@@ -161,11 +161,18 @@ TANDEM_HD bool path_alive(const PathState& p) {
   return (p.flags & kPathAlive) != 0;
 }
 
-TANDEM_HD void path_generate(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
-                             PathState* p) {
+// The camera ray and the initial state of a path whose rng is set. The lens
+// pair is drawn only for a thin-lens camera: a pinhole ignores it, and it is
+// about 1% of a Cornell-box sample. Templated on the generator so that the
+// CPU tile loop's cached one (CachedPathRng) gives the same numbers.
+template <class Rng>
+TANDEM_HD void path_start(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
+                          const Rng& rng, PathState* p) {
   const KCamera& cam = kd.constants.camera;
-  p->rng = make_path_rng(y * cam.width + x, sample, kd.constants.integrator.seed);
-  const Vec2 jitter = rng_2d(p->rng, kDimPixelJitter), lens = rng_2d(p->rng, kDimLens);
+  const Vec2 jitter = rng_jitter_2d(rng);
+  const Vec2 lens = cam.aperture_radius > 0.0f && cam.type != kCameraOrthographic
+                        ? rng_lens_2d(rng)
+                        : make_vec2(0.0f, 0.0f);
   p->ray = generate_camera_ray(cam, float(x) + jitter.x, float(y) + jitter.y, lens.x, lens.y);
   p->throughput = make_vec3(1.0f);
   p->radiance = make_vec3(0.0f);
@@ -178,12 +185,25 @@ TANDEM_HD void path_generate(const KernelData& kd, uint32_t x, uint32_t y, uint3
   p->rays = 0;
 }
 
+TANDEM_HD void path_generate(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
+                             PathState* p) {
+  p->rng = make_path_rng(y * kd.constants.camera.width + x, sample, kd.constants.integrator.seed);
+  path_start(kd, x, y, sample, p->rng, p);
+}
+
+// path_generate with the pixel's cache (pixel_rng_cache_reset for this pixel
+// and seed): the same path.
+TANDEM_HD void path_generate_cached(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
+                                    PixelRngCache* cache, PathState* p) {
+  p->rng = {cache->key, sample, reverse_bits_u32(sample)};
+  path_start(kd, x, y, sample, CachedPathRng{p->rng, cache}, p);
+}
+
 // Only alpha-tested triangles read the key, so scenes without any skip the
 // hashing (two keys per bounce: about 2% of a Cornell-box sample). The
 // keys of scenes with alpha tests are unchanged.
 TANDEM_HD uint32_t path_alpha_key(const PathState& p) {
-  return (p.flags & kPathAlphaKeys) ? rng_bits(p.rng, bounce_dimension(p.bounce, kBounceAlpha))
-                                    : 0u;
+  return (p.flags & kPathAlphaKeys) ? bounce_rng_bits(p.rng, p.bounce, kBounceAlpha) : 0u;
 }
 
 // The ray left the scene.
@@ -202,10 +222,11 @@ TANDEM_HD void path_shade_miss(const KernelData& kd, PathState* p) {
 // `*shadow` whose shadow ray must be traced (path_shadow_result) before the
 // path's next hit is shaded. Afterwards the path is either alive with its
 // next ray or finished.
-TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p,
-                              ShadowRay* shadow) {
+// `rng` draws the numbers of p->rng (p->rng itself, or CachedPathRng).
+template <class Rng>
+TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathState* p,
+                                  ShadowRay* shadow, const Rng& rng) {
   const KIntegratorParams& ip = kd.constants.integrator;
-  const PathRng& rng = p->rng;
   const uint32_t bounce = p->bounce;
   const SurfacePoint sp = make_surface_point(kd, hit);
   const KMaterial& mat = kd.materials[sp.material];
@@ -228,9 +249,8 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
   // Next-event estimation.
   bool has_shadow = false;
   LightSample ls;
-  const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
-  if (sample_light(kd, sp.position,
-                   rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceLightSelect)), light_uv.x,
+  const Vec2 light_uv = bounce_rng_2d(rng, bounce, kBounceLightU);
+  if (sample_light(kd, sp.position, bounce_rng_1d(rng, bounce, kBounceLightSelect), light_uv.x,
                    light_uv.y, &ls)) {
     const Vec3 wi_local = to_local(sh.frame, ls.wi);
     if (consistent_side(ls.wi, wi_local, sh.ng)) {
@@ -238,9 +258,8 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
       const Vec3 contrib = p->throughput * e.f * ls.radiance * (fabsf(wi_local.z) / ls.pdf);
       if (!is_black(contrib) && is_finite(contrib)) {
         const float w = ls.is_delta ? 1.0f : mis_power_heuristic(ls.pdf, e.pdf);
-        shadow->alpha_key = (p->flags & kPathAlphaKeys)
-                                ? rng_bits(rng, bounce_dimension(bounce, kBounceShadowAlpha))
-                                : 0u;
+        shadow->alpha_key =
+            (p->flags & kPathAlphaKeys) ? bounce_rng_bits(rng, bounce, kBounceShadowAlpha) : 0u;
         shadow->ray = ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point);
         shadow->contribution = contrib * w;
         has_shadow = true;
@@ -250,12 +269,10 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
 
   // Continue the path by sampling the BSDF.
   BsdfSample bs;
-  const Vec2 bsdf_uv = rng_2d(rng, bounce_dimension(bounce, kBounceBsdfU));
+  const Vec2 bsdf_uv = bounce_rng_2d(rng, bounce, kBounceBsdfU);
   // With at most one lobe any u_lobe picks it (u_lobe = 0 too), so the draw
   // is skipped: it is most hits (Lambertian walls, mirrors).
-  const float u_lobe = bsdf_single_lobe(sh.lobes)
-                           ? 0.0f
-                           : rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceLobe));
+  const float u_lobe = bsdf_single_lobe(sh.lobes) ? 0.0f : bounce_rng_1d(rng, bounce, kBounceLobe);
   if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local, u_lobe, bsdf_uv.x, bsdf_uv.y, &bs)) {
     return has_shadow;
   }
@@ -267,13 +284,17 @@ TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p
 
   if (bounce + 1 >= ip.rr_start_depth) {
     const float survive = min_f(max_component(p->throughput), 0.95f);
-    if (!(rng_1d_unpaired(rng, bounce_dimension(bounce, kBounceRoulette)) < survive))
-      return has_shadow;
+    if (!(bounce_rng_1d(rng, bounce, kBounceRoulette) < survive)) return has_shadow;
     p->throughput *= 1.0f / survive;
   }
   p->bounce = bounce + 1;
   p->flags |= kPathAlive;
   return has_shadow;
+}
+
+TANDEM_HD bool path_shade_hit(const KernelData& kd, const Hit& hit, PathState* p,
+                              ShadowRay* shadow) {
+  return path_shade_hit_rng(kd, hit, p, shadow, p->rng);
 }
 
 TANDEM_HD void path_shadow_result(const ShadowRay& shadow, bool occluded, PathState* p) {
@@ -309,6 +330,33 @@ TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, u
     }
     ShadowRay shadow{};
     if (path_shade_hit(kd, hit, &p, &shadow)) {
+      ++p.rays;
+      path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
+    }
+  }
+  *ray_count += p.rays;
+  return path_finish(kd, p);
+}
+
+// render_pixel_sample with the pixel's cache of sample-independent seeds
+// (pixel_rng_cache_reset once per pixel, then any of its samples): the same
+// radiance, for the CPU tile loop that renders a pixel's samples in a row.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                          uint32_t y, uint32_t sample, PixelRngCache* cache,
+                                          uint32_t* ray_count) {
+  PathState p;
+  path_generate_cached(kd, x, y, sample, cache, &p);
+  const CachedPathRng rng{p.rng, cache};
+  while (path_alive(p)) {
+    const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
+    ++p.rays;
+    if (!hit_valid(hit)) {
+      path_shade_miss(kd, &p);
+      break;
+    }
+    ShadowRay shadow{};
+    if (path_shade_hit_rng(kd, hit, &p, &shadow, rng)) {
       ++p.rays;
       path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
     }

@@ -148,13 +148,22 @@ TANDEM_HD_INLINE uint32_t rng_pair_index(const PathRng& r, uint32_t pair_seed) {
   return reverse_bits_u32(lk_permute(r.sample_reversed, pair_seed));
 }
 
+// The scramble of component c of a pair (a function of the pixel and the
+// dimension only, not of the sample).
+TANDEM_HD_INLINE uint32_t rng_component_seed(uint32_t pair_seed, uint32_t component) {
+  return hash_u32(pair_seed + component + 1u);
+}
+
 // Component c of the pair: point = sobol_c(index), value = owen(point), with
 // the reversals that cancel left out: reverse(sobol_0(i)) = i and
 // reverse(sobol_1(i)) = pascal_mod2(i).
-TANDEM_HD_INLINE float rng_pair_component(uint32_t index, uint32_t pair_seed, uint32_t component) {
+TANDEM_HD_INLINE float rng_pair_component_seeded(uint32_t index, uint32_t component_seed,
+                                                 uint32_t component) {
   const uint32_t reversed_point = component == 0 ? index : pascal_mod2(index);
-  return u32_to_unit_float(
-      reverse_bits_u32(lk_permute(reversed_point, hash_u32(pair_seed + component + 1u))));
+  return u32_to_unit_float(reverse_bits_u32(lk_permute(reversed_point, component_seed)));
+}
+TANDEM_HD_INLINE float rng_pair_component(uint32_t index, uint32_t pair_seed, uint32_t component) {
+  return rng_pair_component_seeded(index, rng_component_seed(pair_seed, component), component);
 }
 
 TANDEM_HD_INLINE float rng_1d(const PathRng& r, uint32_t dimension) {
@@ -183,6 +192,122 @@ TANDEM_HD_INLINE Vec2 rng_2d(const PathRng& r, uint32_t first) {
 
 TANDEM_HD_INLINE uint32_t bounce_dimension(uint32_t bounce, uint32_t which) {
   return kDimBounceBase + bounce * kDimsPerBounce + which;
+}
+
+// The integrator's draws, by bounce and BounceDimension. PixelRngCache (a
+// CPU-side cache of the sample-independent hashes) has the same three with
+// the same results.
+TANDEM_HD_INLINE Vec2 bounce_rng_2d(const PathRng& r, uint32_t bounce, uint32_t which) {
+  return rng_2d(r, bounce_dimension(bounce, which));
+}
+TANDEM_HD_INLINE float bounce_rng_1d(const PathRng& r, uint32_t bounce, uint32_t which) {
+  return rng_1d_unpaired(r, bounce_dimension(bounce, which));
+}
+TANDEM_HD_INLINE uint32_t bounce_rng_bits(const PathRng& r, uint32_t bounce, uint32_t which) {
+  return rng_bits(r, bounce_dimension(bounce, which));
+}
+
+// --- The sample-independent part of a pixel's draws, cached ---------------
+// Of the five hashes of a 2-d draw (pair seed, index shuffle, two component
+// scrambles, and the key's), three depend on (pixel, seed, dimension) only:
+// the CPU tile loop, which renders all of a pixel's samples of a pass in a
+// row, computes them once per pixel and bounce instead of once per sample.
+// The draws give exactly the numbers of the PathRng functions above.
+struct PairSeeds {
+  uint32_t pair;   // rng_pair_seed
+  uint32_t comp0;  // rng_component_seed(pair, 0)
+  uint32_t comp1;  // rng_component_seed(pair, 1) (2-d pairs only)
+};
+
+TANDEM_HD_INLINE PairSeeds make_pair_seeds(uint32_t key, uint32_t pair_dimension) {
+  const PathRng r{key, 0u, 0u};
+  PairSeeds s;
+  s.pair = rng_pair_seed(r, pair_dimension);
+  s.comp0 = rng_component_seed(s.pair, 0);
+  s.comp1 = rng_component_seed(s.pair, 1);
+  return s;
+}
+
+TANDEM_HD_INLINE Vec2 rng_2d_seeded(const PathRng& r, const PairSeeds& s) {
+  const uint32_t index = rng_pair_index(r, s.pair);
+  return {rng_pair_component_seeded(index, s.comp0, 0),
+          rng_pair_component_seeded(index, s.comp1, 1)};
+}
+TANDEM_HD_INLINE float rng_1d_seeded(const PathRng& r, const PairSeeds& s) {
+  return rng_pair_component_seeded(rng_pair_index(r, s.pair), s.comp0, 0);
+}
+
+// The seeds of the draws of one bounce (kBounceLightSelect .. kBounceRoulette;
+// the alpha keys are plain hashes of the sample and are not cached).
+struct BounceSeeds {
+  PairSeeds light_select, light_uv, lobe, bsdf_uv, roulette;
+};
+
+struct PixelRngCache {
+  static constexpr uint32_t kMaxBounces = 16;  // deeper bounces compute their seeds
+  uint32_t key;                                // PathRng::key of the pixel
+  uint32_t bounces_filled;                     // bounce[0 .. bounces_filled) are valid
+  PairSeeds jitter, lens;
+  BounceSeeds bounce[kMaxBounces];
+};
+
+TANDEM_HD_INLINE void pixel_rng_cache_reset(PixelRngCache* c, uint32_t pixel_index, uint32_t seed) {
+  c->key = make_path_rng(pixel_index, 0u, seed).key;
+  c->bounces_filled = 0;
+  c->jitter = make_pair_seeds(c->key, kDimPixelJitter);
+  c->lens = make_pair_seeds(c->key, kDimLens);
+}
+
+// A path's generator with its pixel's cache: the same numbers as `rng`.
+struct CachedPathRng {
+  PathRng rng;
+  PixelRngCache* cache;  // filled lazily, bounce by bounce
+};
+
+TANDEM_HD_INLINE const BounceSeeds* cached_bounce_seeds(const CachedPathRng& r, uint32_t bounce) {
+  PixelRngCache* c = r.cache;
+  if (bounce >= PixelRngCache::kMaxBounces) return nullptr;
+  while (c->bounces_filled <= bounce) {
+    BounceSeeds& b = c->bounce[c->bounces_filled];
+    const uint32_t d = bounce_dimension(c->bounces_filled, 0);
+    b.light_select = make_pair_seeds(c->key, d + kBounceLightSelect);
+    b.light_uv = make_pair_seeds(c->key, d + kBounceLightU);
+    b.lobe = make_pair_seeds(c->key, d + kBounceLobe);
+    b.bsdf_uv = make_pair_seeds(c->key, d + kBounceBsdfU);
+    b.roulette = make_pair_seeds(c->key, d + kBounceRoulette);
+    ++c->bounces_filled;
+  }
+  return &c->bounce[bounce];
+}
+
+TANDEM_HD_INLINE Vec2 bounce_rng_2d(const CachedPathRng& r, uint32_t bounce, uint32_t which) {
+  const BounceSeeds* b = cached_bounce_seeds(r, bounce);
+  if (!b) return bounce_rng_2d(r.rng, bounce, which);
+  return rng_2d_seeded(r.rng, which == kBounceLightU ? b->light_uv : b->bsdf_uv);
+}
+TANDEM_HD_INLINE float bounce_rng_1d(const CachedPathRng& r, uint32_t bounce, uint32_t which) {
+  const BounceSeeds* b = cached_bounce_seeds(r, bounce);
+  if (!b) return bounce_rng_1d(r.rng, bounce, which);
+  return rng_1d_seeded(r.rng, which == kBounceLightSelect ? b->light_select
+                              : which == kBounceLobe      ? b->lobe
+                                                          : b->roulette);
+}
+TANDEM_HD_INLINE uint32_t bounce_rng_bits(const CachedPathRng& r, uint32_t bounce, uint32_t which) {
+  return bounce_rng_bits(r.rng, bounce, which);
+}
+
+// The camera's two pairs.
+TANDEM_HD_INLINE Vec2 rng_jitter_2d(const PathRng& r) {
+  return rng_2d(r, kDimPixelJitter);
+}
+TANDEM_HD_INLINE Vec2 rng_lens_2d(const PathRng& r) {
+  return rng_2d(r, kDimLens);
+}
+TANDEM_HD_INLINE Vec2 rng_jitter_2d(const CachedPathRng& r) {
+  return rng_2d_seeded(r.rng, r.cache->jitter);
+}
+TANDEM_HD_INLINE Vec2 rng_lens_2d(const CachedPathRng& r) {
+  return rng_2d_seeded(r.rng, r.cache->lens);
 }
 
 }  // namespace tandem
