@@ -97,9 +97,13 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
     ray = spawn_ray(sp, wi);
 
     if (bounce + 1 >= ip.rr_start_depth) {
-      const float survive = min_f(max_component(beta), 0.95f);
-      if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) break;
-      beta *= 1.0f / survive;
+      // The kernel's rule, written out: q = min(1, sqrt(max throughput)), no
+      // draw while q is 1.
+      const float survive = min_f(sqrtf(max_f(max_component(beta), 0.0f)), 1.0f);
+      if (survive < 1.0f) {
+        if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) break;
+        beta *= 1.0f / survive;
+      }
     }
   }
   *ray_count += rays;
@@ -317,3 +321,14 @@ TEST(RenderIntegrator, AlphaKeysOnlyWhereSomeMeshIsAlphaTested) {
 
 }  // namespace
 }  // namespace tandem
+
+// Russian roulette never ends a path whose throughput is still >= 1 (a
+// lossless mirror or glass chain), and below 1 keeps it with probability
+// sqrt(max component), which the 1/q weight makes unbiased.
+TEST(RenderIntegrator, RouletteKeepsLosslessPathsAndSqrtBelow) {
+  EXPECT_EQ(tandem::roulette_survival(tandem::make_vec3(1.0f)), 1.0f);
+  EXPECT_EQ(tandem::roulette_survival(tandem::make_vec3(3.0f, 0.0f, 0.0f)), 1.0f);
+  EXPECT_EQ(tandem::roulette_survival(tandem::make_vec3(0.25f, 0.01f, 0.0f)), 0.5f);
+  EXPECT_NEAR(tandem::roulette_survival(tandem::make_vec3(0.0f, 0.0f, 0.04f)), 0.2f, 1e-7f);
+  EXPECT_EQ(tandem::roulette_survival(tandem::make_vec3(0.0f)), 0.0f);
+}

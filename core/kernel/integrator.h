@@ -34,6 +34,20 @@
 
 namespace tandem {
 
+// Russian roulette's survival probability for a path of this throughput:
+// the square root of its largest component, at most 1. A path whose
+// throughput is still >= 1 (a lossless mirror or glass chain) always
+// survives: killing it gains no time worth the variance of the 1/q weight,
+// and a fixed cap below 1 (such as 0.95) would end 5% of the paths through
+// a chain of perfect specular bounces at every bounce. The square root keeps
+// dim paths a little longer than q = throughput would, so that survivors are
+// weighted by less. Unbiased for any q in (0, 1]: a survivor's weight 1/q
+// times the probability q of surviving is 1. A zero or NaN throughput gives
+// q = 0 and ends the path.
+TANDEM_HD_INLINE float roulette_survival(const Vec3& throughput) {
+  return min_f(safe_sqrt(max_component(throughput)), 1.0f);
+}
+
 struct ShadingSetup {
   BsdfParams params;
   BsdfLobeProbabilities lobes;
@@ -283,9 +297,11 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   p->ray = spawn_ray(sp, wi);
 
   if (bounce + 1 >= ip.rr_start_depth) {
-    const float survive = min_f(max_component(p->throughput), 0.95f);
-    if (!(bounce_rng_1d(rng, bounce, kBounceRoulette) < survive)) return has_shadow;
-    p->throughput *= 1.0f / survive;
+    const float survive = roulette_survival(p->throughput);
+    if (survive < 1.0f) {
+      if (!(bounce_rng_1d(rng, bounce, kBounceRoulette) < survive)) return has_shadow;
+      p->throughput *= 1.0f / survive;
+    }
   }
   p->bounce = bounce + 1;
   p->flags |= kPathAlive;
