@@ -328,42 +328,13 @@ TANDEM_HD Vec3 path_finish(const KernelData& kd, const PathState& p) {
   return radiance;
 }
 
-// One camera sample of pixel (x, y), the megakernel way: the stages in a
-// loop for one path. The pixel's paths depend only on (x, y, sample, seed):
-// this is what makes images independent of the tile split and of which
-// backend rendered them.
-template <class Tracer>
-TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
-                                   uint32_t y, uint32_t sample, uint32_t* ray_count) {
-  PathState p;
-  path_generate(kd, x, y, sample, &p);
-  while (path_alive(p)) {
-    const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
-    ++p.rays;
-    if (!hit_valid(hit)) {
-      path_shade_miss(kd, &p);
-      break;
-    }
-    ShadowRay shadow{};
-    if (path_shade_hit(kd, hit, &p, &shadow)) {
-      ++p.rays;
-      path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
-    }
-  }
-  *ray_count += p.rays;
-  return path_finish(kd, p);
-}
-
-// render_pixel_sample with the pixel's cache of sample-independent seeds
-// (pixel_rng_cache_reset once per pixel, then any of its samples): the same
-// radiance, for the CPU tile loop that renders a pixel's samples in a row.
-template <class Tracer>
-TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tracer, uint32_t x,
-                                          uint32_t y, uint32_t sample, PixelRngCache* cache,
-                                          uint32_t* ray_count) {
-  PathState p;
-  path_generate_cached(kd, x, y, sample, cache, &p);
-  const CachedPathRng rng{p.rng, cache};
+// The megakernel's loop over the stages for one path whose state
+// path_generate or path_generate_cached set up; `rng` draws p->rng's numbers
+// (p->rng itself, or CachedPathRng over it). One loop for both generators,
+// so the plain and the cached megakernel cannot drift apart.
+template <class Tracer, class Rng>
+TANDEM_HD_INLINE Vec3 render_path(const KernelData& kd, const Tracer& tracer, PathState& p,
+                                  const Rng& rng, uint32_t* ray_count) {
   while (path_alive(p)) {
     const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
     ++p.rays;
@@ -379,6 +350,30 @@ TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tr
   }
   *ray_count += p.rays;
   return path_finish(kd, p);
+}
+
+// One camera sample of pixel (x, y), the megakernel way: the stages in a
+// loop for one path. The pixel's paths depend only on (x, y, sample, seed):
+// this is what makes images independent of the tile split and of which
+// backend rendered them.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                   uint32_t y, uint32_t sample, uint32_t* ray_count) {
+  PathState p;
+  path_generate(kd, x, y, sample, &p);
+  return render_path(kd, tracer, p, p.rng, ray_count);
+}
+
+// render_pixel_sample with the pixel's cache of sample-independent seeds
+// (pixel_rng_cache_reset once per pixel, then any of its samples): the same
+// radiance, for the CPU tile loop that renders a pixel's samples in a row.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                          uint32_t y, uint32_t sample, PixelRngCache* cache,
+                                          uint32_t* ray_count) {
+  PathState p;
+  path_generate_cached(kd, x, y, sample, cache, &p);
+  return render_path(kd, tracer, p, CachedPathRng{p.rng, cache}, ray_count);
 }
 
 }  // namespace tandem
