@@ -221,6 +221,42 @@ TEST(KernelBsdf, LambertianAlbedoEqualsBaseColor) {
   }
 }
 
+// Only materials whose every lobe is GGX at the smallest alpha count as
+// near-specular (the integrator samples no area light there).
+TEST(KernelBsdf, NearSpecularOnlyForSmoothMirrorsGlassAndCoats) {
+  const Vec3 wo = view_direction(30.0f);
+  auto near_specular = [&](const BsdfParams& p) {
+    return bsdf_near_specular(p, bsdf_lobe_probabilities(p, wo));
+  };
+  BsdfParams mirror{};  // zero but for what is set
+  mirror.base_color = make_vec3(0.9f);
+  mirror.metallic = 1.0f;
+  mirror.alpha = ggx_alpha_from_roughness(0.0f);
+  mirror.eta = 1.5f;
+  EXPECT_TRUE(near_specular(mirror));
+  BsdfParams rough = mirror;
+  rough.alpha = ggx_alpha_from_roughness(0.1f);
+  EXPECT_FALSE(near_specular(rough));
+  BsdfParams glass{};
+  glass.base_color = make_vec3(1.0f);
+  glass.metallic = 0.0f;
+  glass.specular = 1.0f;
+  glass.specular_color = make_vec3(1.0f);
+  glass.transmission = 1.0f;
+  glass.eta = 1.5f;
+  glass.alpha = ggx_alpha_from_roughness(0.0f);
+  EXPECT_TRUE(near_specular(glass));
+  BsdfParams plastic = glass;  // smooth coat over a diffuse base
+  plastic.transmission = 0.0f;
+  EXPECT_FALSE(near_specular(plastic));
+  BsdfParams lambert{};
+  lambert.base_color = make_vec3(0.5f);
+  lambert.metallic = 0.0f;
+  lambert.specular = 0.0f;
+  lambert.alpha = 1.0f;
+  EXPECT_FALSE(near_specular(lambert));
+}
+
 TEST(KernelBsdf, SmoothDielectricConservesEnergyAndSplitsByFresnel) {
   // Roughness 0 glass (alpha = kMinGgxAlpha) with the full dielectric layer:
   // reflected + transmitted flux must be 1, and the reflected share must be

@@ -673,6 +673,26 @@ TEST(KernelPunctualLight, PointLightFallsOffWithInverseSquare) {
   EXPECT_FALSE(sample_light(kd, pos, 0.3f, 0.5f, 0.5f, &ls)) << "shading point at the light";
 }
 
+// The integrator's smooth mirrors and glass sample only delta lights: an
+// emissive triangle gives no sample there, a point light the same sample.
+TEST(KernelLights, DeltaOnlySkipsAreaLightsAndKeepsPunctualOnes) {
+  const TriangleLightScene s = make_triangle_light_scene(false);
+  const KernelData area = s.ks.view();
+  LightSample ls;
+  ASSERT_TRUE(sample_light(area, kReference, 0.3f, 0.4f, 0.5f, &ls));
+  EXPECT_FALSE(sample_light(area, kReference, 0.3f, 0.4f, 0.5f, &ls, true));
+
+  const Vec3 pos = make_vec3(1.0f, 2.0f, 3.0f);
+  const KernelScene ks = make_punctual_scene({point_light(pos, make_vec3(4.0f))}, {1.0});
+  const KernelData punctual = ks.view();
+  LightSample a, b;
+  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &a));
+  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &b, true));
+  EXPECT_EQ(a.pdf, b.pdf);
+  EXPECT_EQ(a.radiance.x, b.radiance.x);
+  EXPECT_TRUE(b.is_delta);
+}
+
 TEST(KernelPunctualLight, SpotLightConeFalloff) {
   // Cone along -y from (0, 5, 0); inner 20 deg, outer 30 deg. glTF's smooth
   // falloff: t = (cos - cos_outer) / (cos_inner - cos_outer), intensity * t^2.

@@ -29,6 +29,7 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
   Vec3 radiance = make_vec3(0.0f);
   Vec3 beta = make_vec3(1.0f);
   float prev_bsdf_pdf = 0.0f;  // 0: camera ray, no MIS on emission
+  float eta_scale = 1.0f;      // eta^2 of the refractions so far, for the roulette
   uint32_t rays = 0;
 
   for (uint32_t bounce = 0;; ++bounce) {
@@ -63,11 +64,13 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
     ShadingSetup sh;
     if (!setup_shading(kd, sp, wo, &sh)) break;
 
-    // Next-event estimation.
+    // Next-event estimation; at a smooth mirror or glass of punctual and
+    // directional lights only, the BSDF sample then has no MIS.
+    const bool specular = bsdf_near_specular(sh.params, sh.lobes);
     LightSample ls;
     const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
     if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
-                     light_uv.x, light_uv.y, &ls)) {
+                     light_uv.x, light_uv.y, &ls, specular)) {
       const Vec3 wi_local = to_local(sh.frame, ls.wi);
       if (consistent_side(ls.wi, wi_local, sh.ng)) {
         const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -93,13 +96,14 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
     const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
     if (!consistent_side(wi, bs.wi, sh.ng)) break;
     beta *= bs.weight;
-    prev_bsdf_pdf = bs.pdf;
+    prev_bsdf_pdf = specular ? 0.0f : bs.pdf;
     ray = spawn_ray(sp, wi);
 
+    if (bs.wi.z < 0.0f) eta_scale *= sh.params.eta * sh.params.eta;
     if (bounce + 1 >= ip.rr_start_depth) {
-      // The kernel's rule, written out: q = min(1, sqrt(max throughput)), no
-      // draw while q is 1.
-      const float survive = min_f(sqrtf(max_f(max_component(beta), 0.0f)), 1.0f);
+      // The kernel's rule, written out: q = min(1, sqrt(max throughput)) of
+      // the throughput without the refractions' eta^2, no draw while q is 1.
+      const float survive = min_f(sqrtf(max_f(max_component(beta * eta_scale), 0.0f)), 1.0f);
       if (survive < 1.0f) {
         if (!(rng_1d(rng, bounce_dimension(bounce, kBounceRoulette)) < survive)) break;
         beta *= 1.0f / survive;

@@ -76,6 +76,20 @@ TANDEM_HD bool bsdf_single_lobe(const BsdfLobeProbabilities& prob) {
   return lobes <= 1;
 }
 
+// Whether every lobe sampling can pick is a GGX lobe at the smallest alpha
+// (roughness <= sqrt(kMinGgxAlpha): a smooth mirror, glass or coat). At such
+// a point a light sample of an emissive triangle or the environment only
+// ever adds the lobe's GGX tail, weighted by about (light pdf / BSDF pdf)^2
+// ~ 1e-9 by MIS, yet costs a BSDF evaluation and a shadow ray; the
+// integrator samples only punctual and directional lights there and gives
+// the BSDF sample that reaches an area light the full weight instead.
+TANDEM_HD bool bsdf_near_specular(const BsdfParams& p, const BsdfLobeProbabilities& prob) {
+  if (prob.diffuse > 0.0f || prob.sheen > 0.0f) return false;
+  if (prob.coat > 0.0f && p.clearcoat_alpha > kMinGgxAlpha) return false;
+  if ((prob.reflect > 0.0f || prob.transmit > 0.0f) && p.alpha > kMinGgxAlpha) return false;
+  return prob.reflect > 0.0f || prob.transmit > 0.0f || prob.coat > 0.0f;
+}
+
 // The base's three lobes (f and their share of the mixture pdf), without
 // the layers.
 TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,

@@ -159,6 +159,7 @@ struct PathState {
   uint32_t x, y, sample;
   uint32_t bounce;  // scattering events so far
   float bsdf_pdf;   // pdf of the BSDF sample that made `ray`; 0: camera ray (no MIS)
+  float eta_scale;  // product of eta^2 over the refractions so far (Russian roulette)
   uint32_t flags;   // PathFlags
   uint32_t rays;    // rays traced for this path (closest hit and shadow)
 };
@@ -195,6 +196,7 @@ TANDEM_HD void path_start(const KernelData& kd, uint32_t x, uint32_t y, uint32_t
   p->sample = sample;
   p->bounce = 0;
   p->bsdf_pdf = 0.0f;
+  p->eta_scale = 1.0f;
   p->flags = kPathAlive | ((kd.constants.scene_flags & kSceneHasAlphaTest) ? kPathAlphaKeys : 0u);
   p->rays = 0;
 }
@@ -260,12 +262,18 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   ShadingSetup sh;
   if (!setup_shading(kd, sp, wo, &sh)) return false;
 
-  // Next-event estimation.
+  // Next-event estimation. At a smooth mirror, glass or coat
+  // (bsdf_near_specular) only of punctual and directional lights: MIS would
+  // weigh an area light's sample by about 1e-9 there, so the BSDF sample
+  // that reaches an area light takes the full weight (bsdf_pdf 0 below) and
+  // the light's BSDF evaluation and shadow ray are saved. Unbiased either
+  // way, the noise unchanged.
   bool has_shadow = false;
+  const bool specular = bsdf_near_specular(sh.params, sh.lobes);
   LightSample ls;
   const Vec2 light_uv = bounce_rng_2d(rng, bounce, kBounceLightU);
   if (sample_light(kd, sp.position, bounce_rng_1d(rng, bounce, kBounceLightSelect), light_uv.x,
-                   light_uv.y, &ls)) {
+                   light_uv.y, &ls, specular)) {
     const Vec3 wi_local = to_local(sh.frame, ls.wi);
     if (consistent_side(ls.wi, wi_local, sh.ng)) {
       const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -293,11 +301,17 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   const Vec3 wi = normalize(to_world(sh.frame, bs.wi));
   if (!consistent_side(wi, bs.wi, sh.ng)) return has_shadow;
   p->throughput *= bs.weight;
-  p->bsdf_pdf = bs.pdf;
+  p->bsdf_pdf = specular ? 0.0f : bs.pdf;  // 0: no area-light sample to weigh against
   p->ray = spawn_ray(sp, wi);
 
+  // A refraction scales radiance by eta^2, which the throughput carries as
+  // 1 / eta^2 into glass and undoes on the way out; roulette sees the
+  // throughput without it (pbrt's etaScale), so that a path inside a glass
+  // object is not culled for a factor that leaving it cancels. Cycles'
+  // refraction has no such factor at all. Unbiased for any survival q.
+  if (bs.wi.z < 0.0f) p->eta_scale *= sh.params.eta * sh.params.eta;
   if (bounce + 1 >= ip.rr_start_depth) {
-    const float survive = roulette_survival(p->throughput);
+    const float survive = roulette_survival(p->throughput * p->eta_scale);
     if (survive < 1.0f) {
       if (!(bounce_rng_1d(rng, bounce, kBounceRoulette) < survive)) return has_shadow;
       p->throughput *= 1.0f / survive;
@@ -328,42 +342,13 @@ TANDEM_HD Vec3 path_finish(const KernelData& kd, const PathState& p) {
   return radiance;
 }
 
-// One camera sample of pixel (x, y), the megakernel way: the stages in a
-// loop for one path. The pixel's paths depend only on (x, y, sample, seed):
-// this is what makes images independent of the tile split and of which
-// backend rendered them.
-template <class Tracer>
-TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
-                                   uint32_t y, uint32_t sample, uint32_t* ray_count) {
-  PathState p;
-  path_generate(kd, x, y, sample, &p);
-  while (path_alive(p)) {
-    const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
-    ++p.rays;
-    if (!hit_valid(hit)) {
-      path_shade_miss(kd, &p);
-      break;
-    }
-    ShadowRay shadow{};
-    if (path_shade_hit(kd, hit, &p, &shadow)) {
-      ++p.rays;
-      path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
-    }
-  }
-  *ray_count += p.rays;
-  return path_finish(kd, p);
-}
-
-// render_pixel_sample with the pixel's cache of sample-independent seeds
-// (pixel_rng_cache_reset once per pixel, then any of its samples): the same
-// radiance, for the CPU tile loop that renders a pixel's samples in a row.
-template <class Tracer>
-TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tracer, uint32_t x,
-                                          uint32_t y, uint32_t sample, PixelRngCache* cache,
-                                          uint32_t* ray_count) {
-  PathState p;
-  path_generate_cached(kd, x, y, sample, cache, &p);
-  const CachedPathRng rng{p.rng, cache};
+// The megakernel's loop over the stages for one path whose state
+// path_generate or path_generate_cached set up; `rng` draws p->rng's numbers
+// (p->rng itself, or CachedPathRng over it). One loop for both generators,
+// so the plain and the cached megakernel cannot drift apart.
+template <class Tracer, class Rng>
+TANDEM_HD_INLINE Vec3 render_path(const KernelData& kd, const Tracer& tracer, PathState& p,
+                                  const Rng& rng, uint32_t* ray_count) {
   while (path_alive(p)) {
     const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
     ++p.rays;
@@ -379,6 +364,30 @@ TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tr
   }
   *ray_count += p.rays;
   return path_finish(kd, p);
+}
+
+// One camera sample of pixel (x, y), the megakernel way: the stages in a
+// loop for one path. The pixel's paths depend only on (x, y, sample, seed):
+// this is what makes images independent of the tile split and of which
+// backend rendered them.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                   uint32_t y, uint32_t sample, uint32_t* ray_count) {
+  PathState p;
+  path_generate(kd, x, y, sample, &p);
+  return render_path(kd, tracer, p, p.rng, ray_count);
+}
+
+// render_pixel_sample with the pixel's cache of sample-independent seeds
+// (pixel_rng_cache_reset once per pixel, then any of its samples): the same
+// radiance, for the CPU tile loop that renders a pixel's samples in a row.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tracer, uint32_t x,
+                                          uint32_t y, uint32_t sample, PixelRngCache* cache,
+                                          uint32_t* ray_count) {
+  PathState p;
+  path_generate_cached(kd, x, y, sample, cache, &p);
+  return render_path(kd, tracer, p, CachedPathRng{p.rng, cache}, ray_count);
 }
 
 }  // namespace tandem

@@ -80,13 +80,18 @@ TANDEM_HD bool emits_towards(const KMaterial& m, const SurfacePoint& sp, Vec3 w)
   return (m.flags & kMaterialDoubleSided) || dot(w, sp.front_normal) > 0.0f;
 }
 
+// delta_only: the integrator's smooth mirrors and glass (bsdf_near_specular),
+// where only punctual and directional lights are sampled; an emissive
+// triangle or the environment picked there gives no sample (the BSDF sample
+// that reaches it carries its full weight instead).
 TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, float u1, float u2,
-                            LightSample* out) {
+                            LightSample* out, bool delta_only = false) {
   if (kd.lights_count == 0) return false;
   float pmf;
   const uint32_t index = alias_sample(kd.light_alias, kd.light_alias_count, u_select, &pmf);
   if (!(pmf > 0.0f)) return false;
   const KLight light = kd.lights[index];
+  if (delta_only && (light.type == kLightTriangle || light.type == kLightEnvironment)) return false;
   out->is_delta = false;
   out->at_infinity = false;
 

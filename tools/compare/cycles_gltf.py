@@ -15,20 +15,20 @@
 # what Tandem's BSDF does: single-scattering GGX, no subsurface, sheen or
 # clear coat, F0 = 0.04 for dielectrics. The occlusion texture the importer
 # keeps aside is not used by either renderer. Render settings are those of
-# cycles_cornell.py (unbiased path tracing, box filter, no denoising).
+# cycles_common.py (unbiased path tracing, box filter, no denoising).
 #
 # Prints `CYCLES_RENDER_SECONDS <s>` like cycles_cornell.py.
 import argparse
 import math
 import os
 import sys
-import time
 
 import bpy
 import mathutils
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cycles_cornell import configure_render, strip_long_exr_attributes, to_blender  # noqa: E402
+from cycles_common import configure_render, render_and_save, run_main  # noqa: E402
+from cycles_cornell import to_blender  # noqa: E402
 
 # Tandem's default vertical field of view for a scene without a camera
 # (frame_bounds_camera's caller in app/cmd_render.cpp), in radians.
@@ -255,30 +255,9 @@ def main():
     position, fwd, distance = add_bounds_camera(args.width / args.height)
     add_sky_world(args.sky)
     configure_render(args)
-    c = bpy.context.scene.cycles
-    print(f"CYCLES_SETTINGS {args.width}x{args.height} spp={c.samples} max_bounces={c.max_bounces} "
-          f"threads={bpy.context.scene.render.threads} seed={c.seed} materials={pinned} "
-          f"camera=({position.x:.4f},{position.y:.4f},{position.z:.4f}) distance={distance:.4f} "
-          f"blender={bpy.app.version_string}", flush=True)
-    start = time.perf_counter()
-    bpy.ops.render.render(write_still=False)
-    seconds = time.perf_counter() - start
-    print(f"CYCLES_RENDER_SECONDS {seconds:.3f}", flush=True)
-    result = bpy.data.images["Render Result"]
-    output = bpy.path.abspath(args.output)
-    result.save_render(filepath=output, scene=bpy.context.scene)
-    strip_long_exr_attributes(output)
-    print(f"CYCLES_OUTPUT {args.output}", flush=True)
+    render_and_save(args, f"materials={pinned} camera=({position.x:.4f},{position.y:.4f},{position.z:.4f}) "
+                          f"distance={distance:.4f}")
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except SystemExit as e:
-        sys.stdout.flush()
-        os._exit(e.code if isinstance(e.code, int) else 2)
-    except Exception:
-        import traceback
-        traceback.print_exc()
-        sys.stdout.flush()
-        os._exit(1)
+    run_main(main)

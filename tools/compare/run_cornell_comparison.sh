@@ -61,6 +61,23 @@ out=${OUT_DIR:-$(mktemp -d "${TMPDIR:-/tmp}/tandem-cornell.XXXXXX")}
 
 [[ -x "$tandem" ]] || { echo "error: tandem binary '$tandem' not found (build it or pass its path)" >&2; exit 1; }
 command -v "$blender" >/dev/null || { echo "error: blender ('$blender') not found" >&2; exit 1; }
+if [[ "$variant" == helmet ]]; then
+  # Blender's glTF importer needs numpy in Blender's Python (Debian: the
+  # python3-numpy package): say so now rather than after Tandem's render.
+  "$blender" -b --factory-startup --python-expr \
+    'import os, sys
+try:
+    import numpy
+except ImportError:
+    sys.stdout.flush(); os._exit(3)
+os._exit(0)' >/dev/null 2>&1
+  case $? in
+    0) ;;
+    3) echo "error: VARIANT=helmet needs numpy in Blender's Python for its glTF importer" \
+            "(Debian/Ubuntu: apt-get install python3-numpy)" >&2; exit 1 ;;
+    *) echo "error: blender ('$blender') failed to start" >&2; exit 1 ;;
+  esac
+fi
 mkdir -p "$out"
 tag="${variant}_${width}x${height}_${spp}spp_d${depth}"
 echo "settings: ${width}x${height}, $spp spp, max depth $depth (Cycles max_bounces $((depth - 1))), $threads threads"
