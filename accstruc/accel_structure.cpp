@@ -182,8 +182,19 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
   up.blas_loaded += loaded.load();
 }
 
+namespace {
+// Whether one of the changed ranges holds all of [b, e).
+bool covers(const ArrayChange& c, uint32_t b, uint32_t e) {
+  if (e <= b) return false;
+  bool all = false;
+  c.for_each_range([&](uint32_t lo, uint32_t hi) { all = all || (lo <= b && e <= hi); });
+  return all;
+}
+}  // namespace
+
 std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
-                                                 const std::vector<uint32_t>& meshes) {
+                                                 const std::vector<uint32_t>& meshes,
+                                                 const ArrayChange& positions) {
   std::vector<uint8_t> poor(meshes.size(), 0);
   const bool keep_wide = settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide;
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
@@ -198,11 +209,16 @@ std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
     if (blas_refit_state_[m] == FastRefit::kIndexed) {
       // One pass over the triangles in leaf order, both layouts, straight
       // into the kernel arrays (blas_refit.h).
+      // Every vertex rewritten (a skinned or morphed mesh, whose deformer
+      // writes them all): no record can be left as it was worth reading the
+      // old one to find out, so they are streamed out (blas_refit.h).
       const LayoutBases& b = blas_bases_[m];
+      const uint32_t v0 = ks.meshes[m].vertex_offset;
+      const bool all_moved = covers(positions, v0, v0 + g.vertex_count);
       BlasRefit::Result r =
           blas_refit_[m].refit(l, g, b, ks.bvh_nodes.data() + b.node,
                                keep_wide ? ks.bvh_wide_nodes.data() + b.wide_node : nullptr,
-                               ks.bvh_leaf_triangles.data() + b.prim);
+                               ks.bvh_leaf_triangles.data() + b.prim, all_moved);
       refit_emitted_[m] = 1;
       host_stale_[m] = 1;
       wide_stale_[m] = keep_wide ? 0 : 1;
@@ -488,7 +504,7 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   auto t0 = Clock::now();
   std::vector<uint32_t> poor;
   if (!refit.empty()) {
-    poor = refit_blas(ks, refit);
+    poor = refit_blas(ks, refit, delta.positions);
     if (!poor.empty()) {
       std::vector<uint32_t> kept;
       std::set_difference(refit.begin(), refit.end(), poor.begin(), poor.end(),

@@ -100,7 +100,10 @@ class AccelStructure {
   // Refits the meshes' BLAS; returns those (ascending) to rebuild instead.
   // Meshes BlasRefit handles are written into ks's BVH arrays too (their
   // spans in refit_spans_); the others are left to emit_refit_nodes().
-  std::vector<uint32_t> refit_blas(KernelScene& ks, const std::vector<uint32_t>& meshes);
+  // `positions`: the vertices the compiler rewrote (SceneDelta::positions);
+  // a mesh it covers whole has its leaf records written without a compare.
+  std::vector<uint32_t> refit_blas(KernelScene& ks, const std::vector<uint32_t>& meshes,
+                                   const ArrayChange& positions);
   void layout_arrays(KernelScene& ks, AccelUpdate& up);
   // Brings a BLAS's host copy up to date from `ks`'s arrays if a refit
   // left it stale.

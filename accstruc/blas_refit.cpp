@@ -26,6 +26,11 @@ constexpr uint32_t kSlotKind = 3u << 30, kSlotIndex = ~kSlotKind;
 constexpr uint32_t kTaskNodes = 4096;
 // The boxes of a node (c0_xy, c1_xy, c01_z): the only bytes a refit changes.
 constexpr size_t kBinaryBoxBytes = 3 * sizeof(Vec4);
+// Nodes the sweep prefetches ahead (a node's work is a few dozen ns).
+constexpr uint32_t kNodesAhead = 12;
+// Words per leaf entry in leaf_tris_: the three vertex indices and the
+// triangle's index (what its record holds in p0.w), one aligned 16 bytes.
+constexpr size_t kEntryWords = 4;
 
 uint32_t wide_leaf_count(uint32_t meta) {
   const uint32_t unary = meta >> 5;
@@ -74,7 +79,94 @@ inline bool update_leaf_record(KLeafTriangle& r, const Vec3& a, const Vec3& b, c
   _mm_store_ps(f + 8, n2);
   return true;
 }
+// update_leaf_record() from the vertices' 16-byte loads (w: whatever
+// follows the vertex), in registers.
+inline bool update_leaf_record4(KLeafTriangle& r, __m128 a, __m128 b, __m128 c) {
+  float* f = &r.p0.x;
+  const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+  const __m128 o0 = _mm_load_ps(f), o1 = _mm_load_ps(f + 4), o2 = _mm_load_ps(f + 8);
+  const __m128 n0 = _mm_or_ps(_mm_and_ps(xyz, a), _mm_andnot_ps(xyz, o0));
+  const __m128 n1 = _mm_or_ps(_mm_and_ps(xyz, b), _mm_andnot_ps(xyz, o1));
+  const __m128 n2 = _mm_or_ps(_mm_and_ps(xyz, c), _mm_andnot_ps(xyz, o2));
+  const __m128i same =
+      _mm_and_si128(_mm_and_si128(_mm_cmpeq_epi32(_mm_castps_si128(n0), _mm_castps_si128(o0)),
+                                  _mm_cmpeq_epi32(_mm_castps_si128(n1), _mm_castps_si128(o1))),
+                    _mm_cmpeq_epi32(_mm_castps_si128(n2), _mm_castps_si128(o2)));
+  if (_mm_movemask_epi8(same) == 0xffff) return false;
+  _mm_store_ps(f, n0);
+  _mm_store_ps(f + 4, n1);
+  _mm_store_ps(f + 8, n2);
+  return true;
+}
+// A triangle's box as two registers (xyz, w unused), the same unions as
+// Aabb::grow() lane by lane (min_f / max_f are minps / maxps with the same
+// operand order): bit for bit triangle_box()'s.
+struct alignas(16) Box4 {
+  __m128 lo, hi;
+};
+inline __m128 empty_lo() {
+  return _mm_set1_ps(kFloatMax);
+}
+inline __m128 empty_hi() {
+  return _mm_set1_ps(-kFloatMax);
+}
+// The triangle's box from three 16-byte vertex loads (xyz + the next
+// float); false where a coordinate is not finite or beyond kMaxCoordinate.
+inline bool triangle_box4(__m128 a, __m128 b, __m128 c, Box4& out) {
+  out.lo = _mm_min_ps(_mm_min_ps(_mm_min_ps(empty_lo(), a), b), c);
+  out.hi = _mm_max_ps(_mm_max_ps(_mm_max_ps(empty_hi(), a), b), c);
+  const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)), m = _mm_set1_ps(kMaxCoordinate);
+  const __m128 ok = _mm_and_ps(
+      _mm_and_ps(_mm_cmple_ps(_mm_and_ps(a, abs), m), _mm_cmple_ps(_mm_and_ps(b, abs), m)),
+      _mm_cmple_ps(_mm_and_ps(c, abs), m));
+  return (_mm_movemask_ps(ok) & 7) == 7;
+}
+inline Aabb to_aabb(const Box4& b) {
+  alignas(16) float lo[4], hi[4];
+  _mm_store_ps(lo, b.lo);
+  _mm_store_ps(hi, b.hi);
+  return Aabb{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+}
+inline Box4 to_box4(const Aabb& b) {
+  return {_mm_setr_ps(b.lo.x, b.lo.y, b.lo.z, 0.0f), _mm_setr_ps(b.hi.x, b.hi.y, b.hi.z, 0.0f)};
+}
+// A child's box in a binary node's form: xy = (lo.x, hi.x, lo.y, hi.y), z =
+// (lo.z, hi.z) in lanes 0 and 1.
+struct NodeBox {
+  __m128 xy, z;
+};
+inline NodeBox node_box(const Box4& b) {
+  return {_mm_unpacklo_ps(b.lo, b.hi), _mm_unpackhi_ps(b.lo, b.hi)};
+}
+// The union of both child boxes of `n` (binary_child_box(n, 0) grown by
+// binary_child_box(n, 1)): lo lanes min, hi lanes max.
+inline NodeBox node_union(const KBvhNode& n) {
+  const __m128 c0 = _mm_load_ps(&n.c0_xy.x), c1 = _mm_load_ps(&n.c1_xy.x);
+  const __m128 z = _mm_load_ps(&n.c01_z.x);
+  const __m128 zs = _mm_shuffle_ps(z, z, _MM_SHUFFLE(1, 0, 3, 2));
+  const __m128 lo_lanes = _mm_castsi128_ps(_mm_setr_epi32(-1, 0, -1, 0));
+  const __m128 xy = _mm_or_ps(_mm_and_ps(lo_lanes, _mm_min_ps(c0, c1)),
+                              _mm_andnot_ps(lo_lanes, _mm_max_ps(c0, c1)));
+  const __m128 zz = _mm_or_ps(_mm_and_ps(lo_lanes, _mm_min_ps(z, zs)),
+                              _mm_andnot_ps(lo_lanes, _mm_max_ps(z, zs)));
+  return {xy, zz};
+}
+// Aabb::half_area() of a box in node form, in the same operations.
+inline float node_box_half_area(const NodeBox& b) {
+  alignas(16) float xy[4], z[4];
+  _mm_store_ps(xy, b.xy);
+  _mm_store_ps(z, b.z);
+  return Aabb{{xy[0], xy[2], z[0]}, {xy[1], xy[3], z[1]}}.half_area();
+}
+using TaskBox = Box4;
+inline Aabb as_aabb(const Box4& b) {
+  return to_aabb(b);
+}
 #else
+using TaskBox = Aabb;
+inline const Aabb& as_aabb(const Aabb& b) {
+  return b;
+}
 inline bool update_leaf_record(KLeafTriangle& r, const Vec3& a, const Vec3& b, const Vec3& c) {
   KLeafTriangle n = r;
   n.p0.x = a.x;
@@ -115,7 +207,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
   }
   // Leaf entries: each triangle once, with vertices in range.
   std::vector<uint32_t> pos(g.triangle_count, kNone);  // triangle -> leaf entry
-  leaf_tris_.resize(size_t(3) * prims);
+  leaf_tris_.resize(size_t(kEntryWords) * prims);
   for (uint32_t e = 0; e < prims; ++e) {
     const uint32_t t = l.prims[e];
     if (t >= g.triangle_count || pos[t] != kNone) return false;
@@ -123,9 +215,10 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
     const KTriangle& tri = g.triangles[t];
     if (tri.v0 >= g.vertex_count || tri.v1 >= g.vertex_count || tri.v2 >= g.vertex_count)
       return false;
-    leaf_tris_[3 * size_t(e)] = tri.v0;
-    leaf_tris_[3 * size_t(e) + 1] = tri.v1;
-    leaf_tris_[3 * size_t(e) + 2] = tri.v2;
+    leaf_tris_[kEntryWords * size_t(e)] = tri.v0;
+    leaf_tris_[kEntryWords * size_t(e) + 1] = tri.v1;
+    leaf_tris_[kEntryWords * size_t(e) + 2] = tri.v2;
+    leaf_tris_[kEntryWords * size_t(e) + 3] = t;  // the record's p0.w
   }
   for (uint32_t t = 0; t < g.triangle_count; ++t) {
     if (pos[t] == kNone) non_members_.push_back(t);
@@ -296,7 +389,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
 
 BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const LayoutBases& bases,
                                    KBvhNode* nodes, KWideBvhNode* wide_nodes,
-                                   KLeafTriangle* leaf_triangles) const {
+                                   KLeafTriangle* leaf_triangles, bool overwrite_records) const {
   Result result;
   if (!indexed_ || g.vertex_count != vertex_count_ || g.triangle_count != triangle_count_) {
     result.members_changed = true;
@@ -313,7 +406,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // The triangle boxes of the leaf entries [lo, hi) of the task being
   // swept, from its leaf pass; boxes == null outside a task.
   struct TaskBoxes {
-    const Aabb* boxes = nullptr;
+    const TaskBox* boxes = nullptr;
     uint32_t lo = 0, hi = 0;
   };
   const auto leaf_box = [&](uint32_t first, uint32_t count, const TaskBoxes& tb, Out& o) {
@@ -321,12 +414,12 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     if (tb.boxes != nullptr && first >= tb.lo && first + count <= tb.hi) {
       // Invalid triangles were flagged (and left empty) by the leaf pass.
       for (uint32_t e = first; e < first + count; ++e)
-        box.grow(tb.boxes[e - tb.lo]);
+        box.grow(as_aabb(tb.boxes[e - tb.lo]));
       return box;
     }
     for (uint32_t e = first; e < first + count; ++e) {
       Aabb t;
-      if (triangle_box(positions, tris + 3 * size_t(e), t)) {
+      if (triangle_box(positions, tris + kEntryWords * size_t(e), t)) {
         box.grow(t);
       } else {
         o.invalid = true;
@@ -339,7 +432,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   const auto leaf_box_and_records = [&](uint32_t first, uint32_t count, Out& o) {
     Aabb box;
     for (uint32_t e = first; e < first + count; ++e) {
-      const uint32_t* v = tris + 3 * size_t(e);
+      const uint32_t* v = tris + kEntryWords * size_t(e);
       const Vec3 a = positions[v[0]], b = positions[v[1]], c = positions[v[2]];
       Aabb t;
       if (triangle_box(a, b, c, t)) {
@@ -360,16 +453,69 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // the nodes backwards and would meet the leaves in reverse, out of the
   // reach of the hardware prefetcher, with every vertex load a cache miss
   // waited for; here the vertices a few triangles ahead are prefetched.
-  const auto leaf_pass = [&](const Task& task, Aabb* out, Out& o) {
-    constexpr uint32_t kAhead = 16;  // triangles: a few hundred ns of work
+  const auto leaf_pass = [&](const Task& task, TaskBox* out, Out& o) {
+    constexpr uint32_t kAhead = 32;  // triangles: a few hundred ns of work
+#if defined(__SSE2__)
+    // The vertex indices themselves (a stream the vertex prefetches above
+    // wait on): a few cache lines further ahead.
+    constexpr uint32_t kIndicesAhead = 4 * kAhead;
+    // In registers: the vertices' 16-byte loads (positions have a readable
+    // element past the last vertex) give the box and the record's xyz.
+    const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+    const float* pf = &positions[0].x;
+    bool changed = false;
     for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
       if (e + kAhead < task.leaf_hi) {
-        const uint32_t* f = tris + 3 * size_t(e + kAhead);
+        const uint32_t* f = tris + kEntryWords * size_t(e + kAhead);
+        __builtin_prefetch(positions + f[0]);
+        __builtin_prefetch(positions + f[1]);
+        __builtin_prefetch(positions + f[2]);
+        if ((e & 3u) == 0 && e + kIndicesAhead < task.leaf_hi)
+          __builtin_prefetch(tris + kEntryWords * size_t(e + kIndicesAhead));
+      }
+      const __m128i v =
+          _mm_load_si128(reinterpret_cast<const __m128i*>(tris + kEntryWords * size_t(e)));
+      const uint32_t i0 = uint32_t(_mm_cvtsi128_si32(v));
+      const uint32_t i1 = uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(v, 0x55)));
+      const uint32_t i2 = uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(v, 0xaa)));
+      const __m128 a = _mm_loadu_ps(pf + 3 * size_t(i0)), b = _mm_loadu_ps(pf + 3 * size_t(i1)),
+                   c = _mm_loadu_ps(pf + 3 * size_t(i2));
+      Box4& t = out[e - task.leaf_lo];
+      if (!triangle_box4(a, b, c, t)) {
+        o.invalid = true;
+        t = {empty_lo(), empty_hi()};  // leaves the union as it is, like a skipped triangle
+      }
+      if (leaf_triangles == nullptr) continue;
+      float* r = &leaf_triangles[e].p0.x;
+      if (overwrite_records) {
+        // Every vertex of the mesh moved: the record is written without
+        // reading the old one, past the caches (no read for ownership), 96
+        // of the 192 MB a frame of a million-vertex mesh's records moved.
+        const __m128 w0 = _mm_andnot_ps(xyz, _mm_castsi128_ps(v));  // the triangle's index
+        _mm_stream_ps(r, _mm_or_ps(_mm_and_ps(xyz, a), w0));
+        _mm_stream_ps(r + 4, _mm_and_ps(xyz, b));
+        _mm_stream_ps(r + 8, _mm_and_ps(xyz, c));
+        changed = true;
+      } else if (update_leaf_record4(leaf_triangles[e], a, b, c)) {
+        o.leaf_lo = std::min(o.leaf_lo, e);
+        o.leaf_hi = std::max(o.leaf_hi, e + 1);
+      }
+    }
+    if (changed) {
+      _mm_sfence();
+      o.leaf_lo = std::min(o.leaf_lo, task.leaf_lo);
+      o.leaf_hi = std::max(o.leaf_hi, task.leaf_hi);
+    }
+#else
+    (void)overwrite_records;
+    for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
+      if (e + kAhead < task.leaf_hi) {
+        const uint32_t* f = tris + kEntryWords * size_t(e + kAhead);
         __builtin_prefetch(positions + f[0]);
         __builtin_prefetch(positions + f[1]);
         __builtin_prefetch(positions + f[2]);
       }
-      const uint32_t* v = tris + 3 * size_t(e);
+      const uint32_t* v = tris + kEntryWords * size_t(e);
       const Vec3 a = positions[v[0]], b = positions[v[1]], c = positions[v[2]];
       Aabb t;
       if (!triangle_box(a, b, c, t)) {
@@ -382,9 +528,54 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
         o.leaf_hi = std::max(o.leaf_hi, e + 1);
       }
     }
+#endif
   };
 
   // Child references in the kernel arrays include the bases.
+#if defined(__SSE2__)
+  // refit_node() inside a task, in registers: the same unions (lane by lane
+  // minps / maxps in Aabb::grow()'s operand order), area and compare.
+  const auto refit_node_sse = [&](uint32_t i, const TaskBoxes& tb, Out& o) {
+    KBvhNode& node = nodes[i];
+    NodeBox box[2];
+    for (uint32_t c = 0; c < 2; ++c) {
+      const uint32_t ref = node.child[c];
+      if (ref & kBvhLeafFlag) {
+        const uint32_t first = (ref & ~kBvhLeafFlag) - bases.prim, count = node.count[c];
+        if (first >= tb.lo && first + count <= tb.hi) {
+          Box4 u{empty_lo(), empty_hi()};
+          for (const Box4* b = tb.boxes + (first - tb.lo); b < tb.boxes + (first - tb.lo) + count;
+               ++b) {
+            u.lo = _mm_min_ps(u.lo, b->lo);
+            u.hi = _mm_max_ps(u.hi, b->hi);
+          }
+          box[c] = node_box(u);
+        } else {
+          box[c] = node_box(to_box4(leaf_box(first, count, tb, o)));
+        }
+      } else {
+        // Refit before its parent (larger index), so exact already.
+        box[c] = node_union(nodes[ref - bases.node]);
+      }
+    }
+    o.area += double(node_box_half_area(box[0])) + double(node_box_half_area(box[1]));
+    float* f = &node.c0_xy.x;
+    const __m128 z = _mm_movelh_ps(box[0].z, box[1].z);
+    const __m128i same = _mm_and_si128(
+        _mm_and_si128(_mm_cmpeq_epi32(_mm_castps_si128(box[0].xy),
+                                      _mm_load_si128(reinterpret_cast<const __m128i*>(f))),
+                      _mm_cmpeq_epi32(_mm_castps_si128(box[1].xy),
+                                      _mm_load_si128(reinterpret_cast<const __m128i*>(f + 4)))),
+        _mm_cmpeq_epi32(_mm_castps_si128(z),
+                        _mm_load_si128(reinterpret_cast<const __m128i*>(f + 8))));
+    if (_mm_movemask_epi8(same) == 0xffff) return;
+    _mm_store_ps(f, box[0].xy);
+    _mm_store_ps(f + 4, box[1].xy);
+    _mm_store_ps(f + 8, z);
+    o.lo = std::min(o.lo, i);
+    o.hi = std::max(o.hi, i + 1);
+  };
+#endif
   const auto refit_node = [&](uint32_t i, const TaskBoxes& tb, Out& o) {
     KBvhNode& node = nodes[i];
     Aabb box[2];
@@ -446,14 +637,22 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     Out o;
     // Per worker thread, reused: a task's boxes stay in its core's L2
     // between the two passes (a few hundred KB at most).
-    static thread_local std::vector<Aabb> task_boxes;
+    static thread_local std::vector<TaskBox> task_boxes;
     if (task_boxes.size() < task.leaf_hi - task.leaf_lo)
       task_boxes.resize(task.leaf_hi - task.leaf_lo);
     leaf_pass(task, task_boxes.data(), o);
     const TaskBoxes tb{task_boxes.data(), task.leaf_lo, task.leaf_hi};
     uint32_t next = task.wide_lo;
     for (uint32_t i = task.hi; i-- > task.lo;) {
+      // The sweep walks the nodes backwards, which the hardware prefetcher
+      // follows poorly: a quarter of the refit's samples waited on the
+      // node's first load.
+      if (i >= task.lo + kNodesAhead) __builtin_prefetch(nodes + (i - kNodesAhead), 1);
+#if defined(__SSE2__)
+      refit_node_sse(i, tb, o);
+#else
       refit_node(i, tb, o);
+#endif
       if (!wide_nodes) continue;
       for (; next < task.wide_hi && anchored_[next].anchor >= i; ++next)
         requantize(anchored_[next].wide, tb, o);

@@ -72,8 +72,13 @@ class BlasRefit {
   // later refit with it, even of an unchanged mesh, brings it up to date). Updates l.bounds, and
   // only that of `l`: the host copy of the nodes goes stale (copy_boxes_to_host()). mesh.positions
   // must have one readable element past the last vertex (KernelScene's positions do).
+  // overwrite_records: the caller knows every vertex moved (its delta holds
+  // the mesh's whole vertex range), so the records are written without
+  // reading the old ones (streaming stores) and each task's whole leaf range
+  // is reported; otherwise only the records that changed, bit for bit.
   Result refit(BvhLayouts& l, const MeshGeometry& mesh, const LayoutBases& bases, KBvhNode* nodes,
-               KWideBvhNode* wide_nodes, KLeafTriangle* leaf_triangles) const;
+               KWideBvhNode* wide_nodes, KLeafTriangle* leaf_triangles,
+               bool overwrite_records = false) const;
 
   // Copies the boxes (binary: c0_xy, c1_xy, c01_z; wide: origin, exponents,
   // quantised planes) of the kernel arrays' copy of `l` (pointers as for

@@ -61,9 +61,11 @@ struct Blas {
     }
     return r;
   }
-  BlasRefit::Result refit_with(const BlasRefit& refit, bool records = true) {
+  BlasRefit::Result refit_with(const BlasRefit& refit, bool records = true,
+                               bool overwrite = false) {
     return refit.refit(layouts, geometry(), bases, nodes.data() + bases.node,
-                       wide.data() + bases.wide_node, records ? leaf.data() + bases.prim : nullptr);
+                       wide.data() + bases.wide_node, records ? leaf.data() + bases.prim : nullptr,
+                       overwrite);
   }
   void sync_host() {
     BlasRefit::copy_boxes_to_host(layouts, nodes.data() + bases.node,
@@ -179,6 +181,44 @@ TEST(BlasRefit, EqualsTheGeneralRefitFrameAfterFrame) {
   EXPECT_EQ(again.spans.nodes.end, 0u);
   EXPECT_EQ(again.spans.wide_nodes.end, 0u);
   EXPECT_TRUE(again.leaf_spans.empty());
+}
+
+TEST(BlasRefit, OverwrittenRecordsAreTheComparedOnesAndAllReported) {
+  // Every vertex moved (AccelStructure's case when the delta holds the
+  // mesh's whole vertex range): the streamed records, boxes and node spans
+  // are those of the compared refit, and the spans cover every record.
+  WaveGrid g{.cells = 180, .size = 6.0f, .amplitude = 0.1f, .wavelength = 1.3f};
+  Mesh mesh = make_wave_grid(g);
+  Blas compared(mesh), streamed(mesh);
+  BlasRefit refit;
+  ASSERT_TRUE(refit.index(streamed.layouts, streamed.geometry()));
+  for (uint32_t frame = 1; frame <= 4; ++frame) {
+    g.amplitude = 0.1f + 0.3f * float(frame);
+    deform_wave_grid(mesh, g, 0.1f * float(frame));
+    compared.set(mesh);
+    streamed.set(mesh);
+    const BlasRefit::Result a = compared.refit_with(refit);
+    const BlasRefit::Result b = streamed.refit_with(refit, true, true);
+    compared.sync_host();
+    streamed.sync_host();
+    EXPECT_FALSE(b.members_changed) << "frame " << frame;
+    EXPECT_EQ(a.quality, b.quality) << "frame " << frame;
+    EXPECT_EQ(a.spans.nodes.begin, b.spans.nodes.begin) << "frame " << frame;
+    EXPECT_EQ(a.spans.nodes.end, b.spans.nodes.end) << "frame " << frame;
+    expect_same_arrays(compared, streamed, "frame");
+    const std::vector<KLeafTriangle> records = streamed.expected_leaf_records();
+    ASSERT_EQ(
+        std::memcmp(records.data(), streamed.leaf.data(), records.size() * sizeof(KLeafTriangle)),
+        0)
+        << "frame " << frame;
+    std::vector<uint8_t> reported(streamed.layouts.prims.size(), 0);
+    for (const NodeSpan& span : b.leaf_spans) {
+      for (uint32_t e = span.begin; e < span.end; ++e)
+        reported[e] = 1;
+    }
+    for (size_t e = 0; e < reported.size(); ++e)
+      ASSERT_TRUE(reported[e]) << "frame " << frame << ", record " << e;
+  }
 }
 
 TEST(BlasRefit, SmallTreesAndSplitLeavesToo) {

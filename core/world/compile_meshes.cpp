@@ -5,6 +5,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <vector>
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
@@ -82,6 +84,37 @@ void convert_range(std::vector<Out>& out, const std::vector<In>& in, uint32_t ba
     dst[v] = convert(in[v]);
 }
 
+// convert_range() of the positions fused with vertex_bounds() over them:
+// one pass, the box in registers (a second pass over a block the copy had
+// just read cost as much as the copy). The same comparisons in the same
+// order as vertex_bounds(), so the same box.
+SceneBounds copy_positions_with_bounds(Vec3* dst, const glm::vec3* in, uint32_t begin, uint32_t end,
+                                       bool* all_finite) {
+  const float inf = std::numeric_limits<float>::infinity();
+  float lx = inf, ly = inf, lz = inf, hx = -inf, hy = -inf, hz = -inf;
+  bool ok = true;
+  for (uint32_t v = begin; v < end; ++v) {
+    const float x = in[v].x, y = in[v].y, z = in[v].z;
+    dst[v] = {x, y, z};
+    // glm::min(lo, p) is (p < lo ? p : lo), glm::max(hi, p) (hi < p ? p : hi).
+    lx = x < lx ? x : lx;
+    ly = y < ly ? y : ly;
+    lz = z < lz ? z : lz;
+    hx = hx < x ? x : hx;
+    hy = hy < y ? y : hy;
+    hz = hz < z ? z : hz;
+    ok &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z);
+  }
+  *all_finite = ok;
+  SceneBounds b;
+  if (end <= begin) return b;
+  // positive_zeros(), as vertex_bounds() returns it.
+  b.lo = glm::vec3(lx, ly, lz) + glm::vec3(0.0f);
+  b.hi = glm::vec3(hx, hy, hz) + glm::vec3(0.0f);
+  b.empty = false;
+  return b;
+}
+
 }  // namespace
 
 bool SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out,
@@ -89,8 +122,8 @@ bool SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
   const uint32_t base = out.meshes[mesh_index].vertex_offset;
   // One attribute at a time over a block: straight copies the compiler can
   // vectorise, instead of a branch per attribute per vertex.
-  auto block = [&](uint32_t b, uint32_t e) {
-    convert_range(out.positions, mesh.positions, base, b, e, to_vec3);
+  auto block = [&](uint32_t b, uint32_t e, bool positions = true) {
+    if (positions) convert_range(out.positions, mesh.positions, base, b, e, to_vec3);
     convert_range(out.normals, mesh.normals, base, b, e, to_vec3);
     convert_range(out.tangents, mesh.tangents, base, b, e, [](const glm::vec4& t) {
       return Vec4{t.x, t.y, t.z, t.w};
@@ -106,8 +139,14 @@ bool SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
     bool finite = true;
   };
   auto block_box = [&](uint32_t b, uint32_t e) {
-    block(b, e);
     Box r;
+    if (box != nullptr && e > b && e <= mesh.positions.size() && !out.positions.empty()) {
+      r.b = copy_positions_with_bounds(out.positions.data() + base, mesh.positions.data(), b, e,
+                                       &r.finite);
+      block(b, e, /*positions=*/false);
+      return r;
+    }
+    block(b, e);
     if (box != nullptr && e > b && e <= mesh.positions.size())
       r.b = vertex_bounds(mesh.positions.data() + b, e - b, &r.finite);
     return r;
