@@ -50,7 +50,7 @@ const std::vector<OptionSpec>& denoise_bench_options() {
        "DIR"},
       {"max-history", true, "frames the colour history averages at most (default 12)", "N"},
       {"kernel-radius", true, "a-trous taps: 1 = 3x3, 2 = 5x5 (default 1)", "R"},
-      {"iterations", true, "a-trous iterations (default 5)", "N"},
+      {"iterations", true, "a-trous iterations (default 4)", "N"},
       {"sigma-luminance", true, "luminance edge stop in standard deviations (default 4)", "S"},
       {"firefly-sigma", true,
        "clamp a sample above the history mean plus S standard deviations (default 3; 0: off)", "S"},
