@@ -13,6 +13,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "app/bench_mode.h"
 #include "app/bench_report.h"
@@ -47,10 +50,14 @@ const std::vector<OptionSpec>& denoise_bench_options() {
        "DIR"},
       {"max-history", true, "frames the colour history averages at most (default 12)", "N"},
       {"kernel-radius", true, "a-trous taps: 1 = 3x3, 2 = 5x5 (default 1)", "R"},
-      {"iterations", true, "a-trous iterations (default 5)", "N"},
+      {"iterations", true, "a-trous iterations (default 4)", "N"},
       {"sigma-luminance", true, "luminance edge stop in standard deviations (default 4)", "S"},
       {"firefly-sigma", true,
        "clamp a sample above the history mean plus S standard deviations (default 3; 0: off)", "S"},
+      {"repeat", true,
+       "at the measured frames, time this many 1-spp renders and filter runs on the same inputs "
+       "and report the median (default 5)",
+       "N"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"images", true,
        "write PNGs of each measured frame, 2x2 at half resolution (raw 1 spp, raw 8 spp / "
@@ -65,6 +72,19 @@ const std::vector<OptionSpec>& denoise_bench_options() {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+JsonValue json_list(const std::vector<double>& v) {
+  JsonValue a = JsonValue::array();
+  for (double d : v)
+    a.push(d);
+  return a;
 }
 
 // Half-resolution copies of four images in a 2x2 grid (so the PNG is the
@@ -88,6 +108,20 @@ void write_grid(const std::filesystem::path& path, const std::vector<const Image
   write_png_rgb8(path, out.width, out.height, tone_map_to_srgb8(out, 0.0f, ToneMap::kStandard));
 }
 
+// One frame's filter input for a replay: width, height (uint32), then the
+// feature records and the radiance (3 floats a pixel), raw.
+void dump_frame(const std::string& dir, uint32_t f, const std::vector<PixelFeatures>& features,
+                const ImageRGB& radiance) {
+  const std::string path = dir + "/frame_" + std::to_string(f) + ".bin";
+  std::FILE* out = std::fopen(path.c_str(), "wb");
+  if (!out) throw std::runtime_error("bench: cannot write " + path);
+  const uint32_t wh[2] = {radiance.width, radiance.height};
+  std::fwrite(wh, sizeof wh, 1, out);
+  std::fwrite(features.data(), sizeof(PixelFeatures), features.size(), out);
+  std::fwrite(radiance.rgb.data(), sizeof(float), radiance.rgb.size(), out);
+  std::fclose(out);
+}
+
 }  // namespace
 
 bool is_denoise_quality_bench(const std::vector<std::string>& args) {
@@ -108,6 +142,15 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   settings.max_depth = args.get_u32("max-depth", 4, 1, 1024);
   const uint32_t frames = args.get_u32("path-frames", 60, 4, 1u << 20);
   const uint32_t ref_spp = args.get_u32("reference-spp", 1024, 8, 1u << 20);
+  const uint32_t repeat = args.get_u32("repeat", 5, 1, 1000);
+  // For profiling the filter alone (docs/performance/denoiser.md, "Round
+  // 7"): TANDEM_DENOISE_DUMP=DIR writes the features and 1-spp radiance of
+  // the first TANDEM_DENOISE_DUMP_FRAMES frames (default 8) to DIR.
+  std::optional<std::string> dump_dir;
+  if (const char* d = std::getenv("TANDEM_DENOISE_DUMP")) dump_dir = d;
+  uint32_t dump_frames = 8;
+  if (const char* n = std::getenv("TANDEM_DENOISE_DUMP_FRAMES"))
+    dump_frames = uint32_t(std::atoi(n));
   const std::optional<std::string> json_path = checked_json_path(args);
   const std::optional<std::string> images = args.value("images");
   if (images) check_aov_directory(*images);
@@ -158,21 +201,42 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
     const double t = double(f) * kScriptedFrameStep;
     if (arena) arena->advance_to(t, scene);
     scene.edit_camera() = scripted_camera(base, t);
-    const auto render_start = Clock::now();
-    const ImageRGB raw1 = render(f, 1);
-    const double render_ms = ms_since(render_start);
+    const bool is_measured =
+        std::find(std::begin(measured), std::end(measured), f) != std::end(measured);
+    // At a measured frame the 1-spp render (same seed: the same image) and
+    // the filter run `repeat` times on the same inputs, and the medians are
+    // reported: single runs vary by 20% and more on a loaded machine. The
+    // filter's extra runs go to copies of the denoiser (its history as it
+    // was before this frame); the last run is the denoiser's own, which
+    // carries the history on.
+    const uint32_t runs = is_measured ? repeat : 1;
+    std::vector<double> render_samples, filter_samples;
+    ImageRGB raw1;
+    for (uint32_t r = 0; r < runs; ++r) {
+      const auto render_start = Clock::now();
+      raw1 = render(f, 1);
+      render_samples.push_back(ms_since(render_start));
+    }
+    const double render_ms = median(render_samples);
     const auto feature_start = Clock::now();
     features.resize(size_t(w) * h);
     backend.render_features(motion.advance(ks.view()), features.data());
     const double feature_ms = ms_since(feature_start);
+    for (uint32_t r = 0; r + 1 < runs; ++r) {
+      TemporalDenoiser trial = denoiser;
+      (void)trial.process(features, raw1);
+      filter_samples.push_back(trial.last_seconds().total() * 1e3);
+    }
+    if (dump_dir && f < dump_frames) dump_frame(*dump_dir, f, features, raw1);
     const ImageRGB denoised = denoiser.process(features, raw1);
-    const double filter_ms = denoiser.last_seconds().total() * 1e3;
+    filter_samples.push_back(denoiser.last_seconds().total() * 1e3);
+    const double filter_ms = median(filter_samples);
     if (std::getenv("TANDEM_DENOISE_STAGES")) {
       const SvgfStageSeconds& st = denoiser.last_seconds();
       std::fprintf(stderr, "frame %u: temporal %.2f variance %.2f atrous %.2f modulate %.2f ms\n",
                    f, st.temporal * 1e3, st.variance * 1e3, st.atrous * 1e3, st.modulate * 1e3);
     }
-    if (std::find(std::begin(measured), std::end(measured), f) == std::end(measured)) continue;
+    if (!is_measured) continue;
     // The same frozen frame: 8 spp and the reference, with seeds of their own.
     const ImageRGB raw8 = render(0x10000000u + f, 8);
     ImageRGB ref;
@@ -210,6 +274,8 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
                   .set("filter_ms", filter_ms)
                   .set("feature_ms", feature_ms)
                   .set("render_1spp_ms", render_ms)
+                  .set("filter_ms_samples", json_list(filter_samples))
+                  .set("render_1spp_ms_samples", json_list(render_samples))
                   .set("filter_over_render_1spp", filter_ms / render_ms)
                   .set("reference_spp", ref_spp));
     if (images) {
