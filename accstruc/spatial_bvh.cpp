@@ -35,6 +35,8 @@ struct Ref {
 constexpr uint32_t kObjectBins = 16;
 constexpr uint32_t kSpatialBins = 16;
 constexpr uint32_t kParallelRefs = 4096;
+// Meshes with fewer triangles are built by build_bvh().
+constexpr size_t kMinSpatialTriangles = 1024;
 
 float lo_of(const Aabb& b, int a) {
   return a == 0 ? b.lo.x : (a == 1 ? b.lo.y : b.lo.z);
@@ -246,6 +248,38 @@ class SpatialBuilder {
     sweep(bin_box, count, count, k, parent, f);
   }
 
+  // The boxes of the triangle's pieces in bins b0..b1 (within ref), grown
+  // into bin_box: every vertex goes to its bin, every crossing of an edge
+  // with an inner plane to the bins on both sides. For the cost estimate
+  // only (no padding; the split itself clips with clip_triangle).
+  static void bin_pieces(const Vec3 t[3], const Aabb& ref, int a, const float* planes, float lo,
+                         float scale, uint32_t b0, uint32_t b1, Aabb* bin_box) {
+    Aabb piece[kSpatialBins];
+    for (int i = 0; i < 3; ++i) {
+      const uint32_t b = std::clamp(bin_of(component(t[i], a), lo, scale, kSpatialBins), b0, b1);
+      piece[b].grow(t[i]);
+      Vec3 p = t[i], q = t[(i + 1) % 3];
+      float pa = component(p, a), qa = component(q, a);
+      if (pa > qa) {
+        std::swap(p, q);
+        std::swap(pa, qa);
+      }
+      for (uint32_t j = b0 + 1; j <= b1; ++j) {
+        const float plane = planes[j];
+        if (!(pa < plane && plane < qa)) continue;
+        const Vec3 x = p + (q - p) * ((plane - pa) / (qa - pa));
+        piece[j - 1].grow(x);
+        piece[j].grow(x);
+      }
+    }
+    for (uint32_t b = b0; b <= b1; ++b) {
+      Aabb c = intersect(piece[b], ref);
+      set_lo(c, a, std::max(lo_of(c, a), planes[b]));
+      set_hi(c, a, std::min(hi_of(c, a), planes[b + 1]));
+      if (!c.empty()) bin_box[b].grow(c);
+    }
+  }
+
   SpatialSplit find_spatial_split(const std::vector<Ref>& refs, const Aabb& box) const {
     SpatialSplit best;
     const uint32_t k = kSpatialBins;
@@ -271,10 +305,7 @@ class SpatialBuilder {
         }
         Vec3 t[3];
         triangle(r.id, t);
-        for (uint32_t b = b0; b <= b1; ++b) {
-          const Aabb c = clip_triangle(t, r.box, a, planes[b], planes[b + 1]);
-          if (!c.empty()) bin_box[b].grow(c);
-        }
+        bin_pieces(t, r.box, a, planes, lo, scale, b0, b1, bin_box);
       }
       sweep(bin_box, enter, leave, k, box.half_area(),
             [&](uint32_t i, double cost, const Aabb&, const Aabb&) {
@@ -472,6 +503,11 @@ class SpatialBuilder {
 
 BuildTree build_bvh_spatial(std::span<const Aabb> boxes, std::span<const Vec3> positions,
                             std::span<const KTriangle> triangles, const BuildSettings& settings) {
+  // Small meshes stay in the caches whatever their tree, and there the
+  // binned builder's exact sweep of small nodes makes the better one.
+  if (boxes.size() < kMinSpatialTriangles || !(settings.spatial_split_budget > 0.0f)) {
+    return build_bvh(boxes, settings);
+  }
   return SpatialBuilder(boxes, positions, triangles, settings).run();
 }
 
