@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <string>
 
 #include "accstruc_test_util.h"
 #include "scenes/procedural_scenes.h"
@@ -94,10 +95,25 @@ TEST(SpatialBvh, ListsEveryTriangleWithinTheBudget) {
   EXPECT_TRUE(validate_layouts(layouts, uint32_t(n)));
 }
 
+// Spatial splits on for the AccelStructures made in its scope; the
+// environment's value comes back after it.
 class SpatialSplitsOn {
  public:
-  SpatialSplitsOn() { ::setenv("TANDEM_BVH_SPATIAL_SPLITS", "0.3", 1); }
-  ~SpatialSplitsOn() { ::unsetenv("TANDEM_BVH_SPATIAL_SPLITS"); }
+  SpatialSplitsOn() {
+    if (const char* v = std::getenv("TANDEM_BVH_SPATIAL_SPLITS")) old_ = v, had_ = true;
+    ::setenv("TANDEM_BVH_SPATIAL_SPLITS", "0.3", 1);
+  }
+  ~SpatialSplitsOn() {
+    if (had_) {
+      ::setenv("TANDEM_BVH_SPATIAL_SPLITS", old_.c_str(), 1);
+    } else {
+      ::unsetenv("TANDEM_BVH_SPATIAL_SPLITS");
+    }
+  }
+
+ private:
+  std::string old_;
+  bool had_ = false;
 };
 
 void expect_embree_hits(TracedScene& s, const std::string& name) {
