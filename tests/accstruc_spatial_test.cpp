@@ -3,11 +3,13 @@
 // inside the triangles' own; traced through both layouts it finds Embree's
 // hits; a mesh built with splits that starts to deform is rebuilt without
 // them and refit from then on.
+#include <tbb/task_arena.h>
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <string>
@@ -93,6 +95,28 @@ TEST(SpatialBvh, ListsEveryTriangleWithinTheBudget) {
   // Layouts and their structural check accept it.
   const BvhLayouts layouts = make_layouts(tree, boxes, kWideMaxLeafPrims, 1.0f, 1.0f);
   EXPECT_TRUE(validate_layouts(layouts, uint32_t(n)));
+}
+
+// The budget is handed down by sizes, not claimed by whichever task comes
+// first: the same tree on one thread as on several (the BVH cache relies
+// on it).
+TEST(SpatialBvh, SameTreeWhateverTheThreads) {
+  std::vector<Vec3> positions;
+  std::vector<KTriangle> triangles;
+  sliver_soup(30000, 7, &positions, &triangles);
+  const MeshGeometry g{positions.data(), uint32_t(positions.size()), triangles.data(),
+                       uint32_t(triangles.size())};
+  const std::vector<Aabb> boxes = triangle_boxes(g);
+  BuildSettings s;
+  s.spatial_split_budget = 1.0f;
+  BuildTree one, many;
+  tbb::task_arena(1).execute([&] { one = build_bvh_spatial(boxes, positions, triangles, s); });
+  tbb::task_arena(4).execute([&] { many = build_bvh_spatial(boxes, positions, triangles, s); });
+  EXPECT_GT(one.prims.size(), triangles.size());
+  EXPECT_EQ(one.prims, many.prims);
+  ASSERT_EQ(one.ref_boxes.size(), many.ref_boxes.size());
+  EXPECT_EQ(0, std::memcmp(one.ref_boxes.data(), many.ref_boxes.data(),
+                           one.ref_boxes.size() * sizeof(Aabb)));
 }
 
 // Spatial splits on for the AccelStructures made in its scope; the
