@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <iterator>
@@ -69,6 +70,17 @@ void emit_changed_leaf_triangles(const std::vector<uint32_t>& prims, const MeshG
   for (const NodeSpan& span : spans) {
     if (span.end > span.begin) change.mark(base + span.begin, base + span.end);
   }
+}
+
+// A BLAS built with spatial splits lists some triangle in two leaves.
+bool lists_a_triangle_twice(const std::vector<uint32_t>& prims, uint32_t triangle_count) {
+  std::vector<uint8_t> seen(triangle_count, 0);
+  for (uint32_t p : prims) {
+    if (p >= triangle_count) continue;
+    if (seen[p]) return true;
+    seen[p] = 1;
+  }
+  return false;
 }
 
 }  // namespace
@@ -135,6 +147,12 @@ AccelStructure::AccelStructure(AccelSettings settings) : settings_(std::move(set
   // A wide leaf slot holds at most 3 triangles and a wide node 8 slots.
   settings_.blas.max_leaf_size = std::clamp<uint32_t>(settings_.blas.max_leaf_size, 1u, 16u);
   settings_.tlas.max_leaf_size = 1;
+  if (settings_.blas.spatial_split_budget <= 0.0f) {
+    if (const char* v = std::getenv("TANDEM_BVH_SPATIAL_SPLITS")) {
+      const float budget = std::strtof(v, nullptr);
+      settings_.blas.spatial_split_budget = budget > 0.0f && budget <= 4.0f ? budget : 0.0f;
+    }
+  }
   if (settings_.cache.enabled) {
     std::filesystem::path dir = settings_.cache.directory.empty()
                                     ? BvhCache::default_directory()
@@ -148,10 +166,14 @@ AccelStructure::~AccelStructure() = default;
 void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_t>& meshes,
                                 AccelUpdate& up, bool allow_cache) {
   std::atomic<uint32_t> built{0}, loaded{0};
-  const BuildSettings& bs = settings_.blas;
+  BuildSettings refittable = settings_.blas;
+  refittable.spatial_split_budget = 0.0f;
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     const MeshGeometry g = mesh_geometry(ks, m);
+    const bool split = settings_.blas.spatial_split_budget > 0.0f && !deforms_[m];
+    const BuildSettings& bs = split ? settings_.blas : refittable;
+    blas_split_[m] = 0;
     // Measured before the first refit of the new tree (refit_blas).
     blas_built_quality_[m] = kQualityUnknown;
     blas_refit_[m].clear();
@@ -167,14 +189,18 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
       const auto r = cache_->load(key, g.triangle_count, &blas_[m], &why);
       if (r == BvhCache::LoadResult::kHit) {
         loaded.fetch_add(1);
+        blas_split_[m] = split && lists_a_triangle_twice(blas_[m].prims, g.triangle_count);
         return;
       }
       if (r == BvhCache::LoadResult::kRejected) log_warning("BVH cache: " + why + "; rebuilding");
     }
     const std::vector<Aabb> boxes = triangle_boxes(g);
-    const BuildTree tree = build_bvh(boxes, bs);
+    const BuildTree tree = split ? build_bvh_spatial(boxes, {g.positions, g.vertex_count},
+                                                     {g.triangles, g.triangle_count}, bs)
+                                 : build_bvh(boxes, bs);
     blas_[m] =
         make_layouts(tree, boxes, kBlasWideLeafPrims, bs.traversal_cost, bs.intersection_cost);
+    blas_split_[m] = split && lists_a_triangle_twice(blas_[m].prims, g.triangle_count);
     built.fetch_add(1);
     if (use_cache) cache_->store(key, blas_[m]);
   });
@@ -201,6 +227,12 @@ std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
     const uint32_t m = meshes[i];
     BvhLayouts& l = blas_[m];
     const MeshGeometry g = mesh_geometry(ks, m);
+    if (blas_split_[m]) {
+      // Split references cannot follow the vertices: rebuild it for refits.
+      deforms_[m] = 1;
+      poor[i] = 1;
+      return;
+    }
     if (std::isnan(blas_built_quality_[m])) blas_built_quality_[m] = refit_quality(l);
     if (blas_refit_state_[m] == FastRefit::kNotTried) {
       blas_refit_state_[m] = blas_refit_[m].index(l, g) ? FastRefit::kIndexed : FastRefit::kRefused;
@@ -472,6 +504,8 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     refit_spans_.assign(n, NodeSpans{});
     refit_leaf_spans_.assign(n, {});
     refit_emitted_.assign(n, 0);
+    blas_split_.assign(n, 0);
+    if (deforms_.size() != n) deforms_.assign(n, 0);
     rebuild.resize(n);
     for (uint32_t m = 0; m < n; ++m)
       rebuild[m] = m;

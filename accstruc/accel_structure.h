@@ -36,7 +36,14 @@
 namespace tandem {
 
 struct AccelSettings {
-  BuildSettings blas;  // binned SAH, leaves of up to 4 triangles
+  // Binned SAH, leaves of up to 4 triangles. blas.spatial_split_budget > 0
+  // (or, when it is 0, the environment's TANDEM_BVH_SPATIAL_SPLITS=budget,
+  // e.g. 1.0: see docs/performance/host_traversal.md) builds BLAS with
+  // spatial splits (build_bvh_spatial): for static scenes. A BLAS that got
+  // split references cannot be refit (BlasRefit needs every triangle in one
+  // leaf), so a mesh that deforms (delta.meshes_refit) is rebuilt without
+  // splits at its first refit and stays without them.
+  BuildSettings blas;
   // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
   BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};
   KBvhLayout layout = kBvhLayoutBinary;  // what BvhTracer traverses (kd.bvh.layout)
@@ -137,6 +144,11 @@ class AccelStructure {
   // refit left them out: refit_unused_layout false).
   std::vector<uint8_t> wide_stale_;
   std::vector<uint8_t> refit_emitted_;
+  // Per BLAS: built with spatial splits (no refit possible), and whether the
+  // mesh has deformed (then built without them); the latter survives
+  // full updates while the mesh count stays.
+  std::vector<uint8_t> blas_split_;
+  std::vector<uint8_t> deforms_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;
   uint32_t tlas_capacity_instances_ = 0;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/kernel/math.h"
+#include "core/kernel/types.h"
 
 namespace tandem {
 
@@ -69,6 +70,13 @@ struct BuildSettings {
   uint32_t max_leaf_size = 4;      // a larger node is always split
   float traversal_cost = 1.0f;     // C_trav of the SAH
   float intersection_cost = 1.0f;  // C_isect of the SAH
+  // build_bvh_spatial() only: extra references that spatial splits may add,
+  // as a fraction of the triangles (0: none), and the overlap of an object
+  // split's children, relative to the root's area, above which a node tries
+  // spatial splits (Stich et al.'s alpha; their 1e-5 gave builtin:procedural
+  // the same trees at a third of the build speed).
+  float spatial_split_budget = 0.0f;
+  float spatial_split_alpha = 1e-3f;
 };
 
 // Node of the builder's binary tree. [first, first + count) is the node's
@@ -85,7 +93,11 @@ struct BuildTree {
   std::vector<BuildNode> nodes;  // nodes[root] is the root; empty when no valid primitive
   uint32_t root = kInvalidIndex;
   std::vector<uint32_t> prims;  // primitive indices in leaf order
-  uint32_t depth = 0;           // levels, the root counting as 1
+  // build_bvh_spatial() only: the (clipped) box of each entry of prims; a
+  // split triangle has one entry per piece. Empty: the entries' boxes are
+  // their primitives' boxes.
+  std::vector<Aabb> ref_boxes;
+  uint32_t depth = 0;  // levels, the root counting as 1
   bool empty() const { return root == kInvalidIndex; }
 };
 
@@ -97,6 +109,13 @@ constexpr uint32_t kSahMaxDepth = 28;
 // Builds a hierarchy over `boxes` (one per primitive; invalid boxes are
 // skipped). Thread-safe; uses the calling TBB arena.
 BuildTree build_bvh(std::span<const Aabb> boxes, const BuildSettings& settings);
+
+// Triangle BVH with spatial splits (accstruc/spatial_bvh.cpp) within
+// settings.spatial_split_budget; boxes[i] must be triangle i's box. The tree
+// may list a triangle in several leaves (with ref_boxes set): it cannot be
+// refit (BlasRefit, refit_layouts), so meshes that deform use build_bvh().
+BuildTree build_bvh_spatial(std::span<const Aabb> boxes, std::span<const Vec3> positions,
+                            std::span<const KTriangle> triangles, const BuildSettings& settings);
 
 // SAH cost of a tree: (sum over interior nodes of A(n) * C_trav + sum over
 // leaves of A(n) * count * C_isect) / A(root).

@@ -75,6 +75,8 @@ uint64_t blas_cache_key(const MeshGeometry& mesh, const BuildSettings& s,
   h.update_value(s.max_leaf_size);
   h.update_value(s.traversal_cost);
   h.update_value(s.intersection_cost);
+  h.update_value(s.spatial_split_budget);
+  h.update_value(s.spatial_split_alpha);
   h.update_value(wide_leaf_prims);
   h.update_value(mesh.vertex_count);
   h.update_value(mesh.triangle_count);

@@ -29,7 +29,7 @@ namespace tandem {
 constexpr uint32_t kBvhCacheFormatVersion = 1;
 // Bump when the builder or the layouts change the hierarchy they produce for
 // the same input (part of the key, so old entries are simply not found).
-constexpr uint32_t kBvhBuilderVersion = 1;
+constexpr uint32_t kBvhBuilderVersion = 2;  // 2: spatial splits
 
 struct BvhCacheSettings {
   bool enabled = true;

@@ -158,7 +158,7 @@ class WideCollapser {
         e.box = n.box;
       } else {
         for (uint32_t i = e.first; i < e.first + e.count; ++i)
-          e.box.grow(boxes_[tree_.prims[i]]);
+          e.box.grow(tree_.ref_boxes.empty() ? boxes_[tree_.prims[i]] : tree_.ref_boxes[i]);
       }
       entries.push_back(e);
     }
