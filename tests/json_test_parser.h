@@ -11,28 +11,41 @@
 
 namespace tandem::json_test {
 
+struct Member;
+
 struct Node {
   enum class Type { kNull, kBool, kNumber, kString, kArray, kObject } type = Type::kNull;
   bool boolean = false;
   double number = 0.0;
   std::string string;
-  std::vector<Node> items;                            // arrays
-  std::vector<std::pair<std::string, Node>> members;  // objects, in order
+  std::vector<Node> items;      // arrays
+  std::vector<Member> members;  // objects, in order
 
-  bool has(const std::string& key) const {
-    for (const auto& m : members)
-      if (m.first == key) return true;
-    return false;
-  }
-  const Node& operator[](const std::string& key) const {
-    for (const auto& m : members)
-      if (m.first == key) return m.second;
-    throw std::runtime_error("no key '" + key + "'");
-  }
+  bool has(const std::string& key) const;
+  const Node& operator[](const std::string& key) const;
   const Node& operator[](size_t i) const { return items.at(i); }
   bool is_number() const { return type == Type::kNumber; }
   bool is_string() const { return type == Type::kString; }
 };
+
+// Not std::pair: a pair needs Node complete where Node declares its members
+// (libstdc++ accepts that under g++, clang rejects it).
+struct Member {
+  std::string first;
+  Node second;
+};
+
+inline bool Node::has(const std::string& key) const {
+  for (const auto& m : members)
+    if (m.first == key) return true;
+  return false;
+}
+
+inline const Node& Node::operator[](const std::string& key) const {
+  for (const auto& m : members)
+    if (m.first == key) return m.second;
+  throw std::runtime_error("no key '" + key + "'");
+}
 
 class Parser {
  public:
@@ -80,7 +93,7 @@ class Parser {
         space();
         if (i_ >= s_.size() || s_[i_] != ':') fail("expected ':'");
         ++i_;
-        n.members.emplace_back(key, value());
+        n.members.push_back(Member{key, value()});
         space();
         if (i_ < s_.size() && s_[i_] == ',') {
           ++i_;
