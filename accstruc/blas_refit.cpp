@@ -43,7 +43,7 @@ inline bool triangle_box(const Vec3& a, const Vec3& c, const Vec3& d, Aabb& b) {
   const auto ok = [m](const Vec3& q) {
     return (int(std::fabs(q.x) <= m) & int(std::fabs(q.y) <= m) & int(std::fabs(q.z) <= m)) != 0;
   };
-  return ok(a) & ok(c) & ok(d);
+  return (int(ok(a)) & int(ok(c)) & int(ok(d))) != 0;
 }
 inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
   return triangle_box(p[v[0]], p[v[1]], p[v[2]], b);
