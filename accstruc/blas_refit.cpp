@@ -46,9 +46,9 @@ inline bool triangle_box(const Vec3& a, const Vec3& c, const Vec3& d, Aabb& b) {
   b.grow(d);
   const float m = kMaxCoordinate;
   const auto ok = [m](const Vec3& q) {
-    return (std::fabs(q.x) <= m) & (std::fabs(q.y) <= m) & (std::fabs(q.z) <= m);
+    return (int(std::fabs(q.x) <= m) & int(std::fabs(q.y) <= m) & int(std::fabs(q.z) <= m)) != 0;
   };
-  return ok(a) & ok(c) & ok(d);
+  return (int(ok(a)) & int(ok(c)) & int(ok(d))) != 0;
 }
 inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
   return triangle_box(p[v[0]], p[v[1]], p[v[2]], b);

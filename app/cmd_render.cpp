@@ -257,7 +257,6 @@ int run_render(const std::vector<std::string>& argv) {
   ProgressBar bar(!quiet && stderr_is_terminal());
   const auto start = std::chrono::steady_clock::now();
   std::vector<BackendFrameMetrics> totals;
-  double render_seconds = 0.0;
   const bool with_features = args.has("denoise") || args.has("aov");
   // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
   std::optional<GracefulStop> stop(std::in_place);
@@ -282,7 +281,6 @@ int run_render(const std::vector<std::string>& argv) {
       }
       const FrameMetrics& m = tracer.render_frame(scene, pose_next);
       done = tracer.accumulated_spp();
-      render_seconds += m.render_seconds;
       totals.resize(m.backends.size());
       for (size_t b = 0; b < m.backends.size(); ++b) {
         BackendFrameMetrics& t = totals[b];

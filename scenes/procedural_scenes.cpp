@@ -137,8 +137,11 @@ Mesh make_soup(uint32_t target, uint32_t material, SceneRng& rng) {
     const float s = rng.log_range(0.01f, 8.0f);
     glm::vec3 a = c + s * rng.unit_vector(), b = c + s * rng.unit_vector(),
               d = c + s * rng.unit_vector();
-    if (rng.uniform() < 0.2f)
-      d = a + (b - a) * rng.range(0.0f, 1.0f) + 0.002f * s * rng.unit_vector();
+    if (rng.uniform() < 0.2f) {
+      const glm::vec3 jitter = rng.unit_vector();
+      const float along = rng.range(0.0f, 1.0f);
+      d = a + (b - a) * along + 0.002f * s * jitter;
+    }
     const float kind = rng.uniform();
     if (kind < 0.01f)
       d = a + (b - a) * 0.5f;  // collinear: zero area
@@ -170,7 +173,8 @@ Mesh make_foliage(uint32_t target, uint32_t material, SceneRng& rng) {
   Mesh m;
   m.name = "foliage";
   for (uint32_t t = 0; t + 1 < target; t += 2) {
-    const glm::vec3 c = rng.unit_vector() * rng.range(1.0f, 2.0f);
+    const float radius = rng.range(1.0f, 2.0f);
+    const glm::vec3 c = rng.unit_vector() * radius;
     const glm::vec3 n = rng.unit_vector();
     const glm::vec3 u = glm::normalize(glm::cross(n, rng.unit_vector())) * 0.25f;
     const glm::vec3 v = glm::cross(n, u);
@@ -202,12 +206,14 @@ glm::mat4 random_placement(SceneRng& rng, float scale_lo, float scale_hi, float 
   const float x = rng.range(-0.9f, 0.9f) * kTerrainHalfSize,
               z = rng.range(-0.9f, 0.9f) * kTerrainHalfSize;
   const float s = rng.log_range(scale_lo, scale_hi);
-  glm::vec3 scale = glm::vec3(s) * glm::vec3(rng.range(1.0f, stretch), rng.range(1.0f, stretch),
-                                             rng.range(1.0f, stretch));
+  const float sz = rng.range(1.0f, stretch), sy = rng.range(1.0f, stretch),
+              sx = rng.range(1.0f, stretch);
+  glm::vec3 scale = glm::vec3(s) * glm::vec3(sx, sy, sz);
   if (rng.uniform() < 0.1f) scale.x = -scale.x;
   glm::mat4 t = glm::translate(glm::mat4(1.0f), {x, terrain_height(x, z) + lift * s, z});
-  t = glm::rotate(t, rng.range(0.0f, 6.2831853f),
-                  glm::normalize(rng.unit_vector() + glm::vec3(0, 2, 0)));
+  const glm::vec3 axis = glm::normalize(rng.unit_vector() + glm::vec3(0, 2, 0));
+  const float angle = rng.range(0.0f, 6.2831853f);
+  t = glm::rotate(t, angle, axis);
   return glm::scale(t, scale);
 }
 

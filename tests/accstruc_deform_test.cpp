@@ -77,7 +77,12 @@ TEST(AccelDeform, HundredRefitFramesHitLikeEmbreeAndAFreshBuild) {
         const Agreement e = closest_agreement(s, *rays, layout, [&](const RaySample& r) {
           return s.embree.intersect(r.ray, r.alpha_key);
         });
-        EXPECT_GE(e.fraction(), 0.999) << "frame " << frame << " vs Embree: " << e.summary();
+        // 800 rays on most frames: at 99.9% fraction() would allow no
+        // mismatch at all, where the other ray-by-ray tests (>= 20000 rays)
+        // allow 1 in 1000. A mismatch that the long-double reference
+        // decides for us is Embree's rounding, not a stale box of ours.
+        EXPECT_GE(e.fraction_ours_right(), 0.999)
+            << "frame " << frame << " vs Embree: " << e.summary();
         EXPECT_GT(e.hits, n / 4) << "frame " << frame;
         if (fresh) {
           const KernelData fkd = fresh->ks.view();

@@ -56,7 +56,7 @@ std::vector<std::string> needed_libraries(const std::string& path, std::string* 
   return fail("no .dynamic section (a static executable?)");
 }
 
-void expect_no_cuda_libraries(const std::string& binary) {
+[[maybe_unused]] void expect_no_cuda_libraries(const std::string& binary) {
   std::string error;
   const std::vector<std::string> needed = needed_libraries(binary, &error);
   ASSERT_TRUE(error.empty()) << error;

@@ -197,8 +197,10 @@ TEST(KernelLayers, LayeredReflectionIsReciprocal) {
   TestRng rng(77);
   for (const LayerCase& c : layer_grid(false)) {
     for (int s = 0; s < 16; ++s) {
-      const Vec3 wa = sample_uniform_sphere(0.4995f * rng.next(), rng.next());
-      const Vec3 wb = sample_uniform_sphere(0.4995f * rng.next(), rng.next());
+      const float wa_u1 = rng.next(), wa_u0 = rng.next();
+      const Vec3 wa = sample_uniform_sphere(0.4995f * wa_u0, wa_u1);
+      const float wb_u1 = rng.next(), wb_u0 = rng.next();
+      const Vec3 wb = sample_uniform_sphere(0.4995f * wb_u0, wb_u1);
       const Vec3 f1 = bsdf_eval(c.p, wa, wb).f, f2 = bsdf_eval(c.p, wb, wa).f;
       for (int k = 0; k < 3; ++k) {
         const float x = component(f1, k), y = component(f2, k);
@@ -218,16 +220,26 @@ TEST(KernelLayers, LayeredTransmissionObeysGeneralizedReciprocity) {
     BsdfParams back = c.p;
     back.eta = 1.0f / c.p.eta;
     for (int s = 0; s < 64; ++s) {
-      const Vec3 wi = sample_uniform_sphere(0.5f + 0.5f * rng.next(), rng.next());
+      const float wi_u1 = rng.next(), wi_u0 = rng.next();
+      const Vec3 wi = sample_uniform_sphere(0.5f + 0.5f * wi_u0, wi_u1);
       if (!(wi.z < -1e-3f)) continue;
       const Vec3 f1 = bsdf_eval(c.p, c.wo, wi).f, f2 = bsdf_eval(back, -wi, -c.wo).f;
       if (!is_black(f1)) ++nonzero;
       for (int k = 0; k < 3; ++k) {
         const float x = component(f1, k) * c.p.eta * c.p.eta, y = component(f2, k);
         // The layers' factors are symmetric bit for bit; what is left is the
-        // base BTDF's float rounding at grazing angles (its own test allows
-        // 1e-3 for larger values; the coat makes these ones smaller).
-        ASSERT_NEAR(x, y, 2e-3f * std::max(x, y) + 1e-6f) << describe(c.p, c.wo);
+        // base BTDF's float rounding (the same with the layers removed). Up
+        // to 60 deg it stays below 5e-4 (20000 directions per case). At
+        // wo_theta = 85 deg it is not small: near the edge of the refraction
+        // cone (wi.z ~ -0.79) the forward and the reverse evaluation form
+        // the half vector and the Fresnel term from differently rounded,
+        // nearly cancelling inputs, and measured up to 2.1e-2 (4.5e-2
+        // without the layers). 64 directions once stayed under 2e-3 only
+        // by the luck of the draw: other draws (clang's order of the two
+        // rng.next() above, before they were named) did not. Grazing views
+        // get 5e-2, the rest keep 2e-3.
+        const float rel = c.wo.z < 0.17f ? 5e-2f : 2e-3f;
+        ASSERT_NEAR(x, y, rel * std::max(x, y) + 1e-6f) << describe(c.p, c.wo) << " wi.z=" << wi.z;
       }
     }
   }
@@ -239,7 +251,8 @@ TEST(KernelLayers, SamplerCoversTheLayeredSupport) {
   int reported = 0;
   for (const LayerCase& c : layer_grid(false)) {
     for (int s = 0; s < 256; ++s) {
-      const Vec3 wi = sample_uniform_sphere(rng.next(), rng.next());
+      const float wi_u1 = rng.next(), wi_u0 = rng.next();
+      const Vec3 wi = sample_uniform_sphere(wi_u0, wi_u1);
       const BsdfEval e = bsdf_eval(c.p, c.wo, wi);
       if (max_component(e.f) > 0.0f && !(e.pdf > 0.0f) && reported++ < 20) {
         ADD_FAILURE() << "f > 0 but pdf = " << e.pdf << " for " << describe(c.p, c.wo);
@@ -260,7 +273,8 @@ TEST(KernelLayers, LayerDefaultsLeaveTheBaseUntouched) {
     ASSERT_FALSE(bsdf_has_layers(plain));
     const BsdfLobeProbabilities l = bsdf_lobe_probabilities(plain, c.wo);
     for (int s = 0; s < 16; ++s) {
-      const Vec3 wi = sample_uniform_sphere(rng.next(), rng.next());
+      const float wi_u1 = rng.next(), wi_u0 = rng.next();
+      const Vec3 wi = sample_uniform_sphere(wi_u0, wi_u1);
       const BsdfEval a = bsdf_eval_lobes(plain, l, c.wo, wi),
                      b = bsdf_eval_base(plain, l, c.wo, wi);
       ASSERT_EQ(a.pdf, b.pdf);

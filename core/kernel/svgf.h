@@ -224,7 +224,7 @@ TANDEM_HD float svgf_history_consistent(const SvgfParams& p, const PixelFeatures
   // branches): no branches, and no loads under a condition (which the
   // CPU's vectorised row loop cannot gather).
   const float same_id =
-      (cur.instance == prev.instance) & (cur.material == prev.material) ? 1.0f : 0.0f;
+      ((cur.instance == prev.instance) & (cur.material == prev.material)) ? 1.0f : 0.0f;
   // depth difference <= tolerance and cosine >= the threshold, both at once
   // (a - b <= 0 exactly when a <= b, for finite floats).
   const float surface_excess = max_f(fabsf(prev.depth - cur.prev_depth) - depth_tolerance,
