@@ -61,7 +61,10 @@ BackendStats CpuBackend::render(const RenderPass& pass, TileSource& tiles, Film&
     }
     return render_tiles_wavefront_on_cpu(kd_, BvhTracer{&kd_}, pass, tiles, film, *wavefront_);
   }
-  if (embree_) return render_tiles_on_cpu(kd_, embree_tracer(), pass, tiles, film);
+  // The camera rays of a tile in Embree packets (render_tiles_on_cpu).
+  if (embree_) {
+    return render_tiles_on_cpu(kd_, EmbreePacketTracer{embree_tracer()}, pass, tiles, film);
+  }
   return render_tiles_on_cpu(kd_, BvhTracer{&kd_}, pass, tiles, film);
 }
 

@@ -92,8 +92,9 @@ bool EmbreeTracer::occluded(const Ray& ray, uint32_t alpha_key) const {
 namespace {
 
 // Lane j of a packet from rays[j] (the lanes past n are switched off).
-void fill_packet(RTCRay16& p, const Ray* rays, const uint32_t* keys, uint32_t n, int* valid) {
-  for (uint32_t j = 0; j < 16; ++j) {
+template <class Packet, uint32_t W>
+void fill_packet(Packet& p, const Ray* rays, const uint32_t* keys, uint32_t n, int* valid) {
+  for (uint32_t j = 0; j < W; ++j) {
     valid[j] = j < n ? -1 : 0;
     const Ray& r = rays[j < n ? j : 0];
     p.org_x[j] = r.origin.x;
@@ -118,7 +119,7 @@ void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha
   TandemRayContext ctx = make_context(kd);
   alignas(64) RTCRayHit16 rh;
   alignas(64) int valid[16];
-  fill_packet(rh.ray, rays, alpha_keys, n, valid);
+  fill_packet<RTCRay16, 16>(rh.ray, rays, alpha_keys, n, valid);
   for (uint32_t j = 0; j < 16; ++j) {
     rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
@@ -132,12 +133,36 @@ void EmbreePacketTracer::intersect_packet(const Ray* rays, const uint32_t* alpha
   }
 }
 
+void EmbreePacketTracer::intersect_coherent(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
+                                            Hit* hits) const {
+  TandemRayContext ctx = make_context(kd);
+  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  for (uint32_t o = 0; o < n; o += 8) {
+    const uint32_t m = n - o < 8 ? n - o : 8;
+    alignas(32) RTCRayHit8 rh;
+    alignas(32) int valid[8];
+    fill_packet<RTCRay8, 8>(rh.ray, rays + o, alpha_keys + o, m, valid);
+    for (uint32_t j = 0; j < 8; ++j) {
+      rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect8(valid, scene, &ctx.rtc, &rh);
+    for (uint32_t j = 0; j < m; ++j) {
+      hits[o + j] =
+          rh.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID
+              ? make_miss()
+              : Hit{rh.ray.tfar[j], rh.hit.u[j], rh.hit.v[j],
+                    hit_instance(rh.hit.instID[0][j], rh.hit.geomID[j]), rh.hit.primID[j]};
+    }
+  }
+}
+
 void EmbreePacketTracer::occluded_packet(const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
                                          bool* occluded) const {
   TandemRayContext ctx = make_context(kd);
   alignas(64) RTCRay16 r;
   alignas(64) int valid[16];
-  fill_packet(r, rays, alpha_keys, n, valid);
+  fill_packet<RTCRay16, 16>(r, rays, alpha_keys, n, valid);
   rtcOccluded16(valid, scene, &ctx.rtc, &r);
   for (uint32_t j = 0; j < n; ++j)
     occluded[j] = r.tfar[j] < 0.0f;

@@ -343,14 +343,15 @@ TANDEM_HD Vec3 path_finish(const KernelData& kd, const PathState& p) {
 }
 
 // The megakernel's loop over the stages for one path whose state
-// path_generate or path_generate_cached set up; `rng` draws p->rng's numbers
-// (p->rng itself, or CachedPathRng over it). One loop for both generators,
-// so the plain and the cached megakernel cannot drift apart.
+// path_generate or path_generate_cached set up, from the hit of its first
+// ray (traced by the caller: the CPU tile loop traces a batch of camera rays
+// in one Embree packet); `rng` draws p->rng's numbers (p->rng itself, or
+// CachedPathRng over it). One loop for every caller and both generators, so
+// the megakernels cannot drift apart.
 template <class Tracer, class Rng>
-TANDEM_HD_INLINE Vec3 render_path(const KernelData& kd, const Tracer& tracer, PathState& p,
-                                  const Rng& rng, uint32_t* ray_count) {
-  while (path_alive(p)) {
-    const Hit hit = tracer.intersect(p.ray, path_alpha_key(p));
+TANDEM_HD_INLINE Vec3 render_path_from_hit(const KernelData& kd, const Tracer& tracer, PathState& p,
+                                           const Rng& rng, Hit hit, uint32_t* ray_count) {
+  for (;;) {
     ++p.rays;
     if (!hit_valid(hit)) {
       path_shade_miss(kd, &p);
@@ -361,9 +362,19 @@ TANDEM_HD_INLINE Vec3 render_path(const KernelData& kd, const Tracer& tracer, Pa
       ++p.rays;
       path_shadow_result(shadow, tracer.occluded(shadow.ray, shadow.alpha_key), &p);
     }
+    if (!path_alive(p)) break;
+    hit = tracer.intersect(p.ray, path_alpha_key(p));
   }
   *ray_count += p.rays;
   return path_finish(kd, p);
+}
+
+// render_path_from_hit with the first ray traced here.
+template <class Tracer, class Rng>
+TANDEM_HD_INLINE Vec3 render_path(const KernelData& kd, const Tracer& tracer, PathState& p,
+                                  const Rng& rng, uint32_t* ray_count) {
+  return render_path_from_hit(kd, tracer, p, rng, tracer.intersect(p.ray, path_alpha_key(p)),
+                              ray_count);
 }
 
 // One camera sample of pixel (x, y), the megakernel way: the stages in a
