@@ -269,6 +269,29 @@ struct BlockBox {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr BlockBox kEmptyBox{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, true};
 void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
+#if defined(__SSE__)
+  // One 16-byte load a vertex (the kernel positions have a readable element
+  // past the last one; lane 3 is ignored): minps(x, lo) is x < lo ? x : lo
+  // and maxps(x, hi) is hi < x ? x : hi, the scalar comparisons below lane
+  // by lane. x - x is 0 for a finite x and NaN otherwise, and the NaN stays
+  // in the sum.
+  __m128 lo = _mm_setr_ps(b.lo[0], b.lo[1], b.lo[2], 0.0f);
+  __m128 hi = _mm_setr_ps(b.hi[0], b.hi[1], b.hi[2], 0.0f);
+  __m128 bad = _mm_setzero_ps();
+  for (size_t v = begin; v < end; ++v) {
+    const __m128 x = _mm_loadu_ps(&p[v].x);
+    lo = _mm_min_ps(x, lo);
+    hi = _mm_max_ps(x, hi);
+    bad = _mm_add_ps(bad, _mm_sub_ps(x, x));
+  }
+  alignas(16) float l[4], h[4], n[4];
+  _mm_store_ps(l, lo);
+  _mm_store_ps(h, hi);
+  _mm_store_ps(n, bad);
+  b = {{l[0], l[1], l[2]},
+       {h[0], h[1], h[2]},
+       b.finite && n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f};
+#else
   float lx = b.lo[0], ly = b.lo[1], lz = b.lo[2], hx = b.hi[0], hy = b.hi[1], hz = b.hi[2];
   bool ok = b.finite;
   for (size_t v = begin; v < end; ++v) {
@@ -282,6 +305,7 @@ void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
     ok &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z);
   }
   b = {{lx, ly, lz}, {hx, hy, hz}, ok};
+#endif
 }
 void join_box(BlockBox& a, const BlockBox& b) {
   for (int k = 0; k < 3; ++k) {
