@@ -1,10 +1,14 @@
 #include "scenes/mesh_deformer.h"
 
+#include "core/world/kernel_scene.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #if defined(__SSE__)
 #include <xmmintrin.h>
@@ -108,7 +112,25 @@ struct Job {
   const std::vector<ActiveTarget>& active;
   bool morph_p, morph_n, morph_t;
   Mesh& out;
+  // The same vertices in a KernelScene's arrays (the mesh's first vertex),
+  // written from the same registers; null: only `out`.
+  Vec3* kernel_positions = nullptr;
+  Vec3* kernel_normals = nullptr;
+  Vec4* kernel_tangents = nullptr;
 };
+
+inline void put_position(const Job& job, size_t v, const glm::vec3& p) {
+  job.out.positions[v] = p;
+  if (job.kernel_positions != nullptr) job.kernel_positions[v] = {p.x, p.y, p.z};
+}
+inline void put_normal(const Job& job, size_t v, const glm::vec3& n) {
+  job.out.normals[v] = n;
+  if (job.kernel_normals != nullptr) job.kernel_normals[v] = {n.x, n.y, n.z};
+}
+inline void put_tangent(const Job& job, size_t v, const glm::vec4& t) {
+  job.out.tangents[v] = t;
+  if (job.kernel_tangents != nullptr) job.kernel_tangents[v] = {t.x, t.y, t.z, t.w};
+}
 
 // One block of vertices; the template flags take every per-mesh decision
 // out of the vertex loop.
@@ -130,11 +152,11 @@ void deform_block(const Job& job, size_t begin, size_t end) {
       }
     }
     if (!kSkin) {
-      job.out.positions[v] = p;
-      if (kNormals) job.out.normals[v] = kMorph ? normalised_or_kept(n, n) : n;
+      put_position(job, v, p);
+      if (kNormals) put_normal(job, v, kMorph ? normalised_or_kept(n, n) : n);
       if (kTangents) {
         const glm::vec3 tx(t);
-        job.out.tangents[v] = glm::vec4(kMorph ? normalised_or_kept(tx, tx) : tx, t.w);
+        put_tangent(job, v, glm::vec4(kMorph ? normalised_or_kept(tx, tx) : tx, t.w));
       }
       continue;
     }
@@ -151,21 +173,21 @@ void deform_block(const Job& job, size_t begin, size_t end) {
       c2 += w * k.c[2];
       c3 += w * k.c[3];
     }
-    job.out.positions[v] = store3(c0 * splat(p.x) + c1 * splat(p.y) + c2 * splat(p.z) + c3);
+    put_position(job, v, store3(c0 * splat(p.x) + c1 * splat(p.y) + c2 * splat(p.z) + c3));
     if (kNormals) {
       // Cofactor matrix (columns c1 x c2, c2 x c0, c0 x c1) = det * A^-T.
       const v4 k0 = cross(c1, c2), k1 = cross(c2, c0), k2 = cross(c0, c1);
       const float sign = dot3(c0, k0) < 0.0f ? -1.0f : 1.0f;
       const v4 sn = splat(sign) * (k0 * splat(n.x) + k1 * splat(n.y) + k2 * splat(n.z));
       if (kMorph) {
-        job.out.normals[v] = normalised_or_kept(sn, normalised_or_kept(n, n));
+        put_normal(job, v, normalised_or_kept(sn, normalised_or_kept(n, n)));
       } else {
         job.out.normals[v] = store3(sn);  // normalised below, four at a time
       }
     }
     if (kTangents) {
       const v4 st = c0 * splat(t.x) + c1 * splat(t.y) + c2 * splat(t.z);
-      job.out.tangents[v] = glm::vec4(normalised_or_kept(st, glm::vec3(t)), t.w);
+      put_tangent(job, v, glm::vec4(normalised_or_kept(st, glm::vec3(t)), t.w));
     }
   }
 }
@@ -192,13 +214,14 @@ void normalise_block(const Job& job, size_t begin, size_t end) {
                                  _mm_mul_ps(_mm_mul_ps(_mm_mul_ps(_mm_set1_ps(0.5f), x), r), r)));
     _mm_store_ps(inv, nr);
     for (int k = 0; k < 4; ++k) {
-      out[v + k] = len2[k] > 1e-30f && len2[k] < 1e30f ? store3(load3(out[v + k]) * splat(inv[k]))
-                                                       : base[v + k];
+      put_normal(job, v + k,
+                 len2[k] > 1e-30f && len2[k] < 1e30f ? store3(load3(out[v + k]) * splat(inv[k]))
+                                                     : base[v + k]);
     }
   }
 #endif
   for (; v < end; ++v)
-    out[v] = normalised_or_kept(load3(out[v]), base[v]);
+    put_normal(job, v, normalised_or_kept(load3(out[v]), base[v]));
 }
 
 template <bool kSkin, bool kMorph, bool kNormals, bool kTangents>
@@ -225,10 +248,80 @@ BlockFn pick(bool normals, bool tangents) {
 
 }  // namespace
 
-void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
-                 Mesh& out) {
+namespace {
+
+// Where a mesh's vertices lie in a KernelScene's arrays.
+struct KernelTarget {
+  Vec3* positions = nullptr;
+  Vec3* normals = nullptr;
+  Vec4* tangents = nullptr;
+};
+
+// The box of positions [begin, end) of a block just written (in the cache),
+// with the comparisons of the compiler's copy_positions_with_bounds() in
+// the same order: for finite positions min and max do not depend on the
+// order, and the compiler's positive_zeros() makes -0 and +0 alike, so the
+// box is the one the compiler would have taken.
+struct BlockBox {
+  float lo[3], hi[3];
+  bool finite;
+};
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr BlockBox kEmptyBox{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, true};
+void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
+#if defined(__SSE__)
+  // One 16-byte load a vertex (the kernel positions have a readable element
+  // past the last one; lane 3 is ignored): minps(x, lo) is x < lo ? x : lo
+  // and maxps(x, hi) is hi < x ? x : hi, the scalar comparisons below lane
+  // by lane. x - x is 0 for a finite x and NaN otherwise, and the NaN stays
+  // in the sum.
+  __m128 lo = _mm_setr_ps(b.lo[0], b.lo[1], b.lo[2], 0.0f);
+  __m128 hi = _mm_setr_ps(b.hi[0], b.hi[1], b.hi[2], 0.0f);
+  __m128 bad = _mm_setzero_ps();
+  for (size_t v = begin; v < end; ++v) {
+    const __m128 x = _mm_loadu_ps(&p[v].x);
+    lo = _mm_min_ps(x, lo);
+    hi = _mm_max_ps(x, hi);
+    bad = _mm_add_ps(bad, _mm_sub_ps(x, x));
+  }
+  alignas(16) float l[4], h[4], n[4];
+  _mm_store_ps(l, lo);
+  _mm_store_ps(h, hi);
+  _mm_store_ps(n, bad);
+  b = {{l[0], l[1], l[2]},
+       {h[0], h[1], h[2]},
+       b.finite && n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f};
+#else
+  float lx = b.lo[0], ly = b.lo[1], lz = b.lo[2], hx = b.hi[0], hy = b.hi[1], hz = b.hi[2];
+  bool ok = b.finite;
+  for (size_t v = begin; v < end; ++v) {
+    const float x = p[v].x, y = p[v].y, z = p[v].z;
+    lx = x < lx ? x : lx;
+    ly = y < ly ? y : ly;
+    lz = z < lz ? z : lz;
+    hx = hx < x ? x : hx;
+    hy = hy < y ? y : hy;
+    hz = hz < z ? z : hz;
+    ok &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z);
+  }
+  b = {{lx, ly, lz}, {hx, hy, hz}, ok};
+#endif
+}
+void join_box(BlockBox& a, const BlockBox& b) {
+  for (int k = 0; k < 3; ++k) {
+    a.lo[k] = b.lo[k] < a.lo[k] ? b.lo[k] : a.lo[k];
+    a.hi[k] = a.hi[k] < b.hi[k] ? b.hi[k] : a.hi[k];
+  }
+  a.finite = a.finite && b.finite;
+}
+
+// deform_mesh(), also writing the vertices into `kernel` (when not null)
+// and then returning their box in `box`; false when nothing was written
+// or a position is not finite.
+bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
+                 Mesh& out, const KernelTarget* kernel, SceneBounds* box) {
   const size_t vertices = d.vertex_count();
-  if (out.positions.size() != vertices) return;  // not the mesh it was made for
+  if (out.positions.size() != vertices) return false;  // not the mesh it was made for
   const bool normals = !d.base_normals.empty() && out.normals.size() == vertices;
   const bool tangents = !d.base_tangents.empty() && out.tangents.size() == vertices;
   // Only targets with a non-zero weight cost anything per vertex.
@@ -247,30 +340,98 @@ void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const flo
     for (uint32_t j = 0; j < d.palette_size; ++j)
       columns[j] = columns_of(palette[j]);
   }
-  const Job job{d,
-                skinned ? columns.data() : nullptr,
-                active,
-                !d.position_deltas.empty(),
-                normals && !d.normal_deltas.empty(),
-                tangents && !d.tangent_deltas.empty(),
-                out};
+  Job job{d,
+          skinned ? columns.data() : nullptr,
+          active,
+          !d.position_deltas.empty(),
+          normals && !d.normal_deltas.empty(),
+          tangents && !d.tangent_deltas.empty(),
+          out};
+  if (kernel != nullptr) {
+    job.kernel_positions = kernel->positions;
+    job.kernel_normals = normals ? kernel->normals : nullptr;
+    job.kernel_tangents = tangents ? kernel->tangents : nullptr;
+  }
   const bool morph = !active.empty();
   const BlockFn fn =
       skinned
           ? (morph ? pick<true, true>(normals, tangents) : pick<true, false>(normals, tangents))
           : (morph ? pick<false, true>(normals, tangents) : pick<false, false>(normals, tangents));
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices, kBlock),
-                    [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end()); });
+  if (kernel == nullptr) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices, kBlock),
+                      [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end()); });
+    return true;
+  }
+  // The box of each block while its positions are still in the cache: the
+  // compiler, which no longer reads them, would have taken it.
+  const BlockBox all = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, vertices, kBlock), kEmptyBox,
+      [&](const tbb::blocked_range<size_t>& r, BlockBox acc) {
+        fn(job, r.begin(), r.end());
+        grow_box(acc, kernel->positions, r.begin(), r.end());
+        return acc;
+      },
+      [](BlockBox a, const BlockBox& b) {
+        join_box(a, b);
+        return a;
+      });
+  if (vertices == 0 || !all.finite) return false;
+  // positive_zeros(), as the compiler's box.
+  box->lo = glm::vec3(all.lo[0], all.lo[1], all.lo[2]) + glm::vec3(0.0f);
+  box->hi = glm::vec3(all.hi[0], all.hi[1], all.hi[2]) + glm::vec3(0.0f);
+  box->empty = false;
+  return true;
+}
+
+// The mesh's place in `ks`, when ks holds it as compiled from `mesh` with
+// every array the deformation writes.
+bool kernel_target(KernelScene& ks, const MeshDeformation& d, const Mesh& mesh, KernelTarget* out) {
+  if (d.mesh >= ks.meshes.size() || ks.vertices_written.size() != ks.meshes.size()) return false;
+  const KMesh& km = ks.meshes[d.mesh];
+  const size_t n = d.vertex_count(), first = km.vertex_offset;
+  if (km.vertex_count != n || mesh.positions.size() != n || first + n > ks.positions.size())
+    return false;
+  out->positions = ks.positions.data() + first;
+  if (!d.base_normals.empty() && mesh.normals.size() == n) {
+    if (first + n > ks.normals.size()) return false;
+    out->normals = ks.normals.data() + first;
+  }
+  if (!d.base_tangents.empty() && mesh.tangents.size() == n) {
+    if (first + n > ks.tangents.size()) return false;
+    out->tangents = ks.tangents.data() + first;
+  }
+  return true;
+}
+
+}  // namespace
+
+void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
+                 Mesh& out) {
+  deform_into(d, palette, morph_weights, out, nullptr, nullptr);
 }
 
 void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene) {
+                       const float* morph_weights, Scene& scene, KernelScene* kernel) {
   if (d.mesh >= scene.meshes().size()) return;
-  deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
+  // Straight into the kernel arrays only when they hold everything else of
+  // the mesh already: no edit of its vertices since the last compile.
+  const bool clean = !(scene.mesh_dirty()[d.mesh] & kDirtyVertices);
+  Mesh& mesh = scene.edit_mesh_vertices(d.mesh);
+  KernelTarget target;
+  if (kernel == nullptr || !clean || !kernel_target(*kernel, d, mesh, &target)) {
+    deform_mesh(d, palette, morph_weights, mesh);
+    return;
+  }
+  SceneBounds box;
+  if (deform_into(d, palette, morph_weights, mesh, &target, &box)) {
+    scene.note_mesh_vertex_bounds(d.mesh, box);
+    kernel->vertices_written[d.mesh] = scene.mesh_vertex_version(d.mesh);
+  }
 }
 
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, DeformedPose& last) {
+                       const float* morph_weights, Scene& scene, DeformedPose& last,
+                       KernelScene* kernel) {
   if (d.mesh >= scene.meshes().size()) return false;
   const size_t joints = d.skinned() && palette != nullptr ? d.palette_size : 0;
   const size_t targets = morph_weights != nullptr ? d.targets : 0;
@@ -282,7 +443,7 @@ bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
       (targets == 0 ||
        std::memcmp(last.morph_weights.data(), morph_weights, targets * sizeof(float)) == 0);
   if (same_pose) return false;
-  deform_scene_mesh(d, palette, morph_weights, scene);
+  deform_scene_mesh(d, palette, morph_weights, scene, kernel);
   last.palette.assign(palette, palette + joints);
   last.morph_weights.assign(morph_weights, morph_weights + targets);
   last.vertex_version = scene.mesh_vertex_version(d.mesh);

@@ -27,6 +27,8 @@
 
 namespace tandem {
 
+class KernelScene;
+
 // One joint's skinning matrix, the top three rows of an affine 4x4 matrix
 // stored row by row (m[4 * r + c]): 12 floats, so that blending four of
 // them per vertex is a run of multiply-adds the compiler vectorises.
@@ -72,8 +74,18 @@ void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const flo
 
 // The same through Scene::edit_mesh_vertices(d.mesh), so the mesh is marked
 // kDirtyVertices.
+//
+// With `kernel` (the KernelScene the last SceneCompiler::compile() of this
+// scene wrote), the deformed vertices are also written straight into its
+// arrays from the same registers, their box handed to the scene's bounds
+// cache and KernelScene::vertices_written set, so the next compile marks
+// the ranges in the delta without copying the mesh (bit for bit the arrays
+// and the delta a copy would give). Only when the mesh has no vertex edit
+// pending and `kernel` holds it as compiled; otherwise as without it. The
+// caller must not let anything read `kernel` meanwhile (a frame still
+// rendering from it).
 void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene);
+                       const float* morph_weights, Scene& scene, KernelScene* kernel = nullptr);
 
 // What deform_scene_mesh() last wrote into its Scene mesh. A pose equal to
 // it (a paused or held clip, a rig at rest, the viewer redrawing one time)
@@ -87,6 +99,7 @@ struct DeformedPose {
 // last's) the same pose (bit for bit the same palette and weights); then it
 // is left alone, not marked dirty. Returns whether it deformed; updates last.
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, DeformedPose& last);
+                       const float* morph_weights, Scene& scene, DeformedPose& last,
+                       KernelScene* kernel = nullptr);
 
 }  // namespace tandem

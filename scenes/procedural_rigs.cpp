@@ -283,7 +283,7 @@ size_t ProceduralRigPlayer::vertex_count() const {
   return n;
 }
 
-void ProceduralRigPlayer::pose(double t, Scene& scene) const {
+void ProceduralRigPlayer::pose(double t, Scene& scene, KernelScene* kernel) const {
   JointMatrix palette[std::max(kWalkerJoints, kGridJoints)];
   for (const Rig& r : rigs_) {
     if (r.walker >= 0) {
@@ -291,7 +291,7 @@ void ProceduralRigPlayer::pose(double t, Scene& scene) const {
     } else {
       skinned_grid_palette(t, palette);
     }
-    deform_scene_mesh(r.deformation, palette, nullptr, scene, r.last);
+    deform_scene_mesh(r.deformation, palette, nullptr, scene, r.last, kernel);
   }
 }
 

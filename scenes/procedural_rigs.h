@@ -55,8 +55,9 @@ class ProceduralRigPlayer {
   bool empty() const { return rigs_.empty(); }
   size_t rig_count() const { return rigs_.size(); }
   size_t vertex_count() const;
-  // Deforms every rig's mesh for time t (marking those meshes dirty).
-  void pose(double t, Scene& scene) const;
+  // Deforms every rig's mesh for time t (marking those meshes dirty); with
+  // `kernel`, straight into its arrays too (deform_scene_mesh()).
+  void pose(double t, Scene& scene, KernelScene* kernel = nullptr) const;
 
  private:
   struct Rig {

@@ -50,6 +50,7 @@ void SceneCompiler::compile_meshes(const Scene& scene, KernelScene& out, SceneDe
   out.uv0.assign(any_uv0 ? vertex_total : 0, Vec2{0, 0});
   out.uv1.assign(any_uv1 ? vertex_total : 0, Vec2{0, 0});
   out.triangles.resize(triangle_total);
+  out.vertices_written.assign(scene.meshes().size(), 0);
   for (size_t i = 0; i < scene.meshes().size(); ++i) {
     const Mesh& m = scene.meshes()[i];
     write_mesh_vertices(m, uint32_t(i), out, 0, out.meshes[i].vertex_count);
@@ -187,8 +188,12 @@ void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& de
     const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(mesh.positions.size())});
     if (end <= r.begin) continue;
     const bool whole = r.begin == 0 && end == mesh.positions.size();
+    // A deformer wrote this version of the vertices into `out` itself (and
+    // gave the bounds cache their box): only the delta is left to do.
+    const bool written = whole && i < out.vertices_written.size() && out.vertices_written[i] != 0 &&
+                         out.vertices_written[i] == scene.mesh_vertex_version(i);
     SceneBounds box;
-    if (write_mesh_vertices(mesh, i, out, r.begin, end, whole ? &box : nullptr))
+    if (!written && write_mesh_vertices(mesh, i, out, r.begin, end, whole ? &box : nullptr))
       scene.note_mesh_vertex_bounds(i, box);
     const uint32_t b = km.vertex_offset + r.begin, e = km.vertex_offset + end;
     delta.positions.mark(b, e);

@@ -28,6 +28,11 @@ class KernelScene {
 #undef TANDEM_DECLARE_VECTOR
   KernelConstants constants{};  // written by SceneCompiler
   KBvhConstants bvh{};          // written by AccelStructure
+  // Per mesh: the Scene::mesh_vertex_version() whose vertices a deformer
+  // has written into the arrays above itself, beside the Scene mesh
+  // (deform_scene_mesh() with a KernelScene), so the compiler marks them in
+  // the delta without copying them; 0: it copies. Reset by a full compile.
+  std::vector<uint64_t> vertices_written;
 
   // Pointers into the vectors above; valid until the next compile.
   KernelData view() const;
