@@ -32,34 +32,10 @@ std::vector<std::string> gltf_files() {
 }
 
 void compare_scene(TracedScene& s, const std::string& name) {
+  expect_hits_like_embree(s, name, kRaysPerKind, kRequiredAgreement);
   const KernelData kd = s.kd();
-  const DistanceTolerance tol = distance_tolerance(s.bounds);
-  const auto primary = primary_rays(s, kRaysPerKind, 1);
-  const auto shadow = shadow_rays(s, kRaysPerKind, 2);
-  const auto diffuse = diffuse_rays(s, kRaysPerKind, 3);
-  auto embree_hit = [&](const RaySample& r) { return s.embree.intersect(r.ray, r.alpha_key); };
-  auto embree_occ = [&](const RaySample& r) { return s.embree.occluded(r.ray, r.alpha_key); };
-  for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
-    auto our_hit = [&](const RaySample& r) {
-      return bvh_intersect(kd, r.ray, r.alpha_key, layout);
-    };
-    auto our_occ = [&](const RaySample& r) { return bvh_occluded(kd, r.ray, r.alpha_key, layout); };
-    const Agreement p = compare_closest(kd, tol, primary, our_hit, embree_hit);
-    const Agreement d = compare_closest(kd, tol, diffuse, our_hit, embree_hit);
-    const Agreement o = compare_occlusion(shadow, our_occ, embree_occ);
-    std::printf("[accstruc] %-40s %-6s primary %s\n", name.c_str(), layout_name(layout),
-                p.summary().c_str());
-    std::printf("[accstruc] %-40s %-6s diffuse %s\n", name.c_str(), layout_name(layout),
-                d.summary().c_str());
-    std::printf("[accstruc] %-40s %-6s shadow  %s\n", name.c_str(), layout_name(layout),
-                o.summary().c_str());
-    EXPECT_GE(p.fraction(), kRequiredAgreement) << name << " primary " << layout_name(layout);
-    EXPECT_GE(d.fraction(), kRequiredAgreement) << name << " diffuse " << layout_name(layout);
-    EXPECT_GE(o.fraction(), kRequiredAgreement) << name << " shadow " << layout_name(layout);
-    // A comparison where nothing is hit proves nothing.
-    EXPECT_GT(p.hits + d.hits + o.hits, 0u) << name;
-  }
   // The tracer wrapper follows kd.bvh.layout.
+  const auto primary = primary_rays(s, 200, 1);
   KernelData wide_kd = kd;
   wide_kd.bvh.layout = kBvhLayoutWide;
   const BvhTracer tracer{&wide_kd};

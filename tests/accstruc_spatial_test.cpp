@@ -141,31 +141,7 @@ class SpatialSplitsOn {
 };
 
 void expect_embree_hits(TracedScene& s, const std::string& name) {
-  const KernelData kd = s.kd();
-  const DistanceTolerance tol = distance_tolerance(s.bounds);
-  const auto primary = primary_rays(s, 10000, 1);
-  const auto shadow = shadow_rays(s, 10000, 2);
-  const auto diffuse = diffuse_rays(s, 10000, 3);
-  auto embree_hit = [&](const RaySample& r) { return s.embree.intersect(r.ray, r.alpha_key); };
-  auto embree_occ = [&](const RaySample& r) { return s.embree.occluded(r.ray, r.alpha_key); };
-  for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
-    auto our_hit = [&](const RaySample& r) {
-      return bvh_intersect(kd, r.ray, r.alpha_key, layout);
-    };
-    auto our_occ = [&](const RaySample& r) { return bvh_occluded(kd, r.ray, r.alpha_key, layout); };
-    const Agreement p = compare_closest(kd, tol, primary, our_hit, embree_hit);
-    const Agreement d = compare_closest(kd, tol, diffuse, our_hit, embree_hit);
-    const Agreement o = compare_occlusion(shadow, our_occ, embree_occ);
-    std::printf(
-        "[spatial] %-12s %-6s primary %s\n[spatial] %-12s %-6s diffuse %s\n"
-        "[spatial] %-12s %-6s shadow  %s\n",
-        name.c_str(), layout_name(layout), p.summary().c_str(), name.c_str(), layout_name(layout),
-        d.summary().c_str(), name.c_str(), layout_name(layout), o.summary().c_str());
-    EXPECT_GE(p.fraction(), 0.999) << name;
-    EXPECT_GE(d.fraction(), 0.999) << name;
-    EXPECT_GE(o.fraction(), 0.999) << name;
-    EXPECT_GT(p.hits + d.hits + o.hits, 0u);
-  }
+  expect_hits_like_embree(s, "spatial " + name, 10000, 0.999);
 }
 
 TEST(SpatialBvh, SameHitsAsEmbree) {
