@@ -345,7 +345,23 @@ TEST(KernelBsdf, TransmissionObeysGeneralizedReciprocity) {
       if (!is_black(f1)) ++nonzero;
       for (int k = 0; k < 3; ++k) {
         const float x = component(f1, k) * c.p.eta * c.p.eta, y = component(f2, k);
-        ASSERT_NEAR(x, y, 1e-3f * std::max(x, y) + 1e-6f)
+        // What is left is float rounding: the forward and the reverse
+        // evaluation form the half vector and the Fresnel term from
+        // differently rounded inputs. Measured over 20000 directions per
+        // case (seed 4242, 480 cases per view angle), 1e-3 * max + 1e-6
+        // was exceeded 868 times in 2.0M nonzero components at 85 deg
+        // (about 3 expected in this test's 64 directions: it passed by the
+        // luck of the draw), 72 times at 30 deg and 6 at 60 deg. Two kinds:
+        // near the edge of the refraction cone one side cuts off to 0 where
+        // the other is still positive (up to 2e-6 at 30 deg, 5e-5 at
+        // 85 deg), and at 85 deg the two differ by up to 6e-2 of the value
+        // (both positive, above 1e-3). With 1e-3 * max + 1e-5, and
+        // 1e-1 * max + 1e-4 for grazing views, 60000 directions per case
+        // under three seeds used at most 62% (30 deg) and 83% (85 deg) of
+        // the tolerance. A wrong factor (eta^2, a cosine) is far larger.
+        const bool grazing = c.wo.z < 0.17f;
+        const float rel = grazing ? 1e-1f : 1e-3f, abs_floor = grazing ? 1e-4f : 1e-5f;
+        ASSERT_NEAR(x, y, rel * std::max(x, y) + abs_floor)
             << describe(c.p, c.wo) << " wi.z=" << wi.z;
       }
     }
