@@ -322,8 +322,8 @@ TEST(BvhRayTests, NoRayFallsThroughSharedEdgesOrVertices) {
   auto shoot = [&](glm::vec3 p_obj) {
     const glm::vec3 p = glm::vec3(xf * glm::vec4(p_obj, 1.0f));
     const glm::vec3 nrm = glm::normalize(glm::vec3(xf * glm::vec4(0, 0, 1, 0)));
-    const glm::vec3 dir = glm::normalize(
-        -nrm + 0.4f * glm::vec3(rng.uniform() - 0.5f, rng.uniform() - 0.5f, rng.uniform() - 0.5f));
+    const float uz = rng.uniform(), uy = rng.uniform(), ux = rng.uniform();
+    const glm::vec3 dir = glm::normalize(-nrm + 0.4f * glm::vec3(ux - 0.5f, uy - 0.5f, uz - 0.5f));
     const glm::vec3 o = p - 5.0f * dir;
     const Ray ray = {{o.x, o.y, o.z}, 0.0f, {dir.x, dir.y, dir.z}, kFloatMax};
     ++rays;

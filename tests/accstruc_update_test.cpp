@@ -209,7 +209,8 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
   const uint32_t b = scene.add_mesh(make_uv_sphere(0.5f, 4, 8, 0, true));
   TestRandom rng(3);
   for (uint32_t i = 0; i < 5000; ++i) {
-    const glm::vec3 p(rng.uniform() * 200.0f, rng.uniform() * 20.0f, rng.uniform() * 200.0f);
+    const float uz = rng.uniform(), uy = rng.uniform(), ux = rng.uniform();
+    const glm::vec3 p(ux * 200.0f, uy * 20.0f, uz * 200.0f);
     scene.add_instance({"i", i % 3 ? a : b, glm::translate(glm::mat4(1.0f), p)});
   }
   TracedScene s(std::move(scene));
@@ -232,7 +233,8 @@ TEST(AccelUpdate, TlasOfThousandsOfInstances) {
       "5000 refit instances vs Embree");
   // Instances scattering: a refit tree would overlap badly, so it is rebuilt.
   for (uint32_t i = 0; i < 5000; ++i) {
-    const glm::vec3 p(rng.uniform() * 200.0f, rng.uniform() * 20.0f, rng.uniform() * 200.0f);
+    const float uz = rng.uniform(), uy = rng.uniform(), ux = rng.uniform();
+    const glm::vec3 p(ux * 200.0f, uy * 20.0f, uz * 200.0f);
     s.scene.set_instance_transform(i, glm::translate(glm::mat4(1.0f), p));
   }
   const AccelUpdate up = s.recompile();
@@ -261,7 +263,8 @@ TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
   const uint32_t b = scene.add_mesh(make_uv_sphere(0.5f, 4, 6, 0, true));
   TestRandom rng(5);
   for (uint32_t i = 0; i < 700; ++i) {
-    const glm::vec3 p(rng.uniform() * 80.0f, rng.uniform() * 8.0f, rng.uniform() * 80.0f);
+    const float uz = rng.uniform(), uy = rng.uniform(), ux = rng.uniform();
+    const glm::vec3 p(ux * 80.0f, uy * 8.0f, uz * 80.0f);
     scene.add_instance({"i", i % 4 ? a : b, glm::translate(glm::mat4(1.0f), p)});
   }
   Scene full_scene = scene;
@@ -276,9 +279,9 @@ TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
     const uint32_t moves = scatter ? 700 : 1 + uint32_t(rng.uniform() * 60.0f);
     for (uint32_t k = 0; k < moves; ++k) {
       const uint32_t i = scatter ? k : std::min(699u, uint32_t(rng.uniform() * 700.0f));
-      const glm::vec3 step =
-          scatter ? glm::vec3(rng.uniform() * 80.0f - 40.0f, 0.0f, rng.uniform() * 80.0f - 40.0f)
-                  : glm::vec3(rng.uniform() - 0.5f, 0.0f, rng.uniform() - 0.5f);
+      const float uz = rng.uniform(), ux = rng.uniform();
+      const glm::vec3 step = scatter ? glm::vec3(ux * 80.0f - 40.0f, 0.0f, uz * 80.0f - 40.0f)
+                                     : glm::vec3(ux - 0.5f, 0.0f, uz - 0.5f);
       const glm::mat4 t = glm::translate(glm::mat4(1.0f), step) * scene.instances()[i].transform;
       scene.set_instance_transform(i, t);
       full_scene.set_instance_transform(i, t);

@@ -93,7 +93,8 @@ TEST_P(EnvironmentSampling, DirectionsFollowEnvPdf) {
   TestRng rng(200 + uint32_t(GetParam() * 10.0f));
   const auto r = test_stats::sphere_chi_square(
       [&](Vec3* g) {
-        const EnvSample s = env_sample(kd, rng.next(), rng.next());
+        const float u2 = rng.next(), u1 = rng.next();
+        const EnvSample s = env_sample(kd, u1, u2);
         if (!(s.pdf > 0.0f)) return false;
         *g = world_to_grid(s.dir);
         return true;
@@ -109,7 +110,8 @@ TEST_P(EnvironmentSampling, SampleReportsEnvPdfAndRadiance) {
   TestRng rng(210);
   int mismatched = 0;
   for (int s = 0; s < 100000; ++s) {
-    const EnvSample es = env_sample(kd, rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const EnvSample es = env_sample(kd, u1, u2);
     ASSERT_NEAR(length(es.dir), 1.0f, 1e-5f);
     ASSERT_TRUE(es.pdf > 0.0f && std::isfinite(es.pdf));
     const float pdf = env_pdf(kd, es.dir);
@@ -132,8 +134,10 @@ TEST_P(EnvironmentSampling, EstimatorMatchesIntegralOfRadiance) {
   TestRng rng(220);
   MeanAccumulator importance[3], uniform[3];
   for (int s = 0; s < 200000; ++s) {
-    const EnvSample es = env_sample(kd, rng.next(), rng.next());
-    const Vec3 d = sample_uniform_sphere(rng.next(), rng.next());
+    const float es_u2 = rng.next(), es_u1 = rng.next();
+    const EnvSample es = env_sample(kd, es_u1, es_u2);
+    const float d_u2 = rng.next(), d_u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(d_u1, d_u2);
     const Vec3 lu = env_radiance(kd, d) * (4.0f * kPi);
     for (int k = 0; k < 3; ++k) {
       importance[k].add(es.pdf > 0.0f ? double(component(es.radiance, k)) / es.pdf : 0.0);
@@ -159,7 +163,8 @@ TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
   const KernelData kd0 = ks0.view(), kd1 = ks1.view();
   TestRng rng(230);
   for (int s = 0; s < 1000; ++s) {
-    const Vec3 d = sample_uniform_sphere(rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(u1, u2);
     const Vec3 rotated = rotate_y(d, 1.3f);
     const Vec3 a = env_radiance(kd0, d), b = env_radiance(kd1, rotated);
     ASSERT_NEAR(a.x, b.x, 1e-3f * (1.0f + a.x));
@@ -178,7 +183,8 @@ TEST(KernelEnvironment, ConstantColorIsUniform) {
   const KernelData kd = ks.view();
   TestRng rng(240);
   for (int s = 0; s < 1000; ++s) {
-    const EnvSample es = env_sample(kd, rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const EnvSample es = env_sample(kd, u1, u2);
     ASSERT_FLOAT_EQ(es.pdf, kInv4Pi);
     ASSERT_FLOAT_EQ(env_pdf(kd, es.dir), kInv4Pi);
     ASSERT_FLOAT_EQ(es.radiance.z, 2.0f);
@@ -437,7 +443,8 @@ TEST(KernelTriangleLight, ExpectedInversePdfIsSolidAngle) {
     int mismatched = 0;
     for (int i = 0; i < 200000; ++i) {
       LightSample ls;
-      ASSERT_TRUE(sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls));
+      const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+      ASSERT_TRUE(sample_light(kd, kReference, us, u1, u2, &ls));
       ASSERT_FALSE(ls.is_delta);
       ASSERT_FALSE(ls.at_infinity);
       ASSERT_NEAR(length(ls.wi), 1.0f, 1e-5f);
@@ -476,9 +483,11 @@ TEST(KernelTriangleLight, AnalyticReferencesMatchBruteForce) {
   TestRng rng(410);
   MeanAccumulator estimate, omega;
   for (int i = 0; i < 400000; ++i) {
-    const Vec3 d = to_world(frame, sample_cosine_hemisphere(rng.next(), rng.next()));
+    const float d_u2 = rng.next(), d_u1 = rng.next();
+    const Vec3 d = to_world(frame, sample_cosine_hemisphere(d_u1, d_u2));
     estimate.add(intersect(s.triangles, kReference, d) ? kPi : 0.0);
-    const Vec3 u = sample_uniform_sphere(rng.next(), rng.next());
+    const float u_u2 = rng.next(), u_u1 = rng.next();
+    const Vec3 u = sample_uniform_sphere(u_u1, u_u2);
     omega.add(intersect(s.triangles, kReference, u) ? 4.0 * kPi : 0.0);
   }
   EXPECT_NEAR(estimate.mean(), expected, 5.0 * estimate.std_error());
@@ -509,7 +518,8 @@ TEST(KernelTriangleLight, DirectionsFollowTheReportedPdf) {
   TestRng rng(420);
   for (int n = 0; n < kSamples; ++n) {
     LightSample ls;
-    if (!sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls)) {
+    const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+    if (!sample_light(kd, kReference, us, u1, u2, &ls)) {
       observed[failed] += 1.0;
       continue;
     }
@@ -558,7 +568,8 @@ TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {
     TestRng rng(430);
     for (int i = 0; i < 10000; ++i) {
       LightSample ls;
-      ASSERT_FALSE(sample_light(kd, behind, rng.next(), rng.next(), rng.next(), &ls));
+      const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+      ASSERT_FALSE(sample_light(kd, behind, us, u1, u2, &ls));
     }
   }
   {
@@ -568,7 +579,8 @@ TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {
     TestRng rng(431);
     for (int i = 0; i < 10000; ++i) {
       LightSample ls;
-      ASSERT_TRUE(sample_light(kd, behind, rng.next(), rng.next(), rng.next(), &ls));
+      const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+      ASSERT_TRUE(sample_light(kd, behind, us, u1, u2, &ls));
       ASSERT_NEAR(pdf_at_hit(kd, s.triangles, behind, ls.wi), ls.pdf, 1e-3f * ls.pdf);
     }
   }
@@ -605,7 +617,8 @@ TEST(KernelTriangleLight, EnvironmentAndTrianglesShareOneLightList) {
   constexpr int kSamples = 100000;
   for (int i = 0; i < kSamples; ++i) {
     LightSample ls;
-    if (!sample_light(kd, kReference, rng.next(), rng.next(), rng.next(), &ls)) continue;
+    const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+    if (!sample_light(kd, kReference, us, u1, u2, &ls)) continue;
     if (ls.at_infinity) {
       ++env_count;
       ASSERT_NEAR(environment_light_pdf(kd, ls.wi), ls.pdf, 1e-3f * ls.pdf);
@@ -756,7 +769,8 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
   TestRng rng(450);
   for (int i = 0; i < kSamples; ++i) {
     LightSample ls;
-    ASSERT_TRUE(sample_light(kd, make_vec3(0.0f), rng.next(), rng.next(), rng.next(), &ls));
+    const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
+    ASSERT_TRUE(sample_light(kd, make_vec3(0.0f), us, u1, u2, &ls));
     const int index = int(std::lround(ls.point.x));
     ASSERT_NEAR(ls.pdf, weights[size_t(index)] / 9.5, 1e-6);
     observed[size_t(index)] += 1.0;

@@ -116,7 +116,8 @@ TEST(KernelGgx, VisibleNormalSamplingFollowsItsPdf) {
       bool hidden = false;
       const auto r = test_stats::sphere_chi_square(
           [&](Vec3* m) {
-            *m = ggx_sample_visible_normal(wo, alpha, rng.next(), rng.next());
+            const float u2 = rng.next(), u1 = rng.next();
+            *m = ggx_sample_visible_normal(wo, alpha, u1, u2);
             // Visible normals face wo (up to rounding).
             if (dot(*m, wo) < -1e-5f || m->z <= 0.0f) hidden = true;
             return true;
@@ -230,9 +231,10 @@ TEST(KernelFresnel, RefractionObeysSnell) {
   TestRng rng(61);
   for (float eta : kEtas) {
     for (int s = 0; s < 2000; ++s) {
-      const Vec3 m =
-          normalize(make_vec3(0.3f * (rng.next() - 0.5f), 0.3f * (rng.next() - 0.5f), 1.0f));
-      const Vec3 w = sample_uniform_sphere(0.5f * rng.next(), rng.next());  // upper hemisphere
+      const float uy = rng.next(), ux = rng.next();
+      const Vec3 m = normalize(make_vec3(0.3f * (ux - 0.5f), 0.3f * (uy - 0.5f), 1.0f));
+      const float u2 = rng.next(), u1 = rng.next();
+      const Vec3 w = sample_uniform_sphere(0.5f * u1, u2);  // upper hemisphere
       const float cos_i = dot(w, m);
       if (cos_i <= 1e-3f) continue;
       Vec3 t = make_vec3(0.0f);

@@ -84,7 +84,8 @@ TEST(KernelSampling, ConcentricDiskIsUniform) {
   std::vector<double> observed(kRadial * kAngular, 0.0);
   std::vector<double> expected(kRadial * kAngular, double(kSamples) / (kRadial * kAngular));
   for (int s = 0; s < kSamples; ++s) {
-    const Vec2 p = sample_disk_concentric(rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec2 p = sample_disk_concentric(u1, u2);
     const double r2 = double(p.x) * p.x + double(p.y) * p.y;
     ASSERT_LE(r2, 1.0 + 1e-6);
     double phi = std::atan2(double(p.y), double(p.x));
@@ -108,7 +109,8 @@ TEST(KernelSampling, CosineHemisphereFollowsItsPdf) {
   TestRng rng(12);
   const auto r = sphere_chi_square(
       [&](Vec3* d) {
-        *d = sample_cosine_hemisphere(rng.next(), rng.next());
+        const float u2 = rng.next(), u1 = rng.next();
+        *d = sample_cosine_hemisphere(u1, u2);
         return d->z > 0.0f;
       },
       [](Vec3 d) { return pdf_cosine_hemisphere(d.z); }, 200000, 32, 64, double(kPi) / 2);
@@ -120,7 +122,8 @@ TEST(KernelSampling, CosineHemisphereFollowsItsPdf) {
 TEST(KernelSampling, CosineHemisphereSamplesAreUnitVectors) {
   TestRng rng(13);
   for (int s = 0; s < 10000; ++s) {
-    const Vec3 d = sample_cosine_hemisphere(rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_cosine_hemisphere(u1, u2);
     ASSERT_NEAR(length(d), 1.0f, 1e-5f);
     ASSERT_GE(d.z, 0.0f);
   }
@@ -130,7 +133,8 @@ TEST(KernelSampling, UniformSphereFollowsItsPdf) {
   TestRng rng(14);
   const auto r = sphere_chi_square(
       [&](Vec3* d) {
-        *d = sample_uniform_sphere(rng.next(), rng.next());
+        const float u2 = rng.next(), u1 = rng.next();
+        *d = sample_uniform_sphere(u1, u2);
         return true;
       },
       [](Vec3) { return kInv4Pi; }, 200000, 32, 64);
@@ -152,7 +156,8 @@ TEST(KernelSampling, TriangleBarycentricsAreUniform) {
     }
   }
   for (int s = 0; s < kSamples; ++s) {
-    const Vec2 b = sample_triangle_barycentrics(rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec2 b = sample_triangle_barycentrics(u1, u2);
     ASSERT_GE(b.x, 0.0f);
     ASSERT_GE(b.y, 0.0f);
     ASSERT_LE(b.x + b.y, 1.0f + 1e-6f);
@@ -192,7 +197,8 @@ TEST(KernelSampling, EquirectRoundTrip) {
   // direction -> uv -> direction for random directions.
   TestRng rng(16);
   for (int s = 0; s < 10000; ++s) {
-    const Vec3 d = sample_uniform_sphere(rng.next(), rng.next());
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(u1, u2);
     const Vec2 uv = direction_to_equirect(d);
     const Vec3 back = equirect_to_direction(uv.x, uv.y);
     ASSERT_NEAR(back.x, d.x, 1e-5f);
@@ -217,7 +223,8 @@ TEST(KernelSampling, EquirectMapHasTheSinThetaJacobian) {
   auto to_grid = [](Vec3 d) { return make_vec3(d.z, d.x, d.y); };
   const auto r = sphere_chi_square(
       [&](Vec3* d) {
-        *d = to_grid(equirect_to_direction(rng.next(), rng.next()));
+        const float v = rng.next(), u = rng.next();
+        *d = to_grid(equirect_to_direction(u, v));
         return true;
       },
       [](Vec3 g) {

@@ -402,7 +402,8 @@ void make_square_frame(int frame, uint32_t w, uint32_t h, std::mt19937& rng,
         p.prev_depth = z;
         p.material = x < w / 3 ? 2u : 0u;
       }
-      radiance[y * w + x] = p.albedo * (2.0f * u(rng)) * (u(rng) < 0.02f ? 20.0f : 1.0f);
+      const float spike_u = u(rng), scale_u = u(rng);
+      radiance[y * w + x] = p.albedo * (2.0f * scale_u) * (spike_u < 0.02f ? 20.0f : 1.0f);
     }
   }
 }

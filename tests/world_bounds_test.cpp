@@ -32,8 +32,10 @@ Mesh random_mesh(std::mt19937& rng, uint32_t triangles) {
 
 glm::mat4 random_transform(std::mt19937& rng) {
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  glm::mat4 t = glm::translate(glm::mat4(1.0f), glm::vec3(10 * u(rng), 10 * u(rng), 10 * u(rng)));
-  t = glm::rotate(t, 3.0f * u(rng), glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + 1e-3f));
+  const float tz = u(rng), ty = u(rng), tx = u(rng);
+  glm::mat4 t = glm::translate(glm::mat4(1.0f), glm::vec3(10 * tx, 10 * ty, 10 * tz));
+  const float az = u(rng), ay = u(rng), ax = u(rng), angle = u(rng);
+  t = glm::rotate(t, 3.0f * angle, glm::normalize(glm::vec3(ax, ay, az) + 1e-3f));
   return glm::scale(t, glm::vec3(1.5f + u(rng)));
 }
 
@@ -197,7 +199,8 @@ TEST(SceneCompilerIncremental, LightAndMaterialEditsGiveWhatAFreshCompileGives) 
     if (what == 0) {
       scene.edit_light(rng() % scene.lights().size()).intensity = u(rng);
     } else if (what == 1) {
-      scene.edit_light(rng() % scene.lights().size()).color = glm::vec3(u(rng), u(rng), 1.0f);
+      const float green = u(rng), red = u(rng);
+      scene.edit_light(rng() % scene.lights().size()).color = glm::vec3(red, green, 1.0f);
     } else if (what == 2) {
       scene.edit_material(rng() % scene.materials().size()).roughness = 0.5f * u(rng);
     } else {
