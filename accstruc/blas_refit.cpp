@@ -61,26 +61,8 @@ inline bool triangle_box(const Vec3* p, const uint32_t* v, Aabb& b) {
 // In registers: built field by field in memory and compared with memcmp,
 // the new record was read back right after its scalar stores (a store
 // forwarding stall per 16 bytes), a fifth of a deforming mesh's refit.
-inline __m128 with_w_of(const Vec3& v, __m128 old) {
-  const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
-  return _mm_or_ps(_mm_and_ps(xyz, _mm_setr_ps(v.x, v.y, v.z, 0.0f)), _mm_andnot_ps(xyz, old));
-}
-inline bool update_leaf_record(KLeafTriangle& r, const Vec3& a, const Vec3& b, const Vec3& c) {
-  float* f = &r.p0.x;
-  const __m128 o0 = _mm_load_ps(f), o1 = _mm_load_ps(f + 4), o2 = _mm_load_ps(f + 8);
-  const __m128 n0 = with_w_of(a, o0), n1 = with_w_of(b, o1), n2 = with_w_of(c, o2);
-  const __m128i same =
-      _mm_and_si128(_mm_and_si128(_mm_cmpeq_epi32(_mm_castps_si128(n0), _mm_castps_si128(o0)),
-                                  _mm_cmpeq_epi32(_mm_castps_si128(n1), _mm_castps_si128(o1))),
-                    _mm_cmpeq_epi32(_mm_castps_si128(n2), _mm_castps_si128(o2)));
-  if (_mm_movemask_epi8(same) == 0xffff) return false;
-  _mm_store_ps(f, n0);
-  _mm_store_ps(f + 4, n1);
-  _mm_store_ps(f + 8, n2);
-  return true;
-}
-// update_leaf_record() from the vertices' 16-byte loads (w: whatever
-// follows the vertex), in registers.
+// update_leaf_record4 takes the vertices as 16-byte loads (w: whatever
+// follows the vertex; the record keeps its own w).
 inline bool update_leaf_record4(KLeafTriangle& r, __m128 a, __m128 b, __m128 c) {
   float* f = &r.p0.x;
   const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
@@ -97,6 +79,10 @@ inline bool update_leaf_record4(KLeafTriangle& r, __m128 a, __m128 b, __m128 c) 
   _mm_store_ps(f + 4, n1);
   _mm_store_ps(f + 8, n2);
   return true;
+}
+inline bool update_leaf_record(KLeafTriangle& r, const Vec3& a, const Vec3& b, const Vec3& c) {
+  return update_leaf_record4(r, _mm_setr_ps(a.x, a.y, a.z, 0.0f), _mm_setr_ps(b.x, b.y, b.z, 0.0f),
+                             _mm_setr_ps(c.x, c.y, c.z, 0.0f));
 }
 // A triangle's box as two registers (xyz, w unused), the same unions as
 // Aabb::grow() lane by lane (min_f / max_f are minps / maxps with the same
