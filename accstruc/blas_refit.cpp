@@ -388,6 +388,11 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   };
   const Vec3* positions = g.positions;
   const uint32_t* tris = leaf_tris_.data();
+  // Records [lo, hi) were rewritten: the range the caller uploads grows.
+  const auto records_changed = [](Out& o, uint32_t lo, uint32_t hi) {
+    o.leaf_lo = std::min(o.leaf_lo, lo);
+    o.leaf_hi = std::max(o.leaf_hi, hi);
+  };
 
   // The triangle boxes of the leaf entries [lo, hi) of the task being
   // swept, from its leaf pass; boxes == null outside a task.
@@ -427,8 +432,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
         o.invalid = true;
       }
       if (update_leaf_record(leaf_triangles[e], a, b, c)) {
-        o.leaf_lo = std::min(o.leaf_lo, e);
-        o.leaf_hi = std::max(o.leaf_hi, e + 1);
+        records_changed(o, e, e + 1);
       }
     }
     return box;
@@ -441,6 +445,12 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // waited for; here the vertices a few triangles ahead are prefetched.
   const auto leaf_pass = [&](const Task& task, TaskBox* out, Out& o) {
     constexpr uint32_t kAhead = 32;  // triangles: a few hundred ns of work
+    const auto prefetch_vertices = [&](uint32_t e) {
+      const uint32_t* f = tris + kEntryWords * size_t(e);
+      __builtin_prefetch(positions + f[0]);
+      __builtin_prefetch(positions + f[1]);
+      __builtin_prefetch(positions + f[2]);
+    };
 #if defined(__SSE2__)
     // The vertex indices themselves (a stream the vertex prefetches above
     // wait on): a few cache lines further ahead.
@@ -452,10 +462,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     bool changed = false;
     for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
       if (e + kAhead < task.leaf_hi) {
-        const uint32_t* f = tris + kEntryWords * size_t(e + kAhead);
-        __builtin_prefetch(positions + f[0]);
-        __builtin_prefetch(positions + f[1]);
-        __builtin_prefetch(positions + f[2]);
+        prefetch_vertices(e + kAhead);
         if ((e & 3u) == 0 && e + kIndicesAhead < task.leaf_hi)
           __builtin_prefetch(tris + kEntryWords * size_t(e + kIndicesAhead));
       }
@@ -483,24 +490,17 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
         _mm_stream_ps(r + 8, _mm_and_ps(xyz, c));
         changed = true;
       } else if (update_leaf_record4(leaf_triangles[e], a, b, c)) {
-        o.leaf_lo = std::min(o.leaf_lo, e);
-        o.leaf_hi = std::max(o.leaf_hi, e + 1);
+        records_changed(o, e, e + 1);
       }
     }
     if (changed) {
       _mm_sfence();
-      o.leaf_lo = std::min(o.leaf_lo, task.leaf_lo);
-      o.leaf_hi = std::max(o.leaf_hi, task.leaf_hi);
+      records_changed(o, task.leaf_lo, task.leaf_hi);
     }
 #else
     (void)overwrite_records;
     for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
-      if (e + kAhead < task.leaf_hi) {
-        const uint32_t* f = tris + kEntryWords * size_t(e + kAhead);
-        __builtin_prefetch(positions + f[0]);
-        __builtin_prefetch(positions + f[1]);
-        __builtin_prefetch(positions + f[2]);
-      }
+      if (e + kAhead < task.leaf_hi) prefetch_vertices(e + kAhead);
       const uint32_t* v = tris + kEntryWords * size_t(e);
       const Vec3 a = positions[v[0]], b = positions[v[1]], c = positions[v[2]];
       Aabb t;
@@ -510,8 +510,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       }
       out[e - task.leaf_lo] = t;
       if (leaf_triangles != nullptr && update_leaf_record(leaf_triangles[e], a, b, c)) {
-        o.leaf_lo = std::min(o.leaf_lo, e);
-        o.leaf_hi = std::max(o.leaf_hi, e + 1);
+        records_changed(o, e, e + 1);
       }
     }
 #endif
