@@ -1,6 +1,7 @@
 #include "scenes/mesh_deformer.h"
 
 #include "core/world/kernel_scene.h"
+#include "core/world/running_box.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -268,11 +269,22 @@ struct BlockBox {
 };
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr BlockBox kEmptyBox{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, true};
+// The compiler's RunningBox, started from the box so far: the path where
+// there is no SSE (compiled everywhere, so it cannot rot unbuilt).
+[[maybe_unused]] void grow_box_scalar(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
+  RunningBox r;
+  r.lx = b.lo[0], r.ly = b.lo[1], r.lz = b.lo[2];
+  r.hx = b.hi[0], r.hy = b.hi[1], r.hz = b.hi[2];
+  r.finite = b.finite;
+  for (size_t v = begin; v < end; ++v)
+    r.add(p[v].x, p[v].y, p[v].z);
+  b = {{r.lx, r.ly, r.lz}, {r.hx, r.hy, r.hz}, r.finite};
+}
 void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
 #if defined(__SSE__)
   // One 16-byte load a vertex (the kernel positions have a readable element
   // past the last one; lane 3 is ignored): minps(x, lo) is x < lo ? x : lo
-  // and maxps(x, hi) is hi < x ? x : hi, the scalar comparisons below lane
+  // and maxps(x, hi) is hi < x ? x : hi, grow_box_scalar()'s comparisons lane
   // by lane. x - x is 0 for a finite x and NaN otherwise, and the NaN stays
   // in the sum.
   __m128 lo = _mm_setr_ps(b.lo[0], b.lo[1], b.lo[2], 0.0f);
@@ -292,19 +304,7 @@ void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
        {h[0], h[1], h[2]},
        b.finite && n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f};
 #else
-  float lx = b.lo[0], ly = b.lo[1], lz = b.lo[2], hx = b.hi[0], hy = b.hi[1], hz = b.hi[2];
-  bool ok = b.finite;
-  for (size_t v = begin; v < end; ++v) {
-    const float x = p[v].x, y = p[v].y, z = p[v].z;
-    lx = x < lx ? x : lx;
-    ly = y < ly ? y : ly;
-    lz = z < lz ? z : lz;
-    hx = hx < x ? x : hx;
-    hy = hy < y ? y : hy;
-    hz = hz < z ? z : hz;
-    ok &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z);
-  }
-  b = {{lx, ly, lz}, {hx, hy, hz}, ok};
+  grow_box_scalar(b, p, begin, end);
 #endif
 }
 void join_box(BlockBox& a, const BlockBox& b) {

@@ -10,6 +10,7 @@
 #include <vector>
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
+#include "core/world/running_box.h"
 
 namespace tandem {
 
@@ -91,29 +92,14 @@ void convert_range(std::vector<Out>& out, const std::vector<In>& in, uint32_t ba
 // order as vertex_bounds(), so the same box.
 SceneBounds copy_positions_with_bounds(Vec3* dst, const glm::vec3* in, uint32_t begin, uint32_t end,
                                        bool* all_finite) {
-  const float inf = std::numeric_limits<float>::infinity();
-  float lx = inf, ly = inf, lz = inf, hx = -inf, hy = -inf, hz = -inf;
-  bool ok = true;
+  RunningBox box;
   for (uint32_t v = begin; v < end; ++v) {
     const float x = in[v].x, y = in[v].y, z = in[v].z;
     dst[v] = {x, y, z};
-    // glm::min(lo, p) is (p < lo ? p : lo), glm::max(hi, p) (hi < p ? p : hi).
-    lx = x < lx ? x : lx;
-    ly = y < ly ? y : ly;
-    lz = z < lz ? z : lz;
-    hx = hx < x ? x : hx;
-    hy = hy < y ? y : hy;
-    hz = hz < z ? z : hz;
-    ok &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z);
+    box.add(x, y, z);
   }
-  *all_finite = ok;
-  SceneBounds b;
-  if (end <= begin) return b;
-  // positive_zeros(), as vertex_bounds() returns it.
-  b.lo = glm::vec3(lx, ly, lz) + glm::vec3(0.0f);
-  b.hi = glm::vec3(hx, hy, hz) + glm::vec3(0.0f);
-  b.empty = false;
-  return b;
+  *all_finite = box.finite;
+  return box.bounds(end > begin);
 }
 
 }  // namespace
