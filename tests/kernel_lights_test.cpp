@@ -783,7 +783,6 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
       << "no lights";
 }
 
-
 TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
   // path_shade_miss derives the map coordinates once for the radiance and
   // the MIS pdf; it must add exactly what env_radiance and
