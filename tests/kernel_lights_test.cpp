@@ -9,6 +9,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/kernel/integrator.h"
 #include "core/kernel/lights.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/light_tables.h"
@@ -782,5 +783,34 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
       << "no lights";
 }
 
+TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
+  // path_shade_miss derives the map coordinates once for the radiance and
+  // the MIS pdf; it must add exactly what env_radiance and
+  // environment_light_pdf give for the direction (a rotated map, so that
+  // the rotation is part of what is shared).
+  KernelScene ks = make_environment_scene(1.3f);
+  ks.light_alias.resize(1);
+  ks.light_alias[0].pdf = 0.375f;
+  ks.constants.environment_light_index = 0;
+  const KernelData kd = ks.view();
+  TestRng rng(240);
+  for (int s = 0; s < 1000; ++s) {
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(u1, u2);
+    PathState p{};
+    p.ray.dir = d;
+    p.throughput = make_vec3(0.5f, 0.25f, 2.0f);
+    p.bsdf_pdf = 0.1f + rng.next();
+    p.flags = kPathAlive;
+    path_shade_miss(kd, &p);
+    const float pdf = environment_light_pdf(kd, d);
+    ASSERT_GT(pdf, 0.0f);
+    const Vec3 want = p.throughput * env_radiance(kd, d) * mis_power_heuristic(p.bsdf_pdf, pdf);
+    ASSERT_EQ(p.radiance.x, want.x);
+    ASSERT_EQ(p.radiance.y, want.y);
+    ASSERT_EQ(p.radiance.z, want.z);
+    ASSERT_FALSE(path_alive(p));
+  }
+}
 }  // namespace
 }  // namespace tandem

@@ -27,10 +27,18 @@ TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
 }
 
-TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
+// The map coordinates of direction dir (a map is present): two atan2f, a
+// square root and a sincos, so a caller that needs both the radiance and the
+// pdf of one direction (a path that missed) computes them once.
+TANDEM_HD_INLINE Vec2 env_map_uv(const KernelData& kd, Vec3 dir) {
+  return direction_to_equirect(rotate_y(dir, -kd.constants.environment.rotation));
+}
+
+// env_radiance at the map coordinates env_map_uv(kd, dir) (unused without
+// a map): the same bits.
+TANDEM_HD Vec3 env_radiance_at(const KernelData& kd, Vec2 uv) {
   const KEnvironment& env = kd.constants.environment;
   if (!env.has_map) return env.color;
-  const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
   // Bilinear with horizontal wrap-around and clamped poles.
   const float x = uv.x * float(env.width) - 0.5f, y = uv.y * float(env.height) - 0.5f;
   const float x0f = floorf(x), y0f = floorf(y);
@@ -48,6 +56,12 @@ TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
   return c * env.color;
 }
 
+TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
+  const KEnvironment& env = kd.constants.environment;
+  if (!env.has_map) return env.color;
+  return env_radiance_at(kd, env_map_uv(kd, dir));
+}
+
 // Index i with cdf[i] <= u < cdf[i + 1] in an array of n + 1 entries.
 TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
   uint32_t lo = 0, hi = n;
@@ -61,11 +75,11 @@ TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
   return lo;
 }
 
-// Solid-angle pdf of env_sample returning dir.
-TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
+// Solid-angle pdf of env_sample returning dir, whose map coordinates are
+// uv = env_map_uv(kd, dir) (unused without a map).
+TANDEM_HD float env_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv) {
   const KEnvironment& env = kd.constants.environment;
   if (!env.has_map) return kInv4Pi;
-  const Vec2 uv = direction_to_equirect(rotate_y(dir, -env.rotation));
   const uint32_t x = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
   const uint32_t y = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
   // Jacobian of the (u, v) -> direction map at the actual direction, with
@@ -79,6 +93,13 @@ TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
   const float pdf_uv =
       env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
   return pdf_uv / (2.0f * kPi * kPi * sin_theta);
+}
+
+// Solid-angle pdf of env_sample returning dir.
+TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
+  const KEnvironment& env = kd.constants.environment;
+  if (!env.has_map) return kInv4Pi;
+  return env_pdf_at(kd, dir, env_map_uv(kd, dir));
 }
 
 struct EnvSample {

@@ -73,6 +73,13 @@ TANDEM_HD float environment_light_pdf(const KernelData& kd, Vec3 dir) {
   if (idx == kInvalidIndex) return 0.0f;
   return kd.light_alias[idx].pdf * env_pdf(kd, dir);
 }
+// environment_light_pdf with dir's map coordinates uv = env_map_uv(kd, dir)
+// already computed (unused without a map): the same bits.
+TANDEM_HD float environment_light_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv) {
+  const uint32_t idx = kd.constants.environment_light_index;
+  if (idx == kInvalidIndex) return 0.0f;
+  return kd.light_alias[idx].pdf * env_pdf_at(kd, dir, uv);
+}
 
 // Whether a surface emits towards direction w (unit, pointing away from it).
 // Single-sided materials emit from the front face given by the winding.
