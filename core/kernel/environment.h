@@ -27,11 +27,14 @@ TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
 }
 
-// The map coordinates of direction dir (a map is present): two atan2f, a
-// square root and a sincos, so a caller that needs both the radiance and the
-// pdf of one direction (a path that missed) computes them once.
+// The map coordinates of direction dir ((0, 0) without a map, where the
+// _at functions below do not read them): two atan2f, a square root and a
+// sincos, so a caller that needs both the radiance and the pdf of one
+// direction (a path that missed) computes them once.
 TANDEM_HD_INLINE Vec2 env_map_uv(const KernelData& kd, Vec3 dir) {
-  return direction_to_equirect(rotate_y(dir, -kd.constants.environment.rotation));
+  const KEnvironment& env = kd.constants.environment;
+  if (!env.has_map) return make_vec2(0.0f, 0.0f);
+  return direction_to_equirect(rotate_y(dir, -env.rotation));
 }
 
 // env_radiance at the map coordinates env_map_uv(kd, dir) (unused without
@@ -57,8 +60,6 @@ TANDEM_HD Vec3 env_radiance_at(const KernelData& kd, Vec2 uv) {
 }
 
 TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
-  const KEnvironment& env = kd.constants.environment;
-  if (!env.has_map) return env.color;
   return env_radiance_at(kd, env_map_uv(kd, dir));
 }
 
@@ -97,8 +98,6 @@ TANDEM_HD float env_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv) {
 
 // Solid-angle pdf of env_sample returning dir.
 TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
-  const KEnvironment& env = kd.constants.environment;
-  if (!env.has_map) return kInv4Pi;
   return env_pdf_at(kd, dir, env_map_uv(kd, dir));
 }
 

@@ -222,14 +222,14 @@ TANDEM_HD uint32_t path_alpha_key(const PathState& p) {
   return (p.flags & kPathAlphaKeys) ? bounce_rng_bits(p.rng, p.bounce, kBounceAlpha) : 0u;
 }
 
-// The ray left the scene.
-// The map coordinates of the direction are computed once for both the
-// radiance and the MIS pdf (env_radiance and environment_light_pdf would
-// each derive them: four atan2f per miss instead of two, about 4% of a
-// FlightHelmet sample under the sky, where many paths end in a miss).
+// The ray left the scene. The map coordinates of the direction are computed
+// once for both the radiance and the MIS pdf (env_radiance and
+// environment_light_pdf would each derive them: four atan2f per miss
+// instead of two, 2% of FlightHelmet's instructions, where many paths end
+// in a miss; docs/performance/cpu_path_tracing.md).
 TANDEM_HD void path_shade_miss(const KernelData& kd, PathState* p) {
   const Vec3 dir = p->ray.dir;
-  const Vec2 uv = kd.constants.environment.has_map ? env_map_uv(kd, dir) : make_vec2(0.0f, 0.0f);
+  const Vec2 uv = env_map_uv(kd, dir);
   const Vec3 le = env_radiance_at(kd, uv);
   if (!is_black(le)) {
     const float w = p->bsdf_pdf > 0.0f
