@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -116,6 +117,9 @@ struct SimDevice::Impl {
   }
 
   void hazard_locked(std::string text) {
+    // Said once on stderr as well: a hazard skips the operation, and a test
+    // that only compares images would otherwise fail without the reason.
+    if (hazards_seen == 0) std::fprintf(stderr, "[sim] first hazard: %s\n", text.c_str());
     ++hazards_seen;
     if (report.hazards.size() < kMaxHazards) report.hazards.push_back(std::move(text));
   }
@@ -159,6 +163,16 @@ struct SimDevice::Impl {
     void* p = std::aligned_alloc(kAlignment, size);
     if (!p) throw DeviceError(DeviceFault::kOutOfMemory, "simulated GPU: out of memory");
     std::memset(p, kFreshMemoryPattern, size);
+    // Freed allocations stay in the map, so that a late use of one is
+    // reported. One whose address lies inside the new block would be found
+    // by the lookups below for the new block's bytes from there on (a
+    // hazard that skips a copy or a kernel, by where the C library happens
+    // to put memory): it is forgotten. One at the same address is replaced.
+    const auto first = reinterpret_cast<uintptr_t>(p);
+    for (auto it = allocations.upper_bound(first);
+         it != allocations.end() && it->first < first + size;) {
+      it = it->second.live ? std::next(it) : allocations.erase(it);
+    }
     Allocation a;
     a.bytes = bytes;
     a.pinned = pinned;
