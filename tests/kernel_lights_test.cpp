@@ -1,7 +1,8 @@
-// Tests of light sampling (core/kernel/lights.h, environment.h) on small
-// hand-built KernelScenes: the environment map's importance sampling, the
-// solid-angle pdf of emissive triangles (against analytic solid angle and
-// irradiance), and the punctual lights.
+// Tests of light sampling (core/kernel/lights.h) on small hand-built
+// KernelScenes: the solid-angle pdf of emissive triangles (against analytic
+// solid angle and irradiance), the punctual lights, and the light list that
+// mixes them with the environment (whose own tests are in
+// kernel_environment_test.cpp).
 #include <gtest/gtest.h>
 
 #include <array>
@@ -13,185 +14,21 @@
 #include "core/kernel/lights.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/light_tables.h"
+#include "kernel_light_test_scenes.h"
 #include "test_stats.h"
 
 namespace tandem {
 namespace {
 
+using light_test::make_environment_scene;
 using test_stats::MeanAccumulator;
 using test_stats::sidak_alpha;
 using test_stats::TestRng;
 
-// Chi-square tests in this file: environment x2, triangle directions,
-// light selection.
+// The chi-square tests of the lights' family: two here (triangle
+// directions, light selection), two in kernel_environment_test.cpp
+// (environment directions), each at the family's Sidak level.
 const double kAlpha = sidak_alpha(test_stats::kFamilySignificance, 4);
-
-// ---------------------------------------------------------------------------
-// Environment map.
-
-constexpr uint32_t kEnvWidth = 32, kEnvHeight = 16;
-
-// A 32x16 map with a horizontal/vertical colour gradient and a small bright
-// spot (a "sun" 200x brighter than the sky), then the sampling tables.
-KernelScene make_environment_scene(float rotation) {
-  KernelScene ks;
-  ks.env_texels.resize(kEnvWidth * kEnvHeight);
-  for (uint32_t y = 0; y < kEnvHeight; ++y) {
-    for (uint32_t x = 0; x < kEnvWidth; ++x) {
-      const float gx = float(x) / float(kEnvWidth - 1), gy = float(y) / float(kEnvHeight - 1);
-      Vec3 c = make_vec3(0.2f + 0.8f * gx, 0.3f + 0.5f * gy, 0.1f + 0.4f * gx * gy);
-      if (x >= 20 && x <= 22 && y >= 4 && y <= 5) c = make_vec3(60.0f, 50.0f, 40.0f);
-      ks.env_texels[y * kEnvWidth + x] = make_vec4(c, 0.0f);
-    }
-  }
-  KEnvironment& env = ks.constants.environment;
-  env.color = make_vec3(1.0f);
-  env.has_map = 1;
-  env.width = kEnvWidth;
-  env.height = kEnvHeight;
-  env.rotation = rotation;
-  env.map_integral = build_environment_cdfs(ks.view(), ks.env_marginal_cdf, ks.env_conditional_cdf);
-  return ks;
-}
-
-// Histogram frame whose pole is the map's pole (+y), so rows of the map are
-// bands of the histogram. (A cyclic permutation: no mirroring.)
-Vec3 world_to_grid(Vec3 d) {
-  return make_vec3(d.z, d.x, d.y);
-}
-Vec3 grid_to_world(Vec3 g) {
-  return make_vec3(g.y, g.z, g.x);
-}
-
-// Integral of env_radiance over the sphere by fine midpoint quadrature in
-// (theta, phi) about +y; the map is bilinear, so 1024x2048 points are exact
-// to far below the Monte Carlo noise we compare with.
-Vec3 environment_integral(const KernelData& kd) {
-  constexpr int kTheta = 1024, kPhi = 2048;
-  double sum[3] = {0, 0, 0};
-  for (int i = 0; i < kTheta; ++i) {
-    const double theta = (i + 0.5) * double(kPi) / kTheta;
-    double row[3] = {0, 0, 0};
-    for (int j = 0; j < kPhi; ++j) {
-      const double phi = (j + 0.5) * 2.0 * double(kPi) / kPhi;
-      const Vec3 l = env_radiance(kd, grid_to_world(test_stats::spherical_direction(theta, phi)));
-      row[0] += l.x;
-      row[1] += l.y;
-      row[2] += l.z;
-    }
-    const double w = std::sin(theta) * (double(kPi) / kTheta) * (2.0 * double(kPi) / kPhi);
-    for (int k = 0; k < 3; ++k)
-      sum[k] += row[k] * w;
-  }
-  return make_vec3(float(sum[0]), float(sum[1]), float(sum[2]));
-}
-
-class EnvironmentSampling : public ::testing::TestWithParam<float> {};
-
-TEST_P(EnvironmentSampling, DirectionsFollowEnvPdf) {
-  const KernelScene ks = make_environment_scene(GetParam());
-  const KernelData kd = ks.view();
-  TestRng rng(200 + uint32_t(GetParam() * 10.0f));
-  const auto r = test_stats::sphere_chi_square(
-      [&](Vec3* g) {
-        const float u2 = rng.next(), u1 = rng.next();
-        const EnvSample s = env_sample(kd, u1, u2);
-        if (!(s.pdf > 0.0f)) return false;
-        *g = world_to_grid(s.dir);
-        return true;
-      },
-      [&](Vec3 g) { return env_pdf(kd, grid_to_world(g)); }, 200000, 64, 64);
-  EXPECT_TRUE(r.passed(kAlpha)) << "rotation " << GetParam() << "\n" << r.summary();
-  EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
-}
-
-TEST_P(EnvironmentSampling, SampleReportsEnvPdfAndRadiance) {
-  const KernelScene ks = make_environment_scene(GetParam());
-  const KernelData kd = ks.view();
-  TestRng rng(210);
-  int mismatched = 0;
-  for (int s = 0; s < 100000; ++s) {
-    const float u2 = rng.next(), u1 = rng.next();
-    const EnvSample es = env_sample(kd, u1, u2);
-    ASSERT_NEAR(length(es.dir), 1.0f, 1e-5f);
-    ASSERT_TRUE(es.pdf > 0.0f && std::isfinite(es.pdf));
-    const float pdf = env_pdf(kd, es.dir);
-    if (!(fabsf(pdf - es.pdf) <= 1e-3f * es.pdf) && mismatched++ < 10) {
-      ADD_FAILURE() << "env_sample pdf " << es.pdf << " but env_pdf " << pdf << " at dir ("
-                    << es.dir.x << "," << es.dir.y << "," << es.dir.z << ")";
-    }
-    const Vec3 l = env_radiance(kd, es.dir);
-    ASSERT_NEAR(es.radiance.x, l.x, 1e-5f * l.x);
-    ASSERT_NEAR(es.radiance.y, l.y, 1e-5f * l.y);
-    ASSERT_NEAR(es.radiance.z, l.z, 1e-5f * l.z);
-  }
-  EXPECT_EQ(mismatched, 0);
-}
-
-TEST_P(EnvironmentSampling, EstimatorMatchesIntegralOfRadiance) {
-  const KernelScene ks = make_environment_scene(GetParam());
-  const KernelData kd = ks.view();
-  const Vec3 reference = environment_integral(kd);
-  TestRng rng(220);
-  MeanAccumulator importance[3], uniform[3];
-  for (int s = 0; s < 200000; ++s) {
-    const float es_u2 = rng.next(), es_u1 = rng.next();
-    const EnvSample es = env_sample(kd, es_u1, es_u2);
-    const float d_u2 = rng.next(), d_u1 = rng.next();
-    const Vec3 d = sample_uniform_sphere(d_u1, d_u2);
-    const Vec3 lu = env_radiance(kd, d) * (4.0f * kPi);
-    for (int k = 0; k < 3; ++k) {
-      importance[k].add(es.pdf > 0.0f ? double(component(es.radiance, k)) / es.pdf : 0.0);
-      uniform[k].add(component(lu, k));
-    }
-  }
-  for (int k = 0; k < 3; ++k) {
-    const double ref = component(reference, k);
-    EXPECT_NEAR(importance[k].mean(), ref, 5.0 * importance[k].std_error() + 1e-4 * ref)
-        << "channel " << k;
-    // The same reference by plain uniform sampling: guards the quadrature.
-    EXPECT_NEAR(uniform[k].mean(), ref, 5.0 * uniform[k].std_error() + 1e-4 * ref)
-        << "channel " << k;
-    // Importance sampling must actually help on a map with a sun.
-    EXPECT_LT(importance[k].std_error(), 0.5 * uniform[k].std_error()) << "channel " << k;
-  }
-}
-
-INSTANTIATE_TEST_SUITE_P(Rotations, EnvironmentSampling, ::testing::Values(0.0f, 1.3f));
-
-TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
-  const KernelScene ks0 = make_environment_scene(0.0f), ks1 = make_environment_scene(1.3f);
-  const KernelData kd0 = ks0.view(), kd1 = ks1.view();
-  TestRng rng(230);
-  for (int s = 0; s < 1000; ++s) {
-    const float u2 = rng.next(), u1 = rng.next();
-    const Vec3 d = sample_uniform_sphere(u1, u2);
-    const Vec3 rotated = rotate_y(d, 1.3f);
-    const Vec3 a = env_radiance(kd0, d), b = env_radiance(kd1, rotated);
-    ASSERT_NEAR(a.x, b.x, 1e-3f * (1.0f + a.x));
-    ASSERT_NEAR(env_pdf(kd0, d), env_pdf(kd1, rotated), 1e-3f * env_pdf(kd0, d));
-  }
-  // Rotation keeps +y fixed and is a proper rotation.
-  const Vec3 y = rotate_y(make_vec3(0, 1, 0), 0.7f);
-  EXPECT_NEAR(y.y, 1.0f, 1e-6f);
-  const Vec3 x = rotate_y(make_vec3(1, 0, 0), 0.7f), z = rotate_y(make_vec3(0, 0, 1), 0.7f);
-  EXPECT_NEAR(dot(cross(x, y), z), 1.0f, 1e-5f);
-}
-
-TEST(KernelEnvironment, ConstantColorIsUniform) {
-  KernelScene ks;
-  ks.constants.environment.color = make_vec3(0.5f, 1.0f, 2.0f);
-  const KernelData kd = ks.view();
-  TestRng rng(240);
-  for (int s = 0; s < 1000; ++s) {
-    const float u2 = rng.next(), u1 = rng.next();
-    const EnvSample es = env_sample(kd, u1, u2);
-    ASSERT_FLOAT_EQ(es.pdf, kInv4Pi);
-    ASSERT_FLOAT_EQ(env_pdf(kd, es.dir), kInv4Pi);
-    ASSERT_FLOAT_EQ(es.radiance.z, 2.0f);
-    ASSERT_FLOAT_EQ(env_radiance(kd, es.dir).y, 1.0f);
-  }
-}
 
 // ---------------------------------------------------------------------------
 // Emissive triangles.
@@ -783,34 +620,5 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
       << "no lights";
 }
 
-TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
-  // path_shade_miss derives the map coordinates once for the radiance and
-  // the MIS pdf; it must add exactly what env_radiance and
-  // environment_light_pdf give for the direction (a rotated map, so that
-  // the rotation is part of what is shared).
-  KernelScene ks = make_environment_scene(1.3f);
-  ks.light_alias.resize(1);
-  ks.light_alias[0].pdf = 0.375f;
-  ks.constants.environment_light_index = 0;
-  const KernelData kd = ks.view();
-  TestRng rng(240);
-  for (int s = 0; s < 1000; ++s) {
-    const float u2 = rng.next(), u1 = rng.next();
-    const Vec3 d = sample_uniform_sphere(u1, u2);
-    PathState p{};
-    p.ray.dir = d;
-    p.throughput = make_vec3(0.5f, 0.25f, 2.0f);
-    p.bsdf_pdf = 0.1f + rng.next();
-    p.flags = kPathAlive;
-    path_shade_miss(kd, &p);
-    const float pdf = environment_light_pdf(kd, d);
-    ASSERT_GT(pdf, 0.0f);
-    const Vec3 want = p.throughput * env_radiance(kd, d) * mis_power_heuristic(p.bsdf_pdf, pdf);
-    ASSERT_EQ(p.radiance.x, want.x);
-    ASSERT_EQ(p.radiance.y, want.y);
-    ASSERT_EQ(p.radiance.z, want.z);
-    ASSERT_FALSE(path_alive(p));
-  }
-}
 }  // namespace
 }  // namespace tandem

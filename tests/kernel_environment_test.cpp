@@ -1,0 +1,204 @@
+// Tests of the environment light (core/kernel/environment.h) on a small
+// hand-built map: importance sampling against the map's pdf and integral,
+// the rotation about +y, a constant colour, and the miss shading's one map
+// lookup.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/kernel/integrator.h"
+#include "core/kernel/lights.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/light_tables.h"
+#include "kernel_light_test_scenes.h"
+#include "test_stats.h"
+
+namespace tandem {
+namespace {
+
+using light_test::kEnvHeight;
+using light_test::kEnvWidth;
+using light_test::make_environment_scene;
+using test_stats::MeanAccumulator;
+using test_stats::sidak_alpha;
+using test_stats::TestRng;
+
+// The chi-square tests of the lights' family: two here (environment
+// directions at two rotations), two in kernel_lights_test.cpp (triangle
+// directions, light selection), each at the family's Sidak level.
+const double kAlpha = sidak_alpha(test_stats::kFamilySignificance, 4);
+
+// ---------------------------------------------------------------------------
+// Environment map.
+
+// Histogram frame whose pole is the map's pole (+y), so rows of the map are
+// bands of the histogram. (A cyclic permutation: no mirroring.)
+Vec3 world_to_grid(Vec3 d) {
+  return make_vec3(d.z, d.x, d.y);
+}
+Vec3 grid_to_world(Vec3 g) {
+  return make_vec3(g.y, g.z, g.x);
+}
+
+// Integral of env_radiance over the sphere by fine midpoint quadrature in
+// (theta, phi) about +y; the map is bilinear, so 1024x2048 points are exact
+// to far below the Monte Carlo noise we compare with.
+Vec3 environment_integral(const KernelData& kd) {
+  constexpr int kTheta = 1024, kPhi = 2048;
+  double sum[3] = {0, 0, 0};
+  for (int i = 0; i < kTheta; ++i) {
+    const double theta = (i + 0.5) * double(kPi) / kTheta;
+    double row[3] = {0, 0, 0};
+    for (int j = 0; j < kPhi; ++j) {
+      const double phi = (j + 0.5) * 2.0 * double(kPi) / kPhi;
+      const Vec3 l = env_radiance(kd, grid_to_world(test_stats::spherical_direction(theta, phi)));
+      row[0] += l.x;
+      row[1] += l.y;
+      row[2] += l.z;
+    }
+    const double w = std::sin(theta) * (double(kPi) / kTheta) * (2.0 * double(kPi) / kPhi);
+    for (int k = 0; k < 3; ++k)
+      sum[k] += row[k] * w;
+  }
+  return make_vec3(float(sum[0]), float(sum[1]), float(sum[2]));
+}
+
+class EnvironmentSampling : public ::testing::TestWithParam<float> {};
+
+TEST_P(EnvironmentSampling, DirectionsFollowEnvPdf) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  TestRng rng(200 + uint32_t(GetParam() * 10.0f));
+  const auto r = test_stats::sphere_chi_square(
+      [&](Vec3* g) {
+        const float u2 = rng.next(), u1 = rng.next();
+        const EnvSample s = env_sample(kd, u1, u2);
+        if (!(s.pdf > 0.0f)) return false;
+        *g = world_to_grid(s.dir);
+        return true;
+      },
+      [&](Vec3 g) { return env_pdf(kd, grid_to_world(g)); }, 200000, 64, 64);
+  EXPECT_TRUE(r.passed(kAlpha)) << "rotation " << GetParam() << "\n" << r.summary();
+  EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
+}
+
+TEST_P(EnvironmentSampling, SampleReportsEnvPdfAndRadiance) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  TestRng rng(210);
+  int mismatched = 0;
+  for (int s = 0; s < 100000; ++s) {
+    const float u2 = rng.next(), u1 = rng.next();
+    const EnvSample es = env_sample(kd, u1, u2);
+    ASSERT_NEAR(length(es.dir), 1.0f, 1e-5f);
+    ASSERT_TRUE(es.pdf > 0.0f && std::isfinite(es.pdf));
+    const float pdf = env_pdf(kd, es.dir);
+    if (!(fabsf(pdf - es.pdf) <= 1e-3f * es.pdf) && mismatched++ < 10) {
+      ADD_FAILURE() << "env_sample pdf " << es.pdf << " but env_pdf " << pdf << " at dir ("
+                    << es.dir.x << "," << es.dir.y << "," << es.dir.z << ")";
+    }
+    const Vec3 l = env_radiance(kd, es.dir);
+    ASSERT_NEAR(es.radiance.x, l.x, 1e-5f * l.x);
+    ASSERT_NEAR(es.radiance.y, l.y, 1e-5f * l.y);
+    ASSERT_NEAR(es.radiance.z, l.z, 1e-5f * l.z);
+  }
+  EXPECT_EQ(mismatched, 0);
+}
+
+TEST_P(EnvironmentSampling, EstimatorMatchesIntegralOfRadiance) {
+  const KernelScene ks = make_environment_scene(GetParam());
+  const KernelData kd = ks.view();
+  const Vec3 reference = environment_integral(kd);
+  TestRng rng(220);
+  MeanAccumulator importance[3], uniform[3];
+  for (int s = 0; s < 200000; ++s) {
+    const float es_u2 = rng.next(), es_u1 = rng.next();
+    const EnvSample es = env_sample(kd, es_u1, es_u2);
+    const float d_u2 = rng.next(), d_u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(d_u1, d_u2);
+    const Vec3 lu = env_radiance(kd, d) * (4.0f * kPi);
+    for (int k = 0; k < 3; ++k) {
+      importance[k].add(es.pdf > 0.0f ? double(component(es.radiance, k)) / es.pdf : 0.0);
+      uniform[k].add(component(lu, k));
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    const double ref = component(reference, k);
+    EXPECT_NEAR(importance[k].mean(), ref, 5.0 * importance[k].std_error() + 1e-4 * ref)
+        << "channel " << k;
+    // The same reference by plain uniform sampling: guards the quadrature.
+    EXPECT_NEAR(uniform[k].mean(), ref, 5.0 * uniform[k].std_error() + 1e-4 * ref)
+        << "channel " << k;
+    // Importance sampling must actually help on a map with a sun.
+    EXPECT_LT(importance[k].std_error(), 0.5 * uniform[k].std_error()) << "channel " << k;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Rotations, EnvironmentSampling, ::testing::Values(0.0f, 1.3f));
+
+TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
+  const KernelScene ks0 = make_environment_scene(0.0f), ks1 = make_environment_scene(1.3f);
+  const KernelData kd0 = ks0.view(), kd1 = ks1.view();
+  TestRng rng(230);
+  for (int s = 0; s < 1000; ++s) {
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(u1, u2);
+    const Vec3 rotated = rotate_y(d, 1.3f);
+    const Vec3 a = env_radiance(kd0, d), b = env_radiance(kd1, rotated);
+    ASSERT_NEAR(a.x, b.x, 1e-3f * (1.0f + a.x));
+    ASSERT_NEAR(env_pdf(kd0, d), env_pdf(kd1, rotated), 1e-3f * env_pdf(kd0, d));
+  }
+  // Rotation keeps +y fixed and is a proper rotation.
+  const Vec3 y = rotate_y(make_vec3(0, 1, 0), 0.7f);
+  EXPECT_NEAR(y.y, 1.0f, 1e-6f);
+  const Vec3 x = rotate_y(make_vec3(1, 0, 0), 0.7f), z = rotate_y(make_vec3(0, 0, 1), 0.7f);
+  EXPECT_NEAR(dot(cross(x, y), z), 1.0f, 1e-5f);
+}
+
+TEST(KernelEnvironment, ConstantColorIsUniform) {
+  KernelScene ks;
+  ks.constants.environment.color = make_vec3(0.5f, 1.0f, 2.0f);
+  const KernelData kd = ks.view();
+  TestRng rng(240);
+  for (int s = 0; s < 1000; ++s) {
+    const float u2 = rng.next(), u1 = rng.next();
+    const EnvSample es = env_sample(kd, u1, u2);
+    ASSERT_FLOAT_EQ(es.pdf, kInv4Pi);
+    ASSERT_FLOAT_EQ(env_pdf(kd, es.dir), kInv4Pi);
+    ASSERT_FLOAT_EQ(es.radiance.z, 2.0f);
+    ASSERT_FLOAT_EQ(env_radiance(kd, es.dir).y, 1.0f);
+  }
+}
+
+TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
+  // path_shade_miss derives the map coordinates once for the radiance and
+  // the MIS pdf; it must add exactly what env_radiance and
+  // environment_light_pdf give for the direction (a rotated map, so that
+  // the rotation is part of what is shared).
+  KernelScene ks = make_environment_scene(1.3f);
+  ks.light_alias.resize(1);
+  ks.light_alias[0].pdf = 0.375f;
+  ks.constants.environment_light_index = 0;
+  const KernelData kd = ks.view();
+  TestRng rng(240);
+  for (int s = 0; s < 1000; ++s) {
+    const float u2 = rng.next(), u1 = rng.next();
+    const Vec3 d = sample_uniform_sphere(u1, u2);
+    PathState p{};
+    p.ray.dir = d;
+    p.throughput = make_vec3(0.5f, 0.25f, 2.0f);
+    p.bsdf_pdf = 0.1f + rng.next();
+    p.flags = kPathAlive;
+    path_shade_miss(kd, &p);
+    const float pdf = environment_light_pdf(kd, d);
+    ASSERT_GT(pdf, 0.0f);
+    const Vec3 want = p.throughput * env_radiance(kd, d) * mis_power_heuristic(p.bsdf_pdf, pdf);
+    ASSERT_EQ(p.radiance.x, want.x);
+    ASSERT_EQ(p.radiance.y, want.y);
+    ASSERT_EQ(p.radiance.z, want.z);
+    ASSERT_FALSE(path_alive(p));
+  }
+}
+
+}  // namespace
+}  // namespace tandem
