@@ -472,14 +472,14 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // A task's leaf pass: every leaf entry of its subtree front to back (the
   // order the leaf indices and records lie in memory), its triangle box
   // into `out` (or, per_leaf, each binary leaf's union) and its record
-  // rewritten. The node sweep that follows walks
-  // the nodes backwards and would meet the leaves in reverse, out of the
-  // reach of the hardware prefetcher, with every vertex load a cache miss
-  // waited for; here the vertices a few triangles ahead are prefetched.
+  // rewritten. The node sweep that follows walks the nodes backwards and
+  // would meet the leaves in reverse, out of the reach of the hardware
+  // prefetcher, with every vertex load a cache miss waited for; here the
+  // vertices a few triangles ahead are prefetched.
   const auto leaf_pass = [&](const Task& task, TaskBox* out, Out& o) {
     constexpr uint32_t kAhead = 32;  // triangles: a few hundred ns of work
 #if defined(__SSE2__)
-    // The vertex indices themselves (a stream the vertex prefetches above
+    // The vertex indices themselves (a stream the vertex prefetches below
     // wait on): a few cache lines further ahead.
     constexpr uint32_t kIndicesAhead = 4 * kAhead;
     // In registers: the vertices' 16-byte loads (positions have a readable
