@@ -142,8 +142,9 @@ inline NodeBox node_union(const KBvhNode& n) {
 // double(a.half_area()) + double(b.half_area()) of a node's two child
 // boxes, both at once: lane k the same float operations as Aabb::half_area()
 // on child k (extent, then (x * y + y * z) + z * x, 0 for an empty box), then
-// the two widened and added. The scalar pair, through memory and with its
-// empty() branches, was a fifth of the node sweep's samples.
+// the two widened and added. The scalar pair, each box stored to memory
+// first and with empty()'s branches, and the sum after it held about half
+// of the node sweep's samples.
 inline double node_boxes_half_area(const NodeBox& b0, const NodeBox& b1) {
   const __m128 lo_xy = _mm_shuffle_ps(b0.xy, b1.xy, _MM_SHUFFLE(2, 0, 2, 0));  // lx0 ly0 lx1 ly1
   const __m128 hi_xy = _mm_shuffle_ps(b0.xy, b1.xy, _MM_SHUFFLE(3, 1, 3, 1));  // hx0 hy0 hx1 hy1
