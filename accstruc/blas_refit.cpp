@@ -29,8 +29,10 @@ constexpr size_t kBinaryBoxBytes = 3 * sizeof(Vec4);
 // Nodes the sweep prefetches ahead (a node's work is a few dozen ns).
 constexpr uint32_t kNodesAhead = 12;
 // Words per leaf entry in leaf_tris_: the three vertex indices and the
-// triangle's index (what its record holds in p0.w), one aligned 16 bytes.
+// triangle's index (what its record holds in p0.w) with kLastOfLeaf set on
+// the last entry of each binary leaf, one aligned 16 bytes.
 constexpr size_t kEntryWords = 4;
+constexpr uint32_t kLastOfLeaf = 0x80000000u;
 
 uint32_t wide_leaf_count(uint32_t meta) {
   const uint32_t unary = meta >> 5;
@@ -137,12 +139,31 @@ inline NodeBox node_union(const KBvhNode& n) {
                               _mm_andnot_ps(lo_lanes, _mm_max_ps(z, zs)));
   return {xy, zz};
 }
-// Aabb::half_area() of a box in node form, in the same operations.
-inline float node_box_half_area(const NodeBox& b) {
-  alignas(16) float xy[4], z[4];
-  _mm_store_ps(xy, b.xy);
-  _mm_store_ps(z, b.z);
-  return Aabb{{xy[0], xy[2], z[0]}, {xy[1], xy[3], z[1]}}.half_area();
+// double(a.half_area()) + double(b.half_area()) of a node's two child
+// boxes, both at once: lane k the same float operations as Aabb::half_area()
+// on child k (extent, then (x * y + y * z) + z * x, 0 for an empty box), then
+// the two widened and added. The scalar pair, each box stored to memory
+// first and with empty()'s branches, and the sum after it held about half
+// of the node sweep's samples.
+inline double node_boxes_half_area(const NodeBox& b0, const NodeBox& b1) {
+  const __m128 lo_xy = _mm_shuffle_ps(b0.xy, b1.xy, _MM_SHUFFLE(2, 0, 2, 0));  // lx0 ly0 lx1 ly1
+  const __m128 hi_xy = _mm_shuffle_ps(b0.xy, b1.xy, _MM_SHUFFLE(3, 1, 3, 1));  // hx0 hy0 hx1 hy1
+  const __m128 z = _mm_movelh_ps(b0.z, b1.z);                                  // lz0 hz0 lz1 hz1
+  const __m128 lo_z = _mm_shuffle_ps(z, z, _MM_SHUFFLE(2, 0, 2, 0));           // lz0 lz1 ..
+  const __m128 hi_z = _mm_shuffle_ps(z, z, _MM_SHUFFLE(3, 1, 3, 1));           // hz0 hz1 ..
+  const __m128 e_xy = _mm_sub_ps(hi_xy, lo_xy);                                // ex0 ey0 ex1 ey1
+  const __m128 ex = _mm_shuffle_ps(e_xy, e_xy, _MM_SHUFFLE(2, 0, 2, 0));
+  const __m128 ey = _mm_shuffle_ps(e_xy, e_xy, _MM_SHUFFLE(3, 1, 3, 1));
+  const __m128 ez = _mm_sub_ps(hi_z, lo_z);
+  const __m128 area =
+      _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ey), _mm_mul_ps(ey, ez)), _mm_mul_ps(ez, ex));
+  // Not empty: lo <= hi on every axis (false for a NaN, as in empty()).
+  const __m128 ok_xy = _mm_cmple_ps(lo_xy, hi_xy);
+  const __m128 ok = _mm_and_ps(_mm_and_ps(_mm_shuffle_ps(ok_xy, ok_xy, _MM_SHUFFLE(2, 0, 2, 0)),
+                                          _mm_shuffle_ps(ok_xy, ok_xy, _MM_SHUFFLE(3, 1, 3, 1))),
+                               _mm_cmple_ps(lo_z, hi_z));
+  const __m128d d = _mm_cvtps_pd(_mm_and_ps(ok, area));
+  return _mm_cvtsd_f64(_mm_add_sd(d, _mm_unpackhi_pd(d, d)));
 }
 using TaskBox = Box4;
 inline Aabb as_aabb(const Box4& b) {
@@ -188,7 +209,8 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
   clear();
   const uint32_t n = uint32_t(l.nodes.size()), prims = uint32_t(l.prims.size());
   const uint32_t wn = uint32_t(l.wide_nodes.size());
-  if (n == 0 || wn == 0 || l.wide_prims.size() != prims || n >= (1u << 29) || prims >= (1u << 30)) {
+  if (n == 0 || wn == 0 || l.wide_prims.size() != prims || n >= (1u << 29) || prims >= (1u << 30) ||
+      g.triangle_count >= kLastOfLeaf) {
     return false;
   }
   // Leaf entries: each triangle once, with vertices in range.
@@ -225,6 +247,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
         if (uint64_t(first) + count > prims) return false;
         rbeg[x] = first;
         rend[x] = first + count;
+        if (count > 0) leaf_tris_[kEntryWords * size_t(first + count - 1) + 3] |= kLastOfLeaf;
         for (uint32_t e = first; e < first + count; ++e) {
           if (leaf_at[e] != kNone) return false;
           leaf_at[e] = x;
@@ -395,14 +418,24 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   };
 
   // The triangle boxes of the leaf entries [lo, hi) of the task being
-  // swept, from its leaf pass; boxes == null outside a task.
+  // swept, from its leaf pass; boxes == null outside a task. per_leaf: only
+  // the union of each binary leaf, at the index of its first entry.
   struct TaskBoxes {
     const TaskBox* boxes = nullptr;
     uint32_t lo = 0, hi = 0;
+    bool per_leaf = false;
   };
+  // Without wide nodes to re-quantise (whose slots may hold part of a binary
+  // leaf), the leaf pass keeps one box per binary leaf, not per triangle:
+  // the sweep then reads one 32-byte box a leaf, not two on average.
+#if defined(__SSE2__)
+  const bool per_leaf = wide_nodes == nullptr;
+#else
+  const bool per_leaf = false;
+#endif
   const auto leaf_box = [&](uint32_t first, uint32_t count, const TaskBoxes& tb, Out& o) {
     Aabb box;
-    if (tb.boxes != nullptr && first >= tb.lo && first + count <= tb.hi) {
+    if (tb.boxes != nullptr && !tb.per_leaf && first >= tb.lo && first + count <= tb.hi) {
       // Invalid triangles were flagged (and left empty) by the leaf pass.
       for (uint32_t e = first; e < first + count; ++e)
         box.grow(as_aabb(tb.boxes[e - tb.lo]));
@@ -439,66 +472,98 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   };
   // A task's leaf pass: every leaf entry of its subtree front to back (the
   // order the leaf indices and records lie in memory), its triangle box
-  // into `out` and its record rewritten. The node sweep that follows walks
-  // the nodes backwards and would meet the leaves in reverse, out of the
-  // reach of the hardware prefetcher, with every vertex load a cache miss
-  // waited for; here the vertices a few triangles ahead are prefetched.
+  // into `out` (or, per_leaf, each binary leaf's union) and its record
+  // rewritten. The node sweep that follows walks the nodes backwards and
+  // would meet the leaves in reverse, out of the reach of the hardware
+  // prefetcher, with every vertex load a cache miss waited for; here the
+  // vertices a few triangles ahead are prefetched.
   const auto leaf_pass = [&](const Task& task, TaskBox* out, Out& o) {
     constexpr uint32_t kAhead = 32;  // triangles: a few hundred ns of work
-    const auto prefetch_vertices = [&](uint32_t e) {
-      const uint32_t* f = tris + kEntryWords * size_t(e);
-      __builtin_prefetch(positions + f[0]);
-      __builtin_prefetch(positions + f[1]);
-      __builtin_prefetch(positions + f[2]);
-    };
 #if defined(__SSE2__)
-    // The vertex indices themselves (a stream the vertex prefetches above
+    // The vertex indices themselves (a stream the vertex prefetches below
     // wait on): a few cache lines further ahead.
     constexpr uint32_t kIndicesAhead = 4 * kAhead;
     // In registers: the vertices' 16-byte loads (positions have a readable
     // element past the last vertex) give the box and the record's xyz.
     const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
-    const float* pf = &positions[0].x;
+    // The triangle's index without kLastOfLeaf.
+    const __m128 index_bits = _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, int(~kLastOfLeaf)));
     bool changed = false;
-    for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
-      if (e + kAhead < task.leaf_hi) {
-        prefetch_vertices(e + kAhead);
-        if ((e & 3u) == 0 && e + kIndicesAhead < task.leaf_hi)
-          __builtin_prefetch(tris + kEntryWords * size_t(e + kIndicesAhead));
+    // per_leaf: the union of the current binary leaf's triangles so far (in
+    // entry order, as the sweep's union of per-triangle boxes was), and its
+    // first entry.
+    Box4 leaf{empty_lo(), empty_hi()};
+    // Locals, not the captures: every SSE store may alias anything (__m128
+    // is may_alias), so each use of a captured reference was a reload
+    // through the closure, a dozen loads a triangle.
+    const uint32_t* const entries = tris;
+    const Vec3* const verts = positions;
+    KLeafTriangle* const records = leaf_triangles;
+    const bool overwrite = overwrite_records, leaves_only = per_leaf;
+    const uint32_t lo = task.leaf_lo, hi = task.leaf_hi;
+    bool invalid = false;
+    uint32_t leaf_first = lo;
+    for (uint32_t e = lo; e < hi; ++e) {
+      if (e + kAhead < hi) {
+        const uint32_t* f = entries + kEntryWords * size_t(e + kAhead);
+        __builtin_prefetch(verts + f[0]);
+        __builtin_prefetch(verts + f[1]);
+        __builtin_prefetch(verts + f[2]);
+        if ((e & 3u) == 0 && e + kIndicesAhead < hi)
+          __builtin_prefetch(entries + kEntryWords * size_t(e + kIndicesAhead));
       }
       const __m128i v =
-          _mm_load_si128(reinterpret_cast<const __m128i*>(tris + kEntryWords * size_t(e)));
+          _mm_load_si128(reinterpret_cast<const __m128i*>(entries + kEntryWords * size_t(e)));
       const uint32_t i0 = uint32_t(_mm_cvtsi128_si32(v));
       const uint32_t i1 = uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(v, 0x55)));
       const uint32_t i2 = uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(v, 0xaa)));
+      const float* pf = &verts[0].x;
       const __m128 a = _mm_loadu_ps(pf + 3 * size_t(i0)), b = _mm_loadu_ps(pf + 3 * size_t(i1)),
                    c = _mm_loadu_ps(pf + 3 * size_t(i2));
-      Box4& t = out[e - task.leaf_lo];
+      Box4 t;
       if (!triangle_box4(a, b, c, t)) {
-        o.invalid = true;
+        invalid = true;
         t = {empty_lo(), empty_hi()};  // leaves the union as it is, like a skipped triangle
       }
-      if (leaf_triangles == nullptr) continue;
-      float* r = &leaf_triangles[e].p0.x;
-      if (overwrite_records) {
+      if (!leaves_only) {
+        out[e - lo] = t;
+      } else {
+        leaf.lo = _mm_min_ps(leaf.lo, t.lo);
+        leaf.hi = _mm_max_ps(leaf.hi, t.hi);
+        if (_mm_movemask_ps(_mm_castsi128_ps(v)) & 8) {  // kLastOfLeaf
+          out[leaf_first - lo] = leaf;
+          leaf = {empty_lo(), empty_hi()};
+          leaf_first = e + 1;
+        }
+      }
+      if (records == nullptr) continue;
+      float* r = &records[e].p0.x;
+      if (overwrite) {
         // Every vertex of the mesh moved: the record is written without
         // reading the old one, past the caches (no read for ownership), 96
         // of the 192 MB a frame of a million-vertex mesh's records moved.
-        const __m128 w0 = _mm_andnot_ps(xyz, _mm_castsi128_ps(v));  // the triangle's index
+        const __m128 w0 = _mm_and_ps(index_bits, _mm_castsi128_ps(v));  // the triangle's index
         _mm_stream_ps(r, _mm_or_ps(_mm_and_ps(xyz, a), w0));
         _mm_stream_ps(r + 4, _mm_and_ps(xyz, b));
         _mm_stream_ps(r + 8, _mm_and_ps(xyz, c));
         changed = true;
-      } else if (update_leaf_record4(leaf_triangles[e], a, b, c)) {
+      } else if (update_leaf_record4(records[e], a, b, c)) {
         records_changed(o, e, e + 1);
       }
     }
+    if (invalid) o.invalid = true;
     if (changed) {
       _mm_sfence();
       records_changed(o, task.leaf_lo, task.leaf_hi);
     }
 #else
     (void)overwrite_records;
+    const auto prefetch_vertices = [&](uint32_t e) {
+      const uint32_t* f = tris + kEntryWords * size_t(e);
+      __builtin_prefetch(positions + f[0]);
+      __builtin_prefetch(positions + f[1]);
+      __builtin_prefetch(positions + f[2]);
+    };
     for (uint32_t e = task.leaf_lo; e < task.leaf_hi; ++e) {
       if (e + kAhead < task.leaf_hi) prefetch_vertices(e + kAhead);
       const uint32_t* v = tris + kEntryWords * size_t(e);
@@ -518,32 +583,40 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
 
   // Child references in the kernel arrays include the bases.
 #if defined(__SSE2__)
+  // A child's box in node form, inside a task: a leaf's from the leaf
+  // pass's boxes (the same unions as leaf_box()).
+  const auto leaf_node_box = [&](uint32_t first, uint32_t count, const TaskBoxes& tb, Out& o) {
+    if (tb.per_leaf && first >= tb.lo && first + count <= tb.hi)
+      return node_box(count > 0 ? tb.boxes[first - tb.lo] : Box4{empty_lo(), empty_hi()});
+    if (!tb.per_leaf && first >= tb.lo && first + count <= tb.hi) {
+      Box4 u{empty_lo(), empty_hi()};
+      for (const Box4* b = tb.boxes + (first - tb.lo); b < tb.boxes + (first - tb.lo) + count;
+           ++b) {
+        u.lo = _mm_min_ps(u.lo, b->lo);
+        u.hi = _mm_max_ps(u.hi, b->hi);
+      }
+      return node_box(u);
+    }
+    return node_box(to_box4(leaf_box(first, count, tb, o)));
+  };
   // refit_node() inside a task, in registers: the same unions (lane by lane
-  // minps / maxps in Aabb::grow()'s operand order), area and compare.
+  // minps / maxps in Aabb::grow()'s operand order), area and compare. The
+  // area it adds is returned, not summed into `o`: `o` lives in memory (the
+  // out-of-line leaf_box() takes it), and the running sum through it was a
+  // store-to-load chain a node.
   const auto refit_node_sse = [&](uint32_t i, const TaskBoxes& tb, Out& o) {
     KBvhNode& node = nodes[i];
     NodeBox box[2];
     for (uint32_t c = 0; c < 2; ++c) {
       const uint32_t ref = node.child[c];
       if (ref & kBvhLeafFlag) {
-        const uint32_t first = (ref & ~kBvhLeafFlag) - bases.prim, count = node.count[c];
-        if (first >= tb.lo && first + count <= tb.hi) {
-          Box4 u{empty_lo(), empty_hi()};
-          for (const Box4* b = tb.boxes + (first - tb.lo); b < tb.boxes + (first - tb.lo) + count;
-               ++b) {
-            u.lo = _mm_min_ps(u.lo, b->lo);
-            u.hi = _mm_max_ps(u.hi, b->hi);
-          }
-          box[c] = node_box(u);
-        } else {
-          box[c] = node_box(to_box4(leaf_box(first, count, tb, o)));
-        }
+        box[c] = leaf_node_box((ref & ~kBvhLeafFlag) - bases.prim, node.count[c], tb, o);
       } else {
         // Refit before its parent (larger index), so exact already.
         box[c] = node_union(nodes[ref - bases.node]);
       }
     }
-    o.area += double(node_box_half_area(box[0])) + double(node_box_half_area(box[1]));
+    const double area = node_boxes_half_area(box[0], box[1]);
     float* f = &node.c0_xy.x;
     const __m128 z = _mm_movelh_ps(box[0].z, box[1].z);
     const __m128i same = _mm_and_si128(
@@ -553,12 +626,13 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
                                       _mm_load_si128(reinterpret_cast<const __m128i*>(f + 4)))),
         _mm_cmpeq_epi32(_mm_castps_si128(z),
                         _mm_load_si128(reinterpret_cast<const __m128i*>(f + 8))));
-    if (_mm_movemask_epi8(same) == 0xffff) return;
+    if (_mm_movemask_epi8(same) == 0xffff) return area;
     _mm_store_ps(f, box[0].xy);
     _mm_store_ps(f + 4, box[1].xy);
     _mm_store_ps(f + 8, z);
     o.lo = std::min(o.lo, i);
     o.hi = std::max(o.hi, i + 1);
+    return area;
   };
 #endif
   const auto refit_node = [&](uint32_t i, const TaskBoxes& tb, Out& o) {
@@ -626,7 +700,10 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     if (task_boxes.size() < task.leaf_hi - task.leaf_lo)
       task_boxes.resize(task.leaf_hi - task.leaf_lo);
     leaf_pass(task, task_boxes.data(), o);
-    const TaskBoxes tb{task_boxes.data(), task.leaf_lo, task.leaf_hi};
+    const TaskBoxes tb{task_boxes.data(), task.leaf_lo, task.leaf_hi, per_leaf};
+#if defined(__SSE2__)
+    double area = 0.0;  // in a register: o.area is in memory (refit_node_sse)
+#endif
     uint32_t next = task.wide_lo;
     for (uint32_t i = task.hi; i-- > task.lo;) {
       // The sweep walks the nodes backwards, which the hardware prefetcher
@@ -634,7 +711,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       // node's first load.
       if (i >= task.lo + kNodesAhead) __builtin_prefetch(nodes + (i - kNodesAhead), 1);
 #if defined(__SSE2__)
-      refit_node_sse(i, tb, o);
+      area += refit_node_sse(i, tb, o);
 #else
       refit_node(i, tb, o);
 #endif
@@ -642,6 +719,9 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
       for (; next < task.wide_hi && anchored_[next].anchor >= i; ++next)
         requantize(anchored_[next].wide, tb, o);
     }
+#if defined(__SSE2__)
+    o.area += area;
+#endif
     outs[t] = o;
   });
   Out& top = outs.back();

@@ -134,12 +134,15 @@ inline void put_tangent(const Job& job, size_t v, const glm::vec4& t) {
 }
 
 // One block of vertices; the template flags take every per-mesh decision
-// out of the vertex loop.
-template <bool kSkin, bool kMorph, bool kNormals, bool kTangents>
+// out of the vertex loop. kInfluences: the mesh's influences per vertex
+// known at compile time (0: read from the mesh), so the blend is unrolled;
+// four (glTF's JOINTS_0 / WEIGHTS_0) is the common case, and the loop's
+// counter, branch and index arithmetic were a tenth of the vertex's work.
+template <bool kSkin, bool kMorph, bool kNormals, bool kTangents, uint32_t kInfluences = 0>
 void deform_block(const Job& job, size_t begin, size_t end) {
   const MeshDeformation& d = job.d;
   const size_t vertices = d.vertex_count();
-  const uint32_t influences = d.influences;
+  const uint32_t influences = kInfluences != 0 ? kInfluences : d.influences;
   for (size_t v = begin; v != end; ++v) {
     glm::vec3 p = d.base_positions[v];
     glm::vec3 n = kNormals ? d.base_normals[v] : glm::vec3(0.0f);
@@ -225,17 +228,21 @@ void normalise_block(const Job& job, size_t begin, size_t end) {
     put_normal(job, v, normalised_or_kept(load3(out[v]), base[v]));
 }
 
-template <bool kSkin, bool kMorph, bool kNormals, bool kTangents>
+template <bool kSkin, bool kMorph, bool kNormals, bool kTangents, uint32_t kInfluences = 0>
 void deform_and_normalise_block(const Job& job, size_t begin, size_t end) {
-  deform_block<kSkin, kMorph, kNormals, kTangents>(job, begin, end);
+  deform_block<kSkin, kMorph, kNormals, kTangents, kInfluences>(job, begin, end);
   normalise_block(job, begin, end);
 }
 
 using BlockFn = void (*)(const Job&, size_t, size_t);
 
 template <bool kSkin, bool kMorph>
-BlockFn pick(bool normals, bool tangents) {
+BlockFn pick(bool normals, bool tangents, uint32_t influences) {
   if (normals && kSkin && !kMorph) {
+    if (influences == 4) {
+      return tangents ? &deform_and_normalise_block<kSkin, kMorph, true, true, 4>
+                      : &deform_and_normalise_block<kSkin, kMorph, true, false, 4>;
+    }
     return tangents ? &deform_and_normalise_block<kSkin, kMorph, true, true>
                     : &deform_and_normalise_block<kSkin, kMorph, true, false>;
   }
@@ -353,10 +360,10 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
     job.kernel_tangents = tangents ? kernel->tangents : nullptr;
   }
   const bool morph = !active.empty();
-  const BlockFn fn =
-      skinned
-          ? (morph ? pick<true, true>(normals, tangents) : pick<true, false>(normals, tangents))
-          : (morph ? pick<false, true>(normals, tangents) : pick<false, false>(normals, tangents));
+  const BlockFn fn = skinned ? (morph ? pick<true, true>(normals, tangents, d.influences)
+                                      : pick<true, false>(normals, tangents, d.influences))
+                             : (morph ? pick<false, true>(normals, tangents, d.influences)
+                                      : pick<false, false>(normals, tangents, d.influences));
   if (kernel == nullptr) {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices, kBlock),
                       [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end()); });

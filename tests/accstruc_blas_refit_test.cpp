@@ -221,6 +221,58 @@ TEST(BlasRefit, OverwrittenRecordsAreTheComparedOnesAndAllReported) {
   }
 }
 
+TEST(BlasRefit, WithoutTheWideLayoutTheBinaryNodesAndRecordsAreTheSame) {
+  // No wide nodes to re-quantise: the leaf pass keeps one box per binary
+  // leaf instead of one per triangle. The binary nodes, records (the
+  // triangle's index in p0.w included), spans, bounds and quality are those
+  // of the refit with both layouts, compared and streamed, frame after frame
+  // (a hundred tasks, the nodes above them, leaves of one to four).
+  WaveGrid g{.cells = 180, .size = 6.0f, .amplitude = 0.1f, .wavelength = 1.3f};
+  Mesh mesh = make_wave_grid(g);
+  for (const bool overwrite : {false, true}) {
+    Blas both(mesh), binary(mesh);
+    BlasRefit refit;
+    ASSERT_TRUE(refit.index(binary.layouts, binary.geometry()));
+    for (uint32_t frame = 1; frame <= 4; ++frame) {
+      g.amplitude = 0.1f + 0.3f * float(frame);
+      deform_wave_grid(mesh, g, 0.1f * float(frame));
+      both.set(mesh);
+      binary.set(mesh);
+      const BlasRefit::Result a = both.refit_with(refit, true, overwrite);
+      const BlasRefit::Result b = refit.refit(binary.layouts, binary.geometry(), binary.bases,
+                                              binary.nodes.data() + binary.bases.node, nullptr,
+                                              binary.leaf.data() + binary.bases.prim, overwrite);
+      EXPECT_FALSE(b.members_changed) << frame;
+      EXPECT_EQ(a.quality, b.quality) << frame;
+      EXPECT_EQ(a.spans.nodes.begin, b.spans.nodes.begin) << frame;
+      EXPECT_EQ(a.spans.nodes.end, b.spans.nodes.end) << frame;
+      EXPECT_EQ(b.spans.wide_nodes.end, 0u) << frame;
+      ASSERT_EQ(a.leaf_spans.size(), b.leaf_spans.size()) << frame;
+      for (size_t i = 0; i < a.leaf_spans.size(); ++i) {
+        EXPECT_EQ(a.leaf_spans[i].begin, b.leaf_spans[i].begin) << frame;
+        EXPECT_EQ(a.leaf_spans[i].end, b.leaf_spans[i].end) << frame;
+      }
+      ASSERT_EQ(
+          std::memcmp(both.nodes.data(), binary.nodes.data(), both.nodes.size() * sizeof(KBvhNode)),
+          0)
+          << "overwrite " << overwrite << ", frame " << frame;
+      const std::vector<KLeafTriangle> records = binary.expected_leaf_records();
+      ASSERT_EQ(
+          std::memcmp(records.data(), binary.leaf.data(), records.size() * sizeof(KLeafTriangle)),
+          0)
+          << "overwrite " << overwrite << ", frame " << frame;
+      EXPECT_EQ(std::memcmp(&both.layouts.bounds, &binary.layouts.bounds, sizeof(Aabb)), 0);
+    }
+    // A vertex gone to NaN still asks for a rebuild.
+    binary.positions[binary.triangles[7].v1].y = std::nanf("");
+    EXPECT_TRUE(refit
+                    .refit(binary.layouts, binary.geometry(), binary.bases,
+                           binary.nodes.data() + binary.bases.node, nullptr,
+                           binary.leaf.data() + binary.bases.prim, overwrite)
+                    .members_changed);
+  }
+}
+
 TEST(BlasRefit, SmallTreesAndSplitLeavesToo) {
   // From a single leaf (one node, an empty second child) to a few nodes:
   // the wide leaves split binary leaves of four into three and one.

@@ -540,7 +540,9 @@ TEST(MeshDeformer, NormalsNormalisedFourAtATimeEqualTheOneAtATimePath) {
   // The unmorphed skinned path normalises its normals four at a time after
   // each block; the morphed path one at a time, right after skinning. A
   // morph target of zero deltas at weight 1 changes no bit of the input, so
-  // both must give the same bits: over several blocks and a ragged tail.
+  // both must give the same bits: over several blocks and a ragged tail. (The
+  // unmorphed path also blends its four influences unrolled, the morphed one
+  // in the loop over the mesh's count: the same bits too.)
   const size_t n = 2 * 4096 + 4099;
   MeshDeformation d;
   d.palette_size = 3;
