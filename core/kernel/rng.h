@@ -262,8 +262,8 @@ TANDEM_HD_INLINE PairSeeds make_pair_seeds(uint32_t key, uint32_t pair_dimension
 // rng_2d and rng_1d_unpaired from the precomputed parts.
 TANDEM_HD_INLINE Vec2 rng_2d_seeded(uint32_t sample_mixed, const PairSeeds& s) {
   const uint32_t shuffle = lk_permute_rest(sample_mixed, s.pair, s.pair_mult);
-  const uint32_t point0 = reverse_bits_u32(shuffle);
-  const uint32_t point1 = pascal_mod2_of_reversed(shuffle);
+  uint32_t point0, point1;
+  reverse_and_pascal(shuffle, &point0, &point1);
   return {unit_float_of_reversed(lk_permute_rest(lk_permute_mix(point0), s.comp0, s.comp0_mult)),
           unit_float_of_reversed(lk_permute_rest(lk_permute_mix(point1), s.comp1, s.comp1_mult))};
 }
