@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "core/kernel/rng.h"
@@ -166,6 +167,88 @@ TEST(KernelRng, PixelCacheDrawsEqualThePlainDraws) {
         }
       }
       EXPECT_EQ(cache.bounces_filled, PixelRngCache::kMaxBounces);
+    }
+  }
+}
+
+// The reversal by bytes (rng_tables.h) against a bit-by-bit one, and the
+// Pascal matrix and unit float after it against the plain functions.
+uint32_t reverse_bit_by_bit(uint32_t x) {
+  uint32_t r = 0;
+  for (int i = 0; i < 32; ++i)
+    r |= ((x >> i) & 1u) << (31 - i);
+  return r;
+}
+
+TEST(KernelRng, ByteTableReversalsEqualTheBitwiseOnes) {
+  uint32_t state = 12345;
+  for (uint32_t t = 0; t < 300000; ++t) {
+    state = state * 1664525u + 1013904223u;
+    const uint32_t x = t < 65536 ? t : t < 131072 ? (t - 65536) << 16 : state;
+    const uint32_t r = reverse_bit_by_bit(x);
+    ASSERT_EQ(reverse_bits_u32(x), r) << x;
+    ASSERT_EQ(reverse_bits_u32_shifts(x), r) << x;
+    ASSERT_EQ(pascal_mod2_of_reversed(x), pascal_mod2(r)) << x;
+    const float f = unit_float_of_reversed(x), e = u32_to_unit_float(r);
+    ASSERT_EQ(std::memcmp(&f, &e, sizeof f), 0) << x;
+  }
+}
+
+// The draws as first defined (lk_permute in one piece, the index reversed
+// before each component), written out here so that any rewrite of rng.h
+// that changes a single bit of any number fails.
+float reference_rng_1d(const PathRng& r, uint32_t dimension) {
+  const auto lk = [](uint32_t x, uint32_t seed) {
+    x ^= x * 0x3d20adeau;
+    x += seed;
+    x *= (seed >> 16) | 1u;
+    x ^= x * 0x05526c56u;
+    x ^= x * 0x53a22864u;
+    return x;
+  };
+  uint32_t first = dimension;
+  if (dimension < kDimBounceBase) {
+    first = dimension & ~1u;
+  } else {
+    const uint32_t which = (dimension - kDimBounceBase) % kDimsPerBounce;
+    if (which == kBounceLightV || which == kBounceBsdfV) first = dimension - 1;
+  }
+  const uint32_t component = dimension - first;
+  const uint32_t pair_seed = hash_u32(r.key ^ (first * 0x9e3779b9u + 0x632be5abu));
+  const uint32_t index = reverse_bit_by_bit(lk(reverse_bit_by_bit(r.sample), pair_seed));
+  const uint32_t point = component == 0 ? index : pascal_mod2(index);
+  const uint32_t seed = hash_u32(pair_seed + component + 1u);
+  return u32_to_unit_float(reverse_bit_by_bit(lk(point, seed)));
+}
+
+TEST(KernelRng, DrawsEqualTheirFirstDefinitionBitForBit) {
+  PixelRngCache cache;
+  for (uint32_t pixel : {0u, 3u, 4097u, 999999u}) {
+    pixel_rng_cache_reset(&cache, pixel, 5);
+    for (uint32_t s : {0u, 1u, 7u, 15u, 255u, 256u, 65537u, 0xfffffffeu}) {
+      const PathRng r = make_path_rng(pixel, s, 5);
+      const CachedPathRng c{r, &cache};
+      for (uint32_t d = 0; d < 80; ++d)
+        ASSERT_EQ(rng_1d(r, d), reference_rng_1d(r, d)) << "sample " << s << " dim " << d;
+      const Vec2 j = rng_jitter_2d(c), l = rng_lens_2d(c);
+      ASSERT_EQ(j.x, reference_rng_1d(r, kDimPixelJitter));
+      ASSERT_EQ(j.y, reference_rng_1d(r, kDimPixelJitter + 1));
+      ASSERT_EQ(l.x, reference_rng_1d(r, kDimLens));
+      ASSERT_EQ(l.y, reference_rng_1d(r, kDimLens + 1));
+      // Bounces past the cache's last one share its `deep` slot: alternate.
+      for (uint32_t b : {0u, 20u, 5u, 17u, 20u, 15u, 16u}) {
+        const auto br = rng_at_bounce(c, b);
+        const Vec2 u = bounce_rng_2d(br, kBounceBsdfU);
+        ASSERT_EQ(u.x, reference_rng_1d(r, bounce_dimension(b, kBounceBsdfU))) << b;
+        ASSERT_EQ(u.y, reference_rng_1d(r, bounce_dimension(b, kBounceBsdfV))) << b;
+        ASSERT_EQ(bounce_rng_1d(br, kBounceRoulette),
+                  reference_rng_1d(r, bounce_dimension(b, kBounceRoulette)))
+            << b;
+        const auto pr = rng_at_bounce(r, b);
+        ASSERT_EQ(bounce_rng_1d(pr, kBounceLightSelect),
+                  reference_rng_1d(r, bounce_dimension(b, kBounceLightSelect)))
+            << b;
+      }
     }
   }
 }

@@ -27,6 +27,18 @@
 #define TANDEM_HD_INLINE inline __attribute__((always_inline))
 #endif
 
+// For rarely taken slow paths inside hot inlined code (the CPU's lazy
+// random-number seed fills): kept out of line so that they neither grow
+// their callers nor shift g++'s inlining decisions for the code around them.
+// Only the CPU calls them, so nvcc keeps its default.
+#if defined(__CUDACC__)
+#define TANDEM_HD_NOINLINE TANDEM_HD
+#elif defined(__GNUC__)
+#define TANDEM_HD_NOINLINE inline __attribute__((noinline))
+#else
+#define TANDEM_HD_NOINLINE inline
+#endif
+
 // nvcc's host pass compiles the host branches below (std::memcpy) too, so
 // only NVRTC, which has no standard headers, goes without them.
 #if !defined(__CUDACC_RTC__)

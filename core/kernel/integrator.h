@@ -276,10 +276,11 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   // way, the noise unchanged.
   bool has_shadow = false;
   const bool specular = bsdf_near_specular(sh.params, sh.lobes);
+  const auto brng = rng_at_bounce(rng, bounce);  // this bounce's draws
   LightSample ls;
-  const Vec2 light_uv = bounce_rng_2d(rng, bounce, kBounceLightU);
-  if (sample_light(kd, sp.position, bounce_rng_1d(rng, bounce, kBounceLightSelect), light_uv.x,
-                   light_uv.y, &ls, specular)) {
+  const Vec2 light_uv = bounce_rng_2d(brng, kBounceLightU);
+  if (sample_light(kd, sp.position, bounce_rng_1d(brng, kBounceLightSelect), light_uv.x, light_uv.y,
+                   &ls, specular)) {
     const Vec3 wi_local = to_local(sh.frame, ls.wi);
     if (consistent_side(ls.wi, wi_local, sh.ng)) {
       const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -287,7 +288,7 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
       if (!is_black(contrib) && is_finite(contrib)) {
         const float w = ls.is_delta ? 1.0f : mis_power_heuristic(ls.pdf, e.pdf);
         shadow->alpha_key =
-            (p->flags & kPathAlphaKeys) ? bounce_rng_bits(rng, bounce, kBounceShadowAlpha) : 0u;
+            (p->flags & kPathAlphaKeys) ? bounce_rng_bits(brng, kBounceShadowAlpha) : 0u;
         shadow->ray = ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point);
         shadow->contribution = contrib * w;
         has_shadow = true;
@@ -297,10 +298,10 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
 
   // Continue the path by sampling the BSDF.
   BsdfSample bs;
-  const Vec2 bsdf_uv = bounce_rng_2d(rng, bounce, kBounceBsdfU);
+  const Vec2 bsdf_uv = bounce_rng_2d(brng, kBounceBsdfU);
   // With at most one lobe any u_lobe picks it (u_lobe = 0 too), so the draw
   // is skipped: it is most hits (Lambertian walls, mirrors).
-  const float u_lobe = bsdf_single_lobe(sh.lobes) ? 0.0f : bounce_rng_1d(rng, bounce, kBounceLobe);
+  const float u_lobe = bsdf_single_lobe(sh.lobes) ? 0.0f : bounce_rng_1d(brng, kBounceLobe);
   if (!bsdf_sample_lobes(sh.params, sh.lobes, sh.wo_local, u_lobe, bsdf_uv.x, bsdf_uv.y, &bs)) {
     return has_shadow;
   }
@@ -319,7 +320,7 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   if (bounce + 1 >= ip.rr_start_depth) {
     const float survive = roulette_survival(p->throughput * p->eta_scale);
     if (survive < 1.0f) {
-      if (!(bounce_rng_1d(rng, bounce, kBounceRoulette) < survive)) return has_shadow;
+      if (!(bounce_rng_1d(brng, kBounceRoulette) < survive)) return has_shadow;
       p->throughput *= 1.0f / survive;
     }
   }

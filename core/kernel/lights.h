@@ -97,7 +97,9 @@ TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, floa
   float pmf;
   const uint32_t index = alias_sample(kd.light_alias, kd.light_alias_count, u_select, &pmf);
   if (!(pmf > 0.0f)) return false;
-  const KLight light = kd.lights[index];
+  // By reference: a triangle light reads three of the 64 bytes, and the copy
+  // was 15 instructions of a Cornell-box light sample.
+  const KLight& light = kd.lights[index];
   if (delta_only && (light.type == kLightTriangle || light.type == kLightEnvironment)) return false;
   out->is_delta = false;
   out->at_infinity = false;
