@@ -14,27 +14,43 @@
 // the boxes of split leaves. A refit cannot keep such a tree (the clipped
 // boxes are not functions of the triangles' boxes): meshes that deform are
 // built by build_bvh() instead.
+//
+// Speed without changing the trees: references are 32-byte records binned
+// with four-float vectors (the same min/max and products as Aabb's, so the
+// same bits), all three axes in one pass; triangles are copied once into a
+// contiguous vertex array; a straddling reference's pieces touch only the
+// bins and planes its edges reach; large nodes bin in fixed chunks that are
+// merged in order (a <-- a < b ? a : b keeps the last of equal minima in
+// either order, so the bins are those of the serial pass); leaves go to one
+// array instead of a vector each.
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "accstruc/bvh_builder.h"
+#include "accstruc/simd4.h"
+#include "accstruc/spatial_bins.h"
 
 namespace tandem {
 
 namespace {
 
-struct Ref {
-  Aabb box;
-  uint32_t id;
-};
+using simd::F4;
+using namespace spatial;
 
 constexpr uint32_t kObjectBins = 16;
-constexpr uint32_t kSpatialBins = 16;
 constexpr uint32_t kParallelRefs = 4096;
+// Nodes with at least this many references bin in chunks of kBinChunk in
+// parallel; below it one task bins the whole node.
+constexpr uint32_t kParallelBinRefs = 1u << 15;
+constexpr uint32_t kBinChunk = 1u << 13;
+// References ahead whose triangles the spatial binning prefetches.
+constexpr size_t kPrefetch = 8;
 // Meshes with fewer triangles are built by build_bvh().
 constexpr size_t kMinSpatialTriangles = 1024;
 
@@ -56,6 +72,13 @@ Aabb intersect(const Aabb& a, const Aabb& b) {
   r.lo = max_v(a.lo, b.lo);
   r.hi = min_v(a.hi, b.hi);
   return r;
+}
+
+Aabb to_aabb(F4 lo, F4 hi) {
+  alignas(16) float l[4], h[4];
+  simd::store(l, lo);
+  simd::store(h, hi);
+  return {{l[0], l[1], l[2]}, {h[0], h[1], h[2]}};
 }
 
 // Box of the part of triangle t with lo <= x_axis <= hi, within `ref`.
@@ -107,6 +130,57 @@ struct SpatialSplit {
   double cost = 0.0;
 };
 
+// Bins of the three axes as vectors; only the first k of each active axis
+// are reset and used.
+struct BinSet {
+  F4 lo[3][kObjectBins];
+  F4 hi[3][kObjectBins];
+  uint32_t count[3][kObjectBins];
+  void reset(uint32_t k, const bool active[3]) {
+    for (int a = 0; a < 3; ++a) {
+      if (!active[a]) continue;
+      for (uint32_t i = 0; i < k; ++i) {
+        lo[a][i] = kEmptyLo;
+        hi[a][i] = kEmptyHi;
+        count[a][i] = 0;
+      }
+    }
+  }
+  // Merges a later chunk's bins (see the file comment on why in order).
+  void merge(const BinSet& o, uint32_t k, const bool active[3]) {
+    for (int a = 0; a < 3; ++a) {
+      if (!active[a]) continue;
+      for (uint32_t i = 0; i < k; ++i) {
+        lo[a][i] = simd::min(lo[a][i], o.lo[a][i]);
+        hi[a][i] = simd::max(hi[a][i], o.hi[a][i]);
+        count[a][i] += o.count[a][i];
+      }
+    }
+  }
+};
+
+// Runs body(out, begin, end) over [0, n) after init(out): serially below
+// kParallelBinRefs, else over fixed chunks in parallel (the first into out),
+// merged in chunk order (merge(out, later)), so the result does not depend
+// on the scheduling.
+template <class T, class Init, class Body, class Merge>
+void chunked(size_t n, T& out, Init init, Body body, Merge merge) {
+  init(out);
+  if (n < kParallelBinRefs) {
+    body(out, size_t(0), n);
+    return;
+  }
+  const size_t chunks = (n + kBinChunk - 1) / kBinChunk;
+  std::vector<T> part(chunks - 1);
+  tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
+    T& t = c == 0 ? out : part[c - 1];
+    if (c > 0) init(t);
+    body(t, c * kBinChunk, std::min(n, (c + 1) * kBinChunk));
+  });
+  for (const T& t : part)
+    merge(out, t);
+}
+
 class SpatialBuilder {
  public:
   SpatialBuilder(std::span<const Aabb> boxes, std::span<const Vec3> positions,
@@ -120,24 +194,39 @@ class SpatialBuilder {
     std::vector<Ref> refs;
     refs.reserve(boxes_.size());
     for (uint32_t i = 0; i < boxes_.size(); ++i) {
-      if (aabb_valid(boxes_[i])) refs.push_back({boxes_[i], i});
+      if (aabb_valid(boxes_[i])) refs.push_back(Ref::make(boxes_[i], i));
     }
     if (refs.empty()) return tree;
     const uint32_t n = uint32_t(refs.size());
     const uint64_t budget = uint64_t(double(std::max(0.0f, s_.spatial_split_budget)) * double(n));
     const uint64_t capacity = 2 * (uint64_t(n) + budget);
+    // The vertices of every referenced triangle (a valid box means valid
+    // indices), next to each other for the spatial binning.
+    tris_.resize(boxes_.size());
+    tbb::parallel_for(size_t(0), refs.size(), [&](size_t i) {
+      const uint32_t id = refs[i].id();
+      const KTriangle& t = triangles_[id];
+      const uint32_t v[3] = {t.v0, t.v1, t.v2};
+      for (int j = 0; j < 3; ++j) {
+        const Vec3 p = positions_[v[j]];
+        float* out = tris_[id].v[j];
+        out[0] = p.x, out[1] = p.y, out[2] = p.z, out[3] = 0.0f;
+      }
+    });
     nodes_.resize(capacity);
-    leaf_refs_.resize(capacity);
+    // Splits never add more than the budget in all (each node passes on
+    // what it did not use), so every leaf's references fit.
+    leaf_store_.resize(n + budget);
     node_count_ = 1;
     Aabb root_box;
     for (const Ref& r : refs)
-      root_box.grow(r.box);
+      root_box.grow(r.box());
     root_area_ = root_box.half_area();
     build(0, std::move(refs), root_box, budget, 1);
     nodes_.resize(node_count_.load());
     // Leaf order: depth-first, so every subtree's references are contiguous.
-    tree.prims.reserve(n + budget);
-    tree.ref_boxes.reserve(n + budget);
+    tree.prims.reserve(leaf_count_.load());
+    tree.ref_boxes.reserve(leaf_count_.load());
     assign_ranges(0, tree);
     tree.nodes = std::move(nodes_);
     tree.root = 0;
@@ -147,22 +236,23 @@ class SpatialBuilder {
 
  private:
   void triangle(uint32_t id, Vec3 out[3]) const {
-    const KTriangle& t = triangles_[id];
-    out[0] = positions_[t.v0];
-    out[1] = positions_[t.v1];
-    out[2] = positions_[t.v2];
+    const Tri& t = tris_[id];
+    for (int j = 0; j < 3; ++j)
+      out[j] = {t.v[j][0], t.v[j][1], t.v[j][2]};
   }
 
   void assign_ranges(uint32_t node, BuildTree& tree) {
     BuildNode& n = nodes_[node];
-    n.first = uint32_t(tree.prims.size());
     if (n.is_leaf()) {
-      for (const Ref& r : leaf_refs_[node]) {
-        tree.prims.push_back(r.id);
-        tree.ref_boxes.push_back(r.box);
+      // make_leaf left the leaf's place in leaf_store_ in first / count.
+      const uint32_t from = n.first, count = n.count;
+      n.first = uint32_t(tree.prims.size());
+      for (uint32_t i = from; i < from + count; ++i) {
+        tree.prims.push_back(leaf_store_[i].id());
+        tree.ref_boxes.push_back(leaf_store_[i].box());
       }
-      std::vector<Ref>().swap(leaf_refs_[node]);
     } else {
+      n.first = uint32_t(tree.prims.size());
       assign_ranges(n.child[0], tree);
       assign_ranges(n.child[1], tree);
     }
@@ -170,151 +260,223 @@ class SpatialBuilder {
   }
 
   void make_leaf(uint32_t node, std::vector<Ref>&& refs, const Aabb& box, uint32_t depth) {
-    nodes_[node].box = box;
-    leaf_refs_[node] = std::move(refs);
+    const uint32_t at = leaf_count_.fetch_add(uint32_t(refs.size()));
+    std::copy(refs.begin(), refs.end(), leaf_store_.begin() + at);
+    BuildNode& n = nodes_[node];
+    n.box = box;
+    n.first = at;
+    n.count = uint32_t(refs.size());
+    std::vector<Ref>().swap(refs);
     uint32_t seen = max_depth_.load(std::memory_order_relaxed);
     while (depth > seen && !max_depth_.compare_exchange_weak(seen, depth)) {
     }
   }
 
+  struct Box4 {
+    F4 lo = kEmptyLo, hi = kEmptyHi;
+  };
+
   ObjectSplit find_object_split(const std::vector<Ref>& refs, double parent) const {
     ObjectSplit best;
-    Aabb cbox;
-    for (const Ref& r : refs)
-      cbox.grow(r.box.center());
+    const F4 half = simd::set1(0.5f);
+    Box4 c4;
+    chunked(
+        refs.size(), c4, [](Box4& b) { b = Box4{}; },
+        [&](Box4& b, size_t lo, size_t hi) {
+          for (size_t i = lo; i < hi; ++i) {
+            const F4 c = (refs[i].vlo() + refs[i].vhi()) * half;
+            b.lo = simd::min(b.lo, c);
+            b.hi = simd::max(b.hi, c);
+          }
+        },
+        [](Box4& into, const Box4& o) {
+          into.lo = simd::min(into.lo, o.lo);
+          into.hi = simd::max(into.hi, o.hi);
+        });
+    const Aabb cbox = to_aabb(c4.lo, c4.hi);
     best.cbox = cbox;
     const uint32_t k =
         std::min<uint32_t>(kObjectBins, std::max<uint32_t>(4u, uint32_t(refs.size())));
+    bool active[3];
+    float origin[3], scale[3];
     for (int a = 0; a < 3; ++a) {
-      const float lo = lo_of(cbox, a), ext = hi_of(cbox, a) - lo;
-      if (!(ext > 0.0f)) continue;
-      const float scale = float(k) / ext;
-      if (!(scale < kFloatMax)) continue;
-      Aabb bin_box[kObjectBins];
-      uint32_t bin_count[kObjectBins] = {};
-      for (const Ref& r : refs) {
-        const uint32_t b = bin_of(component(r.box.center(), a), lo, scale, k);
-        bin_box[b].grow(r.box);
-        ++bin_count[b];
-      }
-      sweep(bin_box, bin_count, k, parent,
-            [&](uint32_t i, double cost, const Aabb& l, const Aabb& r) {
+      origin[a] = lo_of(cbox, a);
+      const float ext = hi_of(cbox, a) - origin[a];
+      scale[a] = ext > 0.0f ? float(k) / ext : 0.0f;
+      active[a] = ext > 0.0f && scale[a] < kFloatMax;
+      if (!active[a]) scale[a] = 0.0f;
+    }
+    if (!active[0] && !active[1] && !active[2]) return best;
+    const F4 origin4 = simd::set(origin[0], origin[1], origin[2], 0.0f);
+    const F4 scale4 = simd::set(scale[0], scale[1], scale[2], 0.0f);
+    BinSet bins;
+    chunked(
+        refs.size(), bins, [&](BinSet& b) { b.reset(k, active); },
+        [&](BinSet& b, size_t lo, size_t hi) {
+          for (size_t i = lo; i < hi; ++i) {
+            const F4 rlo = refs[i].vlo(), rhi = refs[i].vhi();
+            alignas(16) int32_t bi[4];
+            simd::to_int(((rlo + rhi) * half - origin4) * scale4, bi);
+            for (int a = 0; a < 3; ++a) {
+              if (!active[a]) continue;
+              const uint32_t j = clamp_bin(bi[a], k);
+              b.lo[a][j] = simd::min(b.lo[a][j], rlo);
+              b.hi[a][j] = simd::max(b.hi[a][j], rhi);
+              ++b.count[a][j];
+            }
+          }
+        },
+        [&](BinSet& into, const BinSet& o) { into.merge(o, k, active); });
+    F4 left_lo = kEmptyLo, left_hi = kEmptyHi, right_lo = kEmptyLo, right_hi = kEmptyHi;
+    for (int a = 0; a < 3; ++a) {
+      if (!active[a]) continue;
+      sweep(bins.lo[a], bins.hi[a], bins.count[a], bins.count[a], k, parent,
+            [&](uint32_t i, double cost, F4 ll, F4 lh, F4 rl, F4 rh) {
               if (best.axis < 0 || cost < best.cost) {
                 best.axis = a;
                 best.bin = i;
                 best.cost = cost;
-                best.left = l;
-                best.right = r;
+                left_lo = ll, left_hi = lh, right_lo = rl, right_hi = rh;
               }
             });
+    }
+    if (best.axis >= 0) {
+      best.left = to_aabb(left_lo, left_hi);
+      best.right = to_aabb(right_lo, right_hi);
     }
     return best;
   }
 
-  static uint32_t bin_of(float x, float lo, float scale, uint32_t k) {
-    const int32_t b = int32_t((x - lo) * scale);
-    return b <= 0 ? 0u : (uint32_t(b) < k ? uint32_t(b) : k - 1);
-  }
-
   // Evaluates every plane between bins; f(i, cost, left box, right box) for
-  // the split into bins [0, i] and (i, k).
+  // the split into bins [0, i] and (i, k), boxes as (lo, hi) vectors. The
+  // areas are Aabb::half_area's: the same products in the same order, and
+  // 0 for an empty box.
   template <class F>
-  void sweep(const Aabb* bin_box, const uint32_t* left_count, const uint32_t* right_count,
+  void sweep(const F4* lo, const F4* hi, const uint32_t* left_count, const uint32_t* right_count,
              uint32_t k, double parent, F f) const {
-    Aabb right_box[kSpatialBins > kObjectBins ? kSpatialBins : kObjectBins];
-    uint32_t rcnt[kSpatialBins > kObjectBins ? kSpatialBins : kObjectBins];
-    Aabb acc;
+    constexpr uint32_t kMax = kSpatialBins > kObjectBins ? kSpatialBins : kObjectBins;
+    const auto area = [](F4 l, F4 h) { return simd::le3(l, h) ? simd::half_area(l, h) : 0.0f; };
+    F4 right_lo[kMax], right_hi[kMax];
+    float right_area[kMax];
+    uint32_t rcnt[kMax];
+    F4 acc_lo = kEmptyLo, acc_hi = kEmptyHi;
     uint32_t c = 0;
     for (uint32_t i = k; i-- > 1;) {
-      acc.grow(bin_box[i]);
+      acc_lo = simd::min(acc_lo, lo[i]);
+      acc_hi = simd::max(acc_hi, hi[i]);
       c += right_count[i];
-      right_box[i] = acc;
+      right_lo[i] = acc_lo;
+      right_hi[i] = acc_hi;
+      right_area[i] = area(acc_lo, acc_hi);
       rcnt[i] = c;
     }
-    Aabb left;
+    F4 left_lo = kEmptyLo, left_hi = kEmptyHi;
     uint32_t lc = 0;
     const double ct = s_.traversal_cost, ci = s_.intersection_cost;
     for (uint32_t i = 0; i + 1 < k; ++i) {
-      left.grow(bin_box[i]);
+      left_lo = simd::min(left_lo, lo[i]);
+      left_hi = simd::max(left_hi, hi[i]);
       lc += left_count[i];
       if (lc == 0 || rcnt[i + 1] == 0) continue;
-      const double cost = ct * parent + ci * (double(left.half_area()) * lc +
-                                              double(right_box[i + 1].half_area()) * rcnt[i + 1]);
-      f(i, cost, left, right_box[i + 1]);
-    }
-  }
-  template <class F>
-  void sweep(const Aabb* bin_box, const uint32_t* count, uint32_t k, double parent, F f) const {
-    sweep(bin_box, count, count, k, parent, f);
-  }
-
-  // The boxes of the triangle's pieces in bins b0..b1 (within ref), grown
-  // into bin_box: every vertex goes to its bin, every crossing of an edge
-  // with an inner plane to the bins on both sides. For the cost estimate
-  // only (no padding; the split itself clips with clip_triangle).
-  static void bin_pieces(const Vec3 t[3], const Aabb& ref, int a, const float* planes, float lo,
-                         float scale, uint32_t b0, uint32_t b1, Aabb* bin_box) {
-    Aabb piece[kSpatialBins];
-    for (int i = 0; i < 3; ++i) {
-      const uint32_t b = std::clamp(bin_of(component(t[i], a), lo, scale, kSpatialBins), b0, b1);
-      piece[b].grow(t[i]);
-      Vec3 p = t[i], q = t[(i + 1) % 3];
-      float pa = component(p, a), qa = component(q, a);
-      if (pa > qa) {
-        std::swap(p, q);
-        std::swap(pa, qa);
-      }
-      for (uint32_t j = b0 + 1; j <= b1; ++j) {
-        const float plane = planes[j];
-        if (!(pa < plane && plane < qa)) continue;
-        const Vec3 x = p + (q - p) * ((plane - pa) / (qa - pa));
-        piece[j - 1].grow(x);
-        piece[j].grow(x);
-      }
-    }
-    for (uint32_t b = b0; b <= b1; ++b) {
-      Aabb c = intersect(piece[b], ref);
-      set_lo(c, a, std::max(lo_of(c, a), planes[b]));
-      set_hi(c, a, std::min(hi_of(c, a), planes[b + 1]));
-      if (!c.empty()) bin_box[b].grow(c);
+      const double cost = ct * parent + ci * (double(area(left_lo, left_hi)) * lc +
+                                              double(right_area[i + 1]) * rcnt[i + 1]);
+      f(i, cost, left_lo, left_hi, right_lo[i + 1], right_hi[i + 1]);
     }
   }
 
-  SpatialSplit find_spatial_split(const std::vector<Ref>& refs, const Aabb& box) const {
+  SpatialSplit find_spatial_split(const std::vector<Ref>& refs, const Aabb& box,
+                                  double object_cost) const {
     SpatialSplit best;
     const uint32_t k = kSpatialBins;
+    SpatialAxes ax;
     for (int a = 0; a < 3; ++a) {
       const float lo = lo_of(box, a), ext = hi_of(box, a) - lo;
       if (!(ext > 0.0f)) continue;
       const float scale = float(k) / ext;
       if (!(scale < kFloatMax)) continue;
-      float planes[kSpatialBins + 1];
+      ax.active[a] = true;
+      ax.lo[a] = lo;
+      ax.scale[a] = scale;
+      const float mag = std::max(std::fabs(lo), std::fabs(hi_of(box, a)));
+      ax.narrow[a] = ext >= 1e-3f * mag;
+      float* planes = ax.planes[a];
       for (uint32_t i = 0; i <= k; ++i)
         planes[i] = lo + ext * (float(i) / float(k));
-      planes[k] = hi_of(box, a);
-      Aabb bin_box[kSpatialBins];
-      uint32_t enter[kSpatialBins] = {}, leave[kSpatialBins] = {};
-      for (const Ref& r : refs) {
-        const uint32_t b0 = bin_of(lo_of(r.box, a), lo, scale, k);
-        const uint32_t b1 = bin_of(hi_of(r.box, a), lo, scale, k);
-        ++enter[b0];
-        ++leave[b1];
-        if (b0 == b1) {
-          bin_box[b0].grow(r.box);
-          continue;
-        }
-        Vec3 t[3];
-        triangle(r.id, t);
-        bin_pieces(t, r.box, a, planes, lo, scale, b0, b1, bin_box);
-      }
-      sweep(bin_box, enter, leave, k, box.half_area(),
-            [&](uint32_t i, double cost, const Aabb&, const Aabb&) {
-              if (best.axis < 0 || cost < best.cost) {
-                best.axis = a;
-                best.plane = planes[i + 1];
-                best.cost = cost;
+      std::fill(planes + k, planes + kPadded, hi_of(box, a));
+    }
+    if (!ax.active[0] && !ax.active[1] && !ax.active[2]) return best;
+    ax.origin = simd::set(ax.lo[0], ax.lo[1], ax.lo[2], 0.0f);
+    ax.scale4 = simd::set(ax.scale[0], ax.scale[1], ax.scale[2], 0.0f);
+    // First the counts and the references within one bin: that sweep is a
+    // lower bound of the axis's costs (the straddlers' pieces can only grow
+    // the boxes, and the areas and costs are monotonic in them). An axis
+    // whose bound is not below the object split's cost, or the best of the
+    // axes before it (ties go to the first axis), cannot give the split
+    // that build() takes; only the others clip their straddlers.
+    const double parent = box.half_area();
+    SpatialBins bins;
+    chunked(
+        refs.size(), bins, [&](SpatialBins& b) { b.reset(ax.active); },
+        [&](SpatialBins& b, size_t lo, size_t hi) {
+          for (size_t i = lo; i < hi; ++i) {
+            const Ref& r = refs[i];
+            alignas(16) int32_t bl[4], bh[4];
+            simd::to_int((r.vlo() - ax.origin) * ax.scale4, bl);
+            simd::to_int((r.vhi() - ax.origin) * ax.scale4, bh);
+            for (int a = 0; a < 3; ++a) {
+              if (!ax.active[a]) continue;
+              const uint32_t b0 = clamp_bin(bl[a], k), b1 = clamp_bin(bh[a], k);
+              ++b.enter[a][b0];
+              ++b.leave[a][b1];
+              if (b0 == b1) b.grow(a, b0, r);
+            }
+          }
+        },
+        [&](SpatialBins& into, const SpatialBins& o) { into.merge(o, ax.active); });
+    const auto axis_sweep = [&](int a, auto f) {
+      F4 lo[kSpatialBins], hi[kSpatialBins];
+      bins.boxes(a, lo, hi);
+      sweep(lo, hi, bins.enter[a], bins.leave[a], k, parent,
+            [&](uint32_t i, double cost, F4, F4, F4, F4) { f(i, cost); });
+    };
+    for (int a = 0; a < 3; ++a) {
+      if (!ax.active[a]) continue;
+      double bound = std::numeric_limits<double>::infinity();
+      axis_sweep(a, [&](uint32_t, double cost) { bound = std::min(bound, cost); });
+      if (bound >= object_cost || (best.axis >= 0 && bound >= best.cost)) continue;
+      const bool only[3] = {a == 0, a == 1, a == 2};
+      SpatialBins pieces;
+      chunked(
+          refs.size(), pieces, [&](SpatialBins& b) { b.reset(only); },
+          [&](SpatialBins& b, size_t lo, size_t hi) {
+            const float o = ax.lo[a], sc = ax.scale[a];
+            for (size_t i = lo; i < hi; ++i) {
+              const Ref& r = refs[i];
+              // The triangles of a node's references lie all over the
+              // vertex array: fetch a few references ahead.
+              if (i + kPrefetch < hi) {
+                const char* ahead = reinterpret_cast<const char*>(&tris_[refs[i + kPrefetch].id()]);
+                __builtin_prefetch(ahead);
+                __builtin_prefetch(ahead + sizeof(Tri) - 1);
               }
-            });
+              // As the first pass: same arithmetic, one lane.
+              const uint32_t b0 = clamp_bin(int32_t((r.lo[a] - o) * sc), k);
+              const uint32_t b1 = clamp_bin(int32_t((r.hi[a] - o) * sc), k);
+              if (b0 == b1) continue;
+              const Tri& t = tris_[r.id()];
+              bin_straddler(t, r, a, ax, b0, b1, b);
+            }
+          },
+          [&](SpatialBins& into, const SpatialBins& o) { into.merge(o, only); });
+      // The pieces' counts are zero: merging adds only their boxes.
+      bins.merge(pieces, only);
+      axis_sweep(a, [&](uint32_t i, double cost) {
+        if (best.axis < 0 || cost < best.cost) {
+          best.axis = a;
+          best.plane = ax.planes[a][i + 1];
+          best.cost = cost;
+        }
+      });
     }
     return best;
   }
@@ -332,12 +494,12 @@ class SpatialBuilder {
     std::vector<uint32_t> straddle;
     for (uint32_t i = 0; i < refs.size(); ++i) {
       const Ref& r = refs[i];
-      if (hi_of(r.box, a) <= plane) {
+      if (r.hi[a] <= plane) {
         left.push_back(r);
-        lbox.grow(r.box);
-      } else if (lo_of(r.box, a) >= plane) {
+        lbox.grow(r.box());
+      } else if (r.lo[a] >= plane) {
         right.push_back(r);
-        rbox.grow(r.box);
+        rbox.grow(r.box());
       } else {
         straddle.push_back(i);
       }
@@ -348,19 +510,20 @@ class SpatialBuilder {
     uint64_t nl = left.size() + straddle.size(), nr = right.size() + straddle.size();
     for (uint32_t i : straddle) {
       const Ref& r = refs[i];
+      const Aabb rb = r.box();
       Vec3 t[3];
-      triangle(r.id, t);
-      const Aabb lc = clip_triangle(t, r.box, a, -std::numeric_limits<float>::infinity(), plane);
-      const Aabb rc = clip_triangle(t, r.box, a, plane, std::numeric_limits<float>::infinity());
+      triangle(r.id(), t);
+      const Aabb lc = clip_triangle(t, rb, a, -std::numeric_limits<float>::infinity(), plane);
+      const Aabb rc = clip_triangle(t, rb, a, plane, std::numeric_limits<float>::infinity());
       if (lc.empty()) {
         right.push_back(r);
-        rbox.grow(r.box);
+        rbox.grow(rb);
         --nl;
         continue;
       }
       if (rc.empty()) {
         left.push_back(r);
-        lbox.grow(r.box);
+        lbox.grow(rb);
         --nr;
         continue;
       }
@@ -368,8 +531,8 @@ class SpatialBuilder {
       Aabb l_split = lbox, r_split = rbox, l_whole = lbox, r_whole = rbox;
       l_split.grow(lc);
       r_split.grow(rc);
-      l_whole.grow(r.box);
-      r_whole.grow(r.box);
+      l_whole.grow(rb);
+      r_whole.grow(rb);
       const double c_split = double(l_split.half_area()) * nl + double(r_split.half_area()) * nr;
       const double c_left = double(l_whole.half_area()) * nl + double(rbox.half_area()) * (nr - 1);
       const double c_right = double(lbox.half_area()) * (nl - 1) + double(r_whole.half_area()) * nr;
@@ -382,8 +545,8 @@ class SpatialBuilder {
         rbox = r_whole;
         --nl;
       } else {
-        left.push_back({lc, r.id});
-        right.push_back({rc, r.id});
+        left.push_back(Ref::make(lc, r.id()));
+        right.push_back(Ref::make(rc, r.id()));
         lbox = l_split;
         rbox = r_split;
       }
@@ -406,15 +569,18 @@ class SpatialBuilder {
       if (budget > 0 && os.axis >= 0) {
         const Aabb overlap = intersect(os.left, os.right);
         if (!overlap.empty() && overlap.half_area() > s_.spatial_split_alpha * root_area_) {
-          sp = find_spatial_split(refs, box);
+          sp = find_spatial_split(refs, box, best_cost);
         }
       } else if (budget > 0 && os.axis < 0 && n > s_.max_leaf_size) {
-        sp = find_spatial_split(refs, box);
+        sp = find_spatial_split(refs, box, best_cost);
       }
       if (n <= s_.max_leaf_size &&
           leaf_cost <= std::min(best_cost, sp.axis >= 0 ? sp.cost : best_cost)) {
         return make_leaf(node, std::move(refs), box, depth);
       }
+      // Either partition fills at most n references per side.
+      left.reserve(n);
+      right.reserve(n);
       if (sp.axis >= 0 && sp.cost < best_cost) {
         split = spatial_partition(refs, sp, budget, left, right, lbox, rbox);
         if (!split) {
@@ -429,12 +595,12 @@ class SpatialBuilder {
         const uint32_t k = std::min<uint32_t>(kObjectBins, std::max<uint32_t>(4u, n));
         lbox = rbox = Aabb{};
         for (const Ref& r : refs) {
-          if (bin_of(component(r.box.center(), os.axis), lo, scale, k) <= os.bin) {
+          if (bin_of(r.center(os.axis), lo, scale, k) <= os.bin) {
             left.push_back(r);
-            lbox.grow(r.box);
+            lbox.grow(r.box());
           } else {
             right.push_back(r);
-            rbox.grow(r.box);
+            rbox.grow(r.box());
           }
         }
         split = !left.empty() && !right.empty();
@@ -450,22 +616,22 @@ class SpatialBuilder {
       // Median of the widest centroid axis (or halves of coincident ones).
       Aabb cbox;
       for (const Ref& r : refs)
-        cbox.grow(r.box.center());
+        cbox.grow(r.box().center());
       const Vec3 e = cbox.extent();
       const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
       const uint32_t mid = n / 2;
-      std::nth_element(
-          refs.begin(), refs.begin() + mid, refs.end(), [&](const Ref& x, const Ref& y) {
-            const float cx = component(x.box.center(), axis), cy = component(y.box.center(), axis);
-            return cx < cy || (cx == cy && x.id < y.id);
-          });
+      std::nth_element(refs.begin(), refs.begin() + mid, refs.end(),
+                       [&](const Ref& x, const Ref& y) {
+                         const float cx = x.center(axis), cy = y.center(axis);
+                         return cx < cy || (cx == cy && x.id() < y.id());
+                       });
       left.assign(refs.begin(), refs.begin() + mid);
       right.assign(refs.begin() + mid, refs.end());
       lbox = rbox = Aabb{};
       for (const Ref& r : left)
-        lbox.grow(r.box);
+        lbox.grow(r.box());
       for (const Ref& r : right)
-        rbox.grow(r.box);
+        rbox.grow(r.box());
     }
     std::vector<Ref>().swap(refs);
     const uint64_t used = left.size() + right.size() - n;
@@ -492,9 +658,10 @@ class SpatialBuilder {
   std::span<const Vec3> positions_;
   std::span<const KTriangle> triangles_;
   BuildSettings s_;
+  std::vector<Tri> tris_;
   std::vector<BuildNode> nodes_;
-  std::vector<std::vector<Ref>> leaf_refs_;
-  std::atomic<uint32_t> node_count_{0};
+  std::vector<Ref> leaf_store_;  // leaves' references, in the order the leaves were made
+  std::atomic<uint32_t> node_count_{0}, leaf_count_{0};
   std::atomic<uint32_t> max_depth_{0};
   double root_area_ = 0.0;
 };
