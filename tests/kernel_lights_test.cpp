@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <optional>
 #include <vector>
 
@@ -140,6 +141,9 @@ TriangleLightScene make_triangle_light_scene(bool double_sided) {
     inst.world_to_object = a.inverse;
     inst.mesh = 0;
     inst.handedness = 1.0f;
+    // As the scene compiler flags it: the identity instance's lights are
+    // sampled from their cached constants, the other's from the triangles.
+    if (&a == &transforms[0]) inst.flags = kInstanceIdentity;
     ks.instances.push_back(inst);
   }
   std::vector<double> power;
@@ -150,6 +154,7 @@ TriangleLightScene make_triangle_light_scene(bool double_sided) {
       light.type = kLightTriangle;
       light.instance = i;
       light.prim = p;
+      cache_triangle_light(kd, &light);
       ks.lights.push_back(light);
       power.push_back(
           triangle_light_power(ks.materials[p], triangle_world_area(kd, ks.instances[i], p)));
@@ -396,6 +401,37 @@ TEST(KernelTriangleLight, DirectionsFollowTheReportedPdf) {
   EXPECT_TRUE(r.passed(kAlpha)) << r.summary();
   EXPECT_NEAR(total, 1.0, 1e-3);
   EXPECT_EQ(observed[missed], 0.0) << "sampled directions that hit no emitter";
+}
+
+// The cached constants of an identity instance's lights give the same bits
+// as make_light_point and triangle_light_pdf from the triangles (the same
+// scene with the identity flag cleared), from points all around the lights.
+TEST(KernelTriangleLight, CachedTriangleLightsSampleTheSameBits) {
+  for (bool double_sided : {false, true}) {
+    const TriangleLightScene s = make_triangle_light_scene(double_sided);
+    KernelScene uncached = s.ks;
+    uncached.instances[0].flags &= ~kInstanceIdentity;
+    const KernelData kd = s.ks.view(), kd_uncached = uncached.view();
+    TestRng rng(77);
+    int compared = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const float x = rng.next(), y = rng.next(), z = rng.next();
+      const Vec3 ref = make_vec3(4.0f * x - 2.0f, 4.0f * y - 2.0f, 4.0f * z);
+      const float us = rng.next(), u1 = rng.next(), u2 = rng.next();
+      LightSample a{}, b{};
+      const bool ok_a = sample_light(kd, ref, us, u1, u2, &a);
+      const bool ok_b = sample_light(kd_uncached, ref, us, u1, u2, &b);
+      ASSERT_EQ(ok_a, ok_b) << i;
+      if (!ok_a) continue;
+      ++compared;
+      ASSERT_EQ(0, std::memcmp(&a.radiance, &b.radiance, sizeof(Vec3))) << i;
+      ASSERT_EQ(0, std::memcmp(&a.wi, &b.wi, sizeof(Vec3))) << i;
+      ASSERT_EQ(0, std::memcmp(&a.point, &b.point, sizeof(Vec3))) << i;
+      ASSERT_EQ(0, std::memcmp(&a.distance, &b.distance, sizeof(float))) << i;
+      ASSERT_EQ(0, std::memcmp(&a.pdf, &b.pdf, sizeof(float))) << i;
+    }
+    EXPECT_GT(compared, 5000);
+  }
 }
 
 TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {

@@ -87,6 +87,60 @@ TANDEM_HD bool emits_towards(const KMaterial& m, const SurfacePoint& sp, Vec3 w)
   return (m.flags & kMaterialDoubleSided) || dot(w, sp.front_normal) > 0.0f;
 }
 
+// A triangle light's per-light constants: what make_light_point and
+// triangle_light_pdf compute for it at an identity instance, with the same
+// float operations in the same order (so a cached sample has the same bits
+// as one computed from the triangle). Host code calls this whenever the
+// light list is built or the light's mesh deforms.
+TANDEM_HD void cache_triangle_light(const KernelData& kd, KLight* light) {
+  const TriangleVertices tv = fetch_triangle(kd, kd.instances[light->instance].mesh, light->prim);
+  light->material = tv.tri.material;
+  light->position = tv.p0;
+  light->direction = tv.p1;
+  light->intensity = tv.p2;
+  // An identity instance has handedness +1: make_light_point's product with
+  // it leaves the bits as they are.
+  const Vec3 ng_raw = cross(tv.p1 - tv.p0, tv.p2 - tv.p0);
+  const float ng_len = length(ng_raw);
+  light->area = 0.5f * ng_len;
+  light->normal = ng_len > 0.0f ? ng_raw * (1.0f / ng_len) : make_vec3(0.0f, 0.0f, 1.0f);
+  light->power = triangle_light_power(kd.materials[light->material], light->area);
+}
+
+// sample_light's triangle branch from the cached constants (the instance
+// is the identity, so object space is world space): the same bits as the
+// branch through make_light_point and triangle_light_pdf, without the
+// triangle fetch, the edges, the normal and the power.
+TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& light, Vec3 ref,
+                                            Vec2 b, LightSample* out) {
+  const float w = 1.0f - b.x - b.y;
+  const Vec3 position = light.position * w + light.direction * b.x + light.intensity * b.y;
+  Vec3 d = position - ref;
+  const float dist2 = length_sq(d);
+  if (!(dist2 > 0.0f)) return false;
+  const float dist = sqrtf(dist2);
+  d = d * (1.0f / dist);
+  const KMaterial& m = kd.materials[light.material];
+  if (!((m.flags & kMaterialDoubleSided) || dot(-d, light.normal) > 0.0f)) return false;
+  const float total = kd.constants.total_light_power;
+  if (!(total > 0.0f) || !(light.area > 0.0f)) return false;
+  const float pmf = light.power / total;
+  const float cos_l = fabsf(dot(d, light.normal));
+  if (!(cos_l > 0.0f)) return false;
+  out->pdf = pmf * dist * dist / (cos_l * light.area);
+  if (!(out->pdf > 0.0f) || !is_finite(out->pdf)) return false;
+  Vec2 uv[2] = {make_vec2(0.0f, 0.0f), make_vec2(0.0f, 0.0f)};
+  if (m.emissive_tex.texture >= 0) {
+    const KMesh& mesh = kd.meshes[kd.instances[light.instance].mesh];
+    interpolate_uvs(kd, mesh, kd.triangles[mesh.triangle_offset + light.prim], b.x, b.y, uv);
+  }
+  out->radiance = material_emission(kd, m, uv);
+  out->wi = d;
+  out->point = position;
+  out->distance = dist;
+  return true;
+}
+
 // delta_only: the integrator's smooth mirrors and glass (bsdf_near_specular),
 // where only punctual and directional lights are sampled; an emissive
 // triangle or the environment picked there gives no sample (the BSDF sample
@@ -106,6 +160,9 @@ TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, floa
 
   if (light.type == kLightTriangle) {
     const Vec2 b = sample_triangle_barycentrics(u1, u2);
+    if (kd.instances[light.instance].flags & kInstanceIdentity) {
+      return sample_cached_triangle_light(kd, light, ref, b, out);
+    }
     const SurfacePoint lp = make_light_point(kd, light.instance, light.prim, b.x, b.y);
     Vec3 d = lp.position - ref;
     const float dist2 = length_sq(d);

@@ -159,19 +159,27 @@ enum KLightType : uint32_t {
 
 // One entry of the light list. Triangle lights reference (instance, prim);
 // punctual lights carry their world-space frame.
+// Triangle lights reuse the punctual fields for what make_light_point
+// would compute for them at an identity instance (cache_triangle_light),
+// so that sample_light skips the triangle fetch, the normal and the power
+// there; the cache is in object space, so rigid moves keep it valid and the
+// kernel only reads it while the instance is the identity.
 struct KLight {
   uint32_t type;
   uint32_t instance;
   uint32_t prim;
-  float pad0;
-  Vec3 position;
-  float cos_inner;  // spot: cos of inner cone angle
-  Vec3 direction;   // spot/directional: direction the light travels
+  uint32_t material;  // triangle: the triangle's material
+  Vec3 position;      // point/spot; triangle: vertex 0 (object space)
+  float cos_inner;    // spot: cos of inner cone angle
+  Vec3 direction;     // spot/directional: direction the light travels; triangle: vertex 1
   float cos_outer;
-  Vec3 intensity;  // point/spot: W/sr; directional: W/m^2 (colour already applied)
-  float pad1;
+  Vec3 intensity;  // point/spot: W/sr; directional: W/m^2 (colour already applied); triangle:
+                   // vertex 2
+  float power;     // triangle: triangle_light_power of its material and area
+  Vec3 normal;     // triangle: unit geometric normal
+  float area;      // triangle: area
 };
-static_assert(sizeof(KLight) == 64, "GPU layout");
+static_assert(sizeof(KLight) == 80, "GPU layout");
 
 // Walker alias table entry for O(1) sampling of a discrete distribution.
 struct KAliasEntry {

@@ -126,6 +126,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
       k.type = kLightTriangle;
       k.instance = i;
       k.prim = p;
+      cache_triangle_light(kd, &k);
       out.lights.push_back(k);
       power.push_back(pw);
     }
@@ -195,6 +196,11 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
         light_power_[light++] = power[p];
       }
       if (light != end) return false;
+      // The cached vertices, normals and areas (and the powers from them)
+      // follow the new vertices.
+      for (light = instance_lights_[i]; light < end; ++light)
+        cache_triangle_light(kd, &out.lights[light]);
+      if (instance_lights_[i] < end) delta.lights.mark(instance_lights_[i], end);
     }
   }
   if (punctual_too) {
