@@ -57,15 +57,23 @@ TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst,
 // Density (solid angle, including selection) with which sample_light picks
 // the point `sp_light` on an emissive triangle, seen from distance `dist`
 // along direction `wi` (unit, from the shading point to the light).
+// The solid-angle pdf of a triangle light of the given power and world area
+// (normal: either side's unit normal) towards a point at `dist` along wi.
+TANDEM_HD float triangle_light_pdf_of(const KernelData& kd, float power, float area_world,
+                                      Vec3 normal, Vec3 wi, float dist) {
+  const float total = kd.constants.total_light_power;
+  if (!(total > 0.0f) || !(area_world > 0.0f)) return 0.0f;
+  const float pmf = power / total;
+  const float cos_l = fabsf(dot(wi, normal));
+  if (!(cos_l > 0.0f)) return 0.0f;
+  return pmf * dist * dist / (cos_l * area_world);
+}
+
 TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi,
                                    float dist) {
-  const float total = kd.constants.total_light_power;
-  if (!(total > 0.0f) || !(sp_light.area_world > 0.0f)) return 0.0f;
   const KMaterial& m = kd.materials[sp_light.material];
-  const float pmf = triangle_light_power(m, sp_light.area_world) / total;
-  const float cos_l = fabsf(dot(wi, sp_light.geometric_normal));
-  if (!(cos_l > 0.0f)) return 0.0f;
-  return pmf * dist * dist / (cos_l * sp_light.area_world);
+  return triangle_light_pdf_of(kd, triangle_light_power(m, sp_light.area_world),
+                               sp_light.area_world, sp_light.geometric_normal, wi, dist);
 }
 
 TANDEM_HD float environment_light_pdf(const KernelData& kd, Vec3 dir) {
@@ -83,8 +91,11 @@ TANDEM_HD float environment_light_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv
 
 // Whether a surface emits towards direction w (unit, pointing away from it).
 // Single-sided materials emit from the front face given by the winding.
+TANDEM_HD bool emits_towards(const KMaterial& m, Vec3 front_normal, Vec3 w) {
+  return (m.flags & kMaterialDoubleSided) || dot(w, front_normal) > 0.0f;
+}
 TANDEM_HD bool emits_towards(const KMaterial& m, const SurfacePoint& sp, Vec3 w) {
-  return (m.flags & kMaterialDoubleSided) || dot(w, sp.front_normal) > 0.0f;
+  return emits_towards(m, sp.front_normal, w);
 }
 
 // A triangle light's per-light constants: what make_light_point and
@@ -107,37 +118,46 @@ TANDEM_HD void cache_triangle_light(const KernelData& kd, KLight* light) {
   light->power = triangle_light_power(kd.materials[light->material], light->area);
 }
 
-// sample_light's triangle branch from the cached constants (the instance
-// is the identity, so object space is world space): the same bits as the
-// branch through make_light_point and triangle_light_pdf, without the
-// triangle fetch, the edges, the normal and the power.
-TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& light, Vec3 ref,
-                                            Vec2 b, LightSample* out) {
-  const float w = 1.0f - b.x - b.y;
-  const Vec3 position = light.position * w + light.direction * b.x + light.intensity * b.y;
+// A triangle light's sample at `position` of the light (front_normal: the
+// side a single-sided material emits to), from both of sample_light's
+// triangle branches: direction, distance and pdf into *out; false when
+// there is no sample. The radiance is the caller's.
+TANDEM_HD bool triangle_light_sample_towards(const KernelData& kd, Vec3 ref, Vec3 position,
+                                             Vec3 front_normal, float area_world, float power,
+                                             const KMaterial& m, LightSample* out) {
   Vec3 d = position - ref;
   const float dist2 = length_sq(d);
   if (!(dist2 > 0.0f)) return false;
   const float dist = sqrtf(dist2);
   d = d * (1.0f / dist);
-  const KMaterial& m = kd.materials[light.material];
-  if (!((m.flags & kMaterialDoubleSided) || dot(-d, light.normal) > 0.0f)) return false;
-  const float total = kd.constants.total_light_power;
-  if (!(total > 0.0f) || !(light.area > 0.0f)) return false;
-  const float pmf = light.power / total;
-  const float cos_l = fabsf(dot(d, light.normal));
-  if (!(cos_l > 0.0f)) return false;
-  out->pdf = pmf * dist * dist / (cos_l * light.area);
+  if (!emits_towards(m, front_normal, -d)) return false;
+  out->pdf = triangle_light_pdf_of(kd, power, area_world, front_normal, d, dist);
   if (!(out->pdf > 0.0f) || !is_finite(out->pdf)) return false;
+  out->wi = d;
+  out->point = position;
+  out->distance = dist;
+  return true;
+}
+
+// sample_light's triangle branch from the cached constants (the instance
+// is the identity, so object space is world space): the same bits as the
+// branch through make_light_point, without the triangle fetch, the edges,
+// the normal and the power.
+TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& light, Vec3 ref,
+                                            Vec2 b, LightSample* out) {
+  const float w = 1.0f - b.x - b.y;
+  const Vec3 position = light.position * w + light.direction * b.x + light.intensity * b.y;
+  const KMaterial& m = kd.materials[light.material];
+  if (!triangle_light_sample_towards(kd, ref, position, light.normal, light.area, light.power, m,
+                                     out)) {
+    return false;
+  }
   Vec2 uv[2] = {make_vec2(0.0f, 0.0f), make_vec2(0.0f, 0.0f)};
   if (m.emissive_tex.texture >= 0) {
     const KMesh& mesh = kd.meshes[kd.instances[light.instance].mesh];
     interpolate_uvs(kd, mesh, kd.triangles[mesh.triangle_offset + light.prim], b.x, b.y, uv);
   }
   out->radiance = material_emission(kd, m, uv);
-  out->wi = d;
-  out->point = position;
-  out->distance = dist;
   return true;
 }
 
@@ -164,19 +184,12 @@ TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, floa
       return sample_cached_triangle_light(kd, light, ref, b, out);
     }
     const SurfacePoint lp = make_light_point(kd, light.instance, light.prim, b.x, b.y);
-    Vec3 d = lp.position - ref;
-    const float dist2 = length_sq(d);
-    if (!(dist2 > 0.0f)) return false;
-    const float dist = sqrtf(dist2);
-    d = d * (1.0f / dist);
     const KMaterial& m = kd.materials[lp.material];
-    if (!emits_towards(m, lp, -d)) return false;
-    out->pdf = triangle_light_pdf(kd, lp, d, dist);
-    if (!(out->pdf > 0.0f) || !is_finite(out->pdf)) return false;
+    if (!triangle_light_sample_towards(kd, ref, lp.position, lp.front_normal, lp.area_world,
+                                       triangle_light_power(m, lp.area_world), m, out)) {
+      return false;
+    }
     out->radiance = material_emission(kd, m, lp.uv);
-    out->wi = d;
-    out->point = lp.position;
-    out->distance = dist;
     return true;
   }
 
