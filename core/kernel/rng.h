@@ -27,11 +27,6 @@ TANDEM_HD_INLINE uint32_t hash_combine(uint32_t seed, uint32_t v) {
   return hash_u32(seed ^ hash_u32(v));
 }
 
-// Maps 24 random bits to [0, 1): exactly representable, never returns 1.
-TANDEM_HD_INLINE float u32_to_unit_float(uint32_t x) {
-  return float(x >> 8) * (1.0f / 16777216.0f);
-}
-
 // Well-known dimension offsets so a sampling decision always reads the same
 // stream position regardless of what the path did before (keeps CPU/GPU paths
 // aligned even when code order differs slightly).
@@ -233,8 +228,7 @@ struct SingleSeeds {
   uint32_t comp0, comp0_mult;  // rng_component_seed(pair, 0)
 };
 struct PairSeeds {
-  uint32_t pair, pair_mult;
-  uint32_t comp0, comp0_mult;
+  SingleSeeds first;           // the pair's seed and its first component's
   uint32_t comp1, comp1_mult;  // rng_component_seed(pair, 1)
 };
 
@@ -248,23 +242,20 @@ TANDEM_HD_INLINE SingleSeeds make_single_seeds(uint32_t key, uint32_t dimension)
   return s;
 }
 TANDEM_HD_INLINE PairSeeds make_pair_seeds(uint32_t key, uint32_t pair_dimension) {
-  const SingleSeeds one = make_single_seeds(key, pair_dimension);
   PairSeeds s;
-  s.pair = one.pair;
-  s.pair_mult = one.pair_mult;
-  s.comp0 = one.comp0;
-  s.comp0_mult = one.comp0_mult;
-  s.comp1 = rng_component_seed(s.pair, 1);
+  s.first = make_single_seeds(key, pair_dimension);
+  s.comp1 = rng_component_seed(s.first.pair, 1);
   s.comp1_mult = lk_permute_mult(s.comp1);
   return s;
 }
 
 // rng_2d and rng_1d_unpaired from the precomputed parts.
 TANDEM_HD_INLINE Vec2 rng_2d_seeded(uint32_t sample_mixed, const PairSeeds& s) {
-  const uint32_t shuffle = lk_permute_rest(sample_mixed, s.pair, s.pair_mult);
+  const SingleSeeds& f = s.first;
+  const uint32_t shuffle = lk_permute_rest(sample_mixed, f.pair, f.pair_mult);
   uint32_t point0, point1;
   reverse_and_pascal(shuffle, &point0, &point1);
-  return {unit_float_of_reversed(lk_permute_rest(lk_permute_mix(point0), s.comp0, s.comp0_mult)),
+  return {unit_float_of_reversed(lk_permute_rest(lk_permute_mix(point0), f.comp0, f.comp0_mult)),
           unit_float_of_reversed(lk_permute_rest(lk_permute_mix(point1), s.comp1, s.comp1_mult))};
 }
 TANDEM_HD_INLINE float rng_1d_seeded(uint32_t sample_mixed, const SingleSeeds& s) {

@@ -1,4 +1,5 @@
-// Byte tables for the CPU's bit reversals in rng.h.
+// Byte tables for the CPU's bit reversals in rng.h, and the unit-float
+// conversion they are built with.
 //
 // x86-64's baseline instruction set has no bit reversal: reversing a word
 // with shifts and masks takes about 16 instructions, and a Cornell-box hit
@@ -15,6 +16,11 @@
 #include "core/kernel/defines.h"
 
 namespace tandem {
+
+// Maps 24 random bits to [0, 1): exactly representable, never returns 1.
+TANDEM_HD_INLINE constexpr float u32_to_unit_float(uint32_t x) {
+  return float(x >> 8) * (1.0f / 16777216.0f);
+}
 
 // The shift-and-mask reversal (the table's reference; constexpr for it).
 constexpr uint32_t reverse_bits_u32_shifts(uint32_t x) {
@@ -51,7 +57,7 @@ constexpr RngByteTables make_rng_byte_tables() {
     for (uint32_t b = 0; b < 256; ++b) {
       const uint32_t r = reverse_bits_u32_shifts(b << (8 * k));
       t.reverse_pascal[k][b] = uint64_t(r) | uint64_t(pascal_mod2(r)) << 32;
-      if (k < 3) t.unit_reverse[k][b] = float(r >> 8) * (1.0f / 16777216.0f);
+      if (k < 3) t.unit_reverse[k][b] = u32_to_unit_float(r);
     }
   }
   return t;
@@ -103,7 +109,7 @@ TANDEM_HD_INLINE void reverse_and_pascal(uint32_t x, uint32_t* reversed, uint32_
 // 2^-24 below 1 with disjoint bits, so the float sums are exact.
 TANDEM_HD_INLINE float unit_float_of_reversed(uint32_t x) {
 #if defined(__CUDA_ARCH__)
-  return float(__brev(x) >> 8) * (1.0f / 16777216.0f);
+  return u32_to_unit_float(__brev(x));
 #else
   const RngByteTables& t = kRngByteTables;
   return (t.unit_reverse[0][x & 0xffu] + t.unit_reverse[1][(x >> 8) & 0xffu]) +
