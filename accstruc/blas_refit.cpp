@@ -586,18 +586,16 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // A child's box in node form, inside a task: a leaf's from the leaf
   // pass's boxes (the same unions as leaf_box()).
   const auto leaf_node_box = [&](uint32_t first, uint32_t count, const TaskBoxes& tb, Out& o) {
-    if (tb.per_leaf && first >= tb.lo && first + count <= tb.hi)
-      return node_box(count > 0 ? tb.boxes[first - tb.lo] : Box4{empty_lo(), empty_hi()});
-    if (!tb.per_leaf && first >= tb.lo && first + count <= tb.hi) {
-      Box4 u{empty_lo(), empty_hi()};
-      for (const Box4* b = tb.boxes + (first - tb.lo); b < tb.boxes + (first - tb.lo) + count;
-           ++b) {
-        u.lo = _mm_min_ps(u.lo, b->lo);
-        u.hi = _mm_max_ps(u.hi, b->hi);
-      }
-      return node_box(u);
+    if (first < tb.lo || first + count > tb.hi)
+      return node_box(to_box4(leaf_box(first, count, tb, o)));
+    const Box4* b = tb.boxes + (first - tb.lo);
+    if (tb.per_leaf) return node_box(count > 0 ? *b : Box4{empty_lo(), empty_hi()});
+    Box4 u{empty_lo(), empty_hi()};
+    for (const Box4* end = b + count; b < end; ++b) {
+      u.lo = _mm_min_ps(u.lo, b->lo);
+      u.hi = _mm_max_ps(u.hi, b->hi);
     }
-    return node_box(to_box4(leaf_box(first, count, tb, o)));
+    return node_box(u);
   };
   // refit_node() inside a task, in registers: the same unions (lane by lane
   // minps / maxps in Aabb::grow()'s operand order), area and compare. The
