@@ -46,12 +46,12 @@ struct alignas(16) Tri {
   float v[3][4];
 };
 
-inline uint32_t bin_of(float x, float lo, float scale, uint32_t k) {
-  const int32_t b = int32_t((x - lo) * scale);
-  return b <= 0 ? 0u : (uint32_t(b) < k ? uint32_t(b) : k - 1);
-}
+// Bin b clamped to [0, k); the bin of coordinate x of k bins from lo.
 inline uint32_t clamp_bin(int32_t b, uint32_t k) {
   return b <= 0 ? 0u : (uint32_t(b) < k ? uint32_t(b) : k - 1);
+}
+inline uint32_t bin_of(float x, float lo, float scale, uint32_t k) {
+  return clamp_bin(int32_t((x - lo) * scale), k);
 }
 
 // Spatial bins as structures of arrays, [axis][coordinate][bin], so that

@@ -460,8 +460,8 @@ class SpatialBuilder {
                 __builtin_prefetch(ahead + sizeof(Tri) - 1);
               }
               // As the first pass: same arithmetic, one lane.
-              const uint32_t b0 = clamp_bin(int32_t((r.lo[a] - o) * sc), k);
-              const uint32_t b1 = clamp_bin(int32_t((r.hi[a] - o) * sc), k);
+              const uint32_t b0 = bin_of(r.lo[a], o, sc, k);
+              const uint32_t b1 = bin_of(r.hi[a], o, sc, k);
               if (b0 == b1) continue;
               const Tri& t = tris_[r.id()];
               bin_straddler(t, r, a, ax, b0, b1, b);
