@@ -40,11 +40,12 @@ struct TracedScene {
   KernelScene ks;
   SceneCompiler compiler;
   RenderSettings settings;
-  AccelStructure accel{test_settings()};
+  AccelStructure accel;
   CpuBackend embree{CpuTraversal::kEmbree};
   SceneBounds bounds;
 
-  explicit TracedScene(Scene s) : scene(std::move(s)) {
+  explicit TracedScene(Scene s, AccelSettings a = test_settings())
+      : scene(std::move(s)), accel(std::move(a)) {
     bounds = scene.bounds();
     if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(bounds, 0.7f, 1.0f));
     settings.width = 256;
