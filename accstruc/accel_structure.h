@@ -62,10 +62,7 @@ struct AccelSettings {
   // are tested through their indices, and the refit neither writes nor
   // reports the records (48 bytes a triangle a frame, half of a skinned
   // mesh's delta). true: every mesh keeps them (the hits are the same).
-  // Default true for now: with overlapped CUDA commits the device's
-  // blas_roots / bvh_leaf_triangles did not match the host's
-  // (CudaGpu.OverlappedCommitsLeaveBothSetsExact), not yet understood.
-  bool deforming_leaf_records = true;
+  bool deforming_leaf_records = false;
   BvhCacheSettings cache;
 };
 
