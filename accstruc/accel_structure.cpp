@@ -247,10 +247,13 @@ std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
       const LayoutBases& b = blas_bases_[m];
       const uint32_t v0 = ks.meshes[m].vertex_offset;
       const bool all_moved = covers(positions, v0, v0 + g.vertex_count);
-      BlasRefit::Result r =
-          blas_refit_[m].refit(l, g, b, ks.bvh_nodes.data() + b.node,
-                               keep_wide ? ks.bvh_wide_nodes.data() + b.wide_node : nullptr,
-                               ks.bvh_leaf_triangles.data() + b.prim, all_moved);
+      // A mesh that deforms whole is traced without records from now on
+      // (AccelSettings::deforming_leaf_records): update() flags its root.
+      if (all_moved && !settings_.deforming_leaf_records) no_records_[m] = 1;
+      KLeafTriangle* records = no_records_[m] ? nullptr : ks.bvh_leaf_triangles.data() + b.prim;
+      BlasRefit::Result r = blas_refit_[m].refit(
+          l, g, b, ks.bvh_nodes.data() + b.node,
+          keep_wide ? ks.bvh_wide_nodes.data() + b.wide_node : nullptr, records, all_moved);
       refit_emitted_[m] = 1;
       host_stale_[m] = 1;
       wide_stale_[m] = keep_wide ? 0 : 1;
@@ -292,11 +295,19 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
                ks.bvh_wide_nodes.data() + b.wide_node,
                ks.bvh_wide_prim_indices.data() + b.wide_prim);
   emit_blas_wide_entries(blas_[m], b, ks.bvh_wide_prim_indices.data() + b.wide_prim);
+  if (no_records_[m]) return;  // traced through its indices; the records stay zero
   const MeshGeometry g = mesh_geometry(ks, m);
   const std::vector<uint32_t>& prims = blas_[m].prims;
   KLeafTriangle* out = ks.bvh_leaf_triangles.data() + b.prim;
   for (size_t i = 0; i < prims.size(); ++i)
     out[i] = make_leaf_triangle(g, prims[i]);
+}
+
+void AccelStructure::emit_blas_flags(KernelScene& ks, uint32_t m, AccelUpdate& up) const {
+  const uint32_t flags = no_records_[m] ? kBlasNoLeafRecords : 0u;
+  if (ks.blas_roots[m].flags == flags) return;
+  ks.blas_roots[m].flags = flags;
+  up.delta.blas_roots.mark(m, m + 1);
 }
 
 const BvhLayouts& AccelStructure::blas(uint32_t mesh) const {
@@ -367,6 +378,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
       roots.wide_root = wide_root;
       up.delta.blas_roots.mark(m, m + 1);
     }
+    emit_blas_flags(ks, m, up);
   }
   mark_all(up.delta.bvh_nodes);
   mark_all(up.delta.bvh_prim_indices);
@@ -506,6 +518,7 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
     refit_emitted_.assign(n, 0);
     blas_split_.assign(n, 0);
     if (deforms_.size() != n) deforms_.assign(n, 0);
+    no_records_.assign(n, 0);
     rebuild.resize(n);
     for (uint32_t m = 0; m < n; ++m)
       rebuild[m] = m;
@@ -570,12 +583,13 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
       up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
       up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
                                    b.wide_node + spans.wide_nodes.end);
+      emit_blas_flags(ks, m, up);
       // The leaves' records hold the vertices: rewrite the moved ones
       // (BlasRefit did, in its leaf pass).
       if (refit_emitted_[m]) {
         for (const NodeSpan& span : refit_leaf_spans_[m])
           up.delta.bvh_leaf_triangles.mark(b.prim + span.begin, b.prim + span.end);
-      } else {
+      } else if (!no_records_[m]) {
         emit_changed_leaf_triangles(blas_[m].prims, mesh_geometry(ks, m), b.prim,
                                     ks.bvh_leaf_triangles.data() + b.prim,
                                     up.delta.bvh_leaf_triangles);

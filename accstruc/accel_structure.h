@@ -56,6 +56,13 @@ struct AccelSettings {
   // the host or a device, do); true (both layouts every frame) for those
   // that read the other layout directly.
   bool refit_unused_layout = true;
+  // false: a mesh whose refit finds every one of its vertices moved (a
+  // skinned or morphed mesh: SceneDelta::positions covers its whole range)
+  // drops its leaf records (kBlasNoLeafRecords) from then on: its triangles
+  // are tested through their indices, and the refit neither writes nor
+  // reports the records (48 bytes a triangle a frame, half of a skinned
+  // mesh's delta). true: every mesh keeps them (the hits are the same).
+  bool deforming_leaf_records = false;
   BvhCacheSettings cache;
 };
 
@@ -116,6 +123,8 @@ class AccelStructure {
   // left it stale.
   void sync_host_copy(const KernelScene& ks, uint32_t mesh) const;
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
+  // ks.blas_roots[mesh].flags from no_records_, marked in up.delta when changed.
+  void emit_blas_flags(KernelScene& ks, uint32_t mesh, AccelUpdate& up) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);
   // Refits the TLAS to moved instances (`moved`, or every instance when
   // null); false when the set of instances in it changed or the refit tree
@@ -149,6 +158,9 @@ class AccelStructure {
   // full updates while the mesh count stays.
   std::vector<uint8_t> blas_split_;
   std::vector<uint8_t> deforms_;
+  // Per BLAS: its leaf records are not kept (kBlasNoLeafRecords in its
+  // KBlasRoot); set at a refit that found all of its vertices moved.
+  std::vector<uint8_t> no_records_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;
   uint32_t tlas_capacity_instances_ = 0;

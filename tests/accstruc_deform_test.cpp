@@ -114,6 +114,45 @@ TEST(AccelDeform, HundredRefitFramesHitLikeEmbreeAndAFreshBuild) {
   EXPECT_GT(policy_rebuilds, 0u);  // the swell degrades the tree past the bound
 }
 
+// A mesh whose every vertex moves is traced without leaf records, through
+// its indices (kBlasNoLeafRecords): the same triangles' same floats, so the
+// same hits bit for bit as with records, in both layouts, the host loops and
+// the portable ones; and its delta holds no records.
+TEST(AccelDeform, WithoutLeafRecordsTheHitsAreTheSameBits) {
+  WaveGrid g{.cells = 64, .size = 4.0f, .amplitude = 0.05f, .wavelength = 0.9f};
+  AccelSettings kept = test_settings();
+  kept.deforming_leaf_records = true;
+  TracedScene none(wave_scene(g)), with(wave_scene(g), kept);
+  for (uint32_t frame = 1; frame <= 6; ++frame) {
+    g.amplitude = 0.05f + 0.1f * float(frame);
+    deform_wave_grid(none.scene.edit_mesh_vertices(0), g, 0.05f * float(frame));
+    deform_wave_grid(with.scene.edit_mesh_vertices(0), g, 0.05f * float(frame));
+    const AccelUpdate a = none.recompile(), b = with.recompile();
+    ASSERT_EQ(none.ks.blas_roots[0].flags, uint32_t(kBlasNoLeafRecords));
+    ASSERT_EQ(with.ks.blas_roots[0].flags, 0u);
+    if (a.blas_refit == 1u) EXPECT_FALSE(a.delta.bvh_leaf_triangles.any()) << "frame " << frame;
+    if (b.blas_refit == 1u) EXPECT_TRUE(b.delta.bvh_leaf_triangles.any()) << "frame " << frame;
+    const KernelData kn = none.kd(), kw = with.kd();
+    uint32_t hits = 0;
+    for (const RaySample& r : primary_rays(none, 2000, frame)) {
+      for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
+        for (bool any : {false, true}) {
+          const Hit h0 = bvh_trace(kn, r.ray, r.alpha_key, layout, any);
+          const Hit h1 = bvh_trace(kw, r.ray, r.alpha_key, layout, any);
+          const Hit p0 =
+              bvh_trace_counted<false, true>(kn, r.ray, r.alpha_key, layout, any, nullptr);
+          const Hit p1 =
+              bvh_trace_counted<false, true>(kw, r.ray, r.alpha_key, layout, any, nullptr);
+          ASSERT_EQ(std::memcmp(&h0, &h1, sizeof h0), 0) << "frame " << frame;
+          ASSERT_EQ(std::memcmp(&p0, &p1, sizeof p0), 0) << "frame " << frame;
+          hits += hit_valid(h0) ? 1u : 0u;
+        }
+      }
+    }
+    EXPECT_GT(hits, 1000u) << "frame " << frame;
+  }
+}
+
 TEST(AccelDeform, RebuildPolicyFiresOnlyUnderALargeDeformation) {
   WaveGrid g{.cells = 80, .size = 4.0f, .amplitude = 0.02f, .wavelength = 1.0f};
   TracedScene s(wave_scene(g));

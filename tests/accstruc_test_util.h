@@ -31,6 +31,7 @@ namespace tandem::accstruc_test {
 inline AccelSettings test_settings() {
   AccelSettings s;
   s.cache.enabled = false;
+  s.deforming_leaf_records = false;  // the record-less path is what is under test
   return s;
 }
 
@@ -40,11 +41,12 @@ struct TracedScene {
   KernelScene ks;
   SceneCompiler compiler;
   RenderSettings settings;
-  AccelStructure accel{test_settings()};
+  AccelStructure accel;
   CpuBackend embree{CpuTraversal::kEmbree};
   SceneBounds bounds;
 
-  explicit TracedScene(Scene s) : scene(std::move(s)) {
+  explicit TracedScene(Scene s, AccelSettings a = test_settings())
+      : scene(std::move(s)), accel(std::move(a)) {
     bounds = scene.bounds();
     if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(bounds, 0.7f, 1.0f));
     settings.width = 256;

@@ -19,14 +19,26 @@ namespace tandem {
 
 enum KBvhLayout : uint32_t { kBvhLayoutBinary = 0, kBvhLayoutWide = 1 };
 
+// KBlasRoot::flags.
+enum KBlasFlags : uint32_t {
+  // The BLAS's leaf records (bvh_leaf_triangles) are not kept: its triangles
+  // are tested through their indices (leaf entry -> triangle -> vertices).
+  // Set by the BVH updater for a mesh whose deformer rewrites every vertex
+  // each frame, so that the refit neither writes nor uploads 48 bytes a
+  // triangle a frame; its records in the array are left stale.
+  kBlasNoLeafRecords = 1u << 0,
+};
+
 // A mesh's BLAS roots (blas_roots, one per mesh; kInvalidIndex: the mesh has
-// no triangles to hit). Kept apart from KMesh because the BVH updater, not
-// the scene compiler, writes them.
+// no triangles to hit) and how its leaves are tested. Kept apart from KMesh
+// because the BVH updater, not the scene compiler, writes them.
 struct KBlasRoot {
   uint32_t bvh_root;   // in bvh_nodes
   uint32_t wide_root;  // in bvh_wide_nodes
+  uint32_t flags;      // KBlasFlags
+  uint32_t pad;
 };
-static_assert(sizeof(KBlasRoot) == 8, "GPU layout");
+static_assert(sizeof(KBlasRoot) == 16, "GPU layout");
 
 // The BVH's scalars (KernelData::bvh), written by the BVH updater: the TLAS
 // roots (kInvalidIndex: empty scene) and which layout BvhTracer traverses.

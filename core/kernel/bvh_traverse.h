@@ -136,6 +136,7 @@ enum BvhInstanceRecordWord : uint32_t {
   kRecordTriangleOffset = 6,
   kRecordVertexOffset,
   kRecordInstance,
+  kRecordBlasFlags,              // KBlasRoot::flags
   kBvhInstanceRecordWords = 10,  // even, as the header
 };
 // Words of the traversal frame: the header, a TLAS and a BLAS path (each
@@ -198,6 +199,7 @@ struct TwoLevelTrace {
     record[kRecordTriangleOffset] = mesh.triangle_offset;
     record[kRecordVertexOffset] = mesh.vertex_offset;
     record[kRecordInstance] = index;
+    record[kRecordBlasFlags] = roots.flags;
     box = make_box_ray(o, d);
     box.octant |= (s.kx | (s.ky << 2) | (s.kz << 4)) << 8;
     return root;
@@ -208,29 +210,46 @@ struct TwoLevelTrace {
     box = make_box_ray(load_vec3(record + kRecordWorldOrigin), load_vec3(frame + kFrameWorldDir));
   }
 
-  // Tests the triangle of leaf record `entry` (bvh_leaf_triangles: an entry
-  // of the binary layout, or what a BLAS's wide entry holds) of the current
-  // BLAS, whose instance record is `record`; true: stop (an any-hit query
-  // found a hit). The record holds the vertices: one load instead of the
-  // three dependent ones of an indexed triangle.
+  // Tests the triangle of leaf entry `entry` (of bvh_prim_indices, and of
+  // bvh_leaf_triangles parallel to it: an entry of the binary layout, or
+  // what a BLAS's wide entry holds) of the current BLAS, whose instance
+  // record is `record`; true: stop (an any-hit query found a hit). The leaf
+  // record holds the vertices: one load instead of the three dependent ones
+  // of an indexed triangle. A BLAS without records (kBlasNoLeafRecords)
+  // takes the indexed path; the record's vertices are the mesh's own floats,
+  // so both paths test the same three points and find the same hit.
   TANDEM_HD bool leaf_triangle(uint32_t entry, const uint32_t* record) {
+    if ((record[kRecordBlasFlags] & kBlasNoLeafRecords) != 0u) {
+      const uint32_t prim = load_readonly(kd->bvh_prim_indices + entry);
+      const KTriangle t = load_readonly(kd->triangles + record[kRecordTriangleOffset] + prim);
+      const Vec3* v = kd->positions + record[kRecordVertexOffset];
+      return test_triangle(load_readonly(v + t.v0), load_readonly(v + t.v1),
+                           load_readonly(v + t.v2), prim, record);
+    }
     const KLeafTriangle lt = load_readonly_16(kd->bvh_leaf_triangles + entry);
     return test_triangle(make_vec3(lt.p0.x, lt.p0.y, lt.p0.z), make_vec3(lt.p1.x, lt.p1.y, lt.p1.z),
                          make_vec3(lt.p2.x, lt.p2.y, lt.p2.z), float_as_uint(lt.p0.w), record);
   }
 
-  // Host only: starts fetching the leaf records of entries [first, first +
-  // count) of bvh_leaf_triangles.
-  TANDEM_HD void prefetch_leaf_triangles(uint32_t first, uint32_t count) const {
+  // Host only: starts fetching what the tests of leaf entries [first, first
+  // + count) read first: their leaf records, or (no records) their entries
+  // of bvh_prim_indices.
+  TANDEM_HD void prefetch_leaf_triangles(uint32_t first, uint32_t count,
+                                         const uint32_t* record) const {
 #if !defined(__CUDA_ARCH__)
-    const char* begin = reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first);
-    const char* end = reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first + count);
+    const bool indexed = (record[kRecordBlasFlags] & kBlasNoLeafRecords) != 0u;
+    const char* begin = indexed ? reinterpret_cast<const char*>(kd->bvh_prim_indices + first)
+                                : reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first);
+    const char* end = indexed
+                          ? reinterpret_cast<const char*>(kd->bvh_prim_indices + first + count)
+                          : reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first + count);
     for (const char* p = begin; p < end; p += 64)
       prefetch_readonly(p);
     if (count != 0) prefetch_readonly(end - 1);
 #else
     (void)first;
     (void)count;
+    (void)record;
 #endif
   }
 
@@ -310,8 +329,8 @@ TANDEM_HD bool trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNode*
     if (in_blas && (leaf0 || leaf1)) {
       const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
       // Both leaves' records on their way before the first test.
-      if (leaf0) tr.prefetch_leaf_triangles(n.child[0] & ~kBvhLeafFlag, n.count[0]);
-      if (leaf1) tr.prefetch_leaf_triangles(n.child[1] & ~kBvhLeafFlag, n.count[1]);
+      if (leaf0) tr.prefetch_leaf_triangles(n.child[0] & ~kBvhLeafFlag, n.count[0], record);
+      if (leaf1) tr.prefetch_leaf_triangles(n.child[1] & ~kBvhLeafFlag, n.count[1], record);
       for (uint32_t c = 0; c < 2; ++c) {
         if (!(c == 0 ? leaf0 : leaf1)) continue;
         const uint32_t first = n.child[c] & ~kBvhLeafFlag;
@@ -452,7 +471,7 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
       const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
 #if !defined(__CUDA_ARCH__)
       for (uint32_t bits = prim_hits; bits != 0; bits &= bits - 1u)
-        tr.prefetch_leaf_triangles(prim_indices[prim_base + count_trailing_zeros(bits)], 1);
+        tr.prefetch_leaf_triangles(prim_indices[prim_base + count_trailing_zeros(bits)], 1, record);
 #endif
       while (prim_hits != 0) {
         const uint32_t p = count_trailing_zeros(prim_hits);

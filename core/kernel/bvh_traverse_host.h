@@ -183,8 +183,8 @@ inline bool host_trace_blas(TwoLevelTrace<kCount>& tr, const KBvhNode* nodes, ui
     const uint32_t leaf_bits = (n.child[0] >> 31) | ((n.child[1] >> 31) << 1);
     const uint32_t leaves = hits & leaf_bits;
     if (leaves != 0u) {
-      if (leaves & 1u) tr.prefetch_leaf_triangles(n.child[0] & ~kBvhLeafFlag, n.count[0]);
-      if (leaves & 2u) tr.prefetch_leaf_triangles(n.child[1] & ~kBvhLeafFlag, n.count[1]);
+      if (leaves & 1u) tr.prefetch_leaf_triangles(n.child[0] & ~kBvhLeafFlag, n.count[0], record);
+      if (leaves & 2u) tr.prefetch_leaf_triangles(n.child[1] & ~kBvhLeafFlag, n.count[1], record);
       for (uint32_t c = 0; c < 2; ++c) {
         if (!((leaves >> c) & 1u)) continue;
         const uint32_t first = n.child[c] & ~kBvhLeafFlag;
@@ -437,7 +437,7 @@ inline bool host_trace_wide_blas(TwoLevelTrace<kCount>& tr, const KWideBvhNode* 
         const uint32_t s = h.slot[count_trailing_zeros(bits)];
         const uint32_t first = host_wide_leaf_first(n, s), count = host_wide_leaf_count(n, s);
         for (uint32_t k = 0; k < count; ++k)
-          tr.prefetch_leaf_triangles(entries[first + k], 1);
+          tr.prefetch_leaf_triangles(entries[first + k], 1, record);
       }
       for (uint32_t bits = h.leaves; bits != 0; bits &= bits - 1u) {
         const uint32_t i = count_trailing_zeros(bits);
