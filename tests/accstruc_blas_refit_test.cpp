@@ -396,41 +396,58 @@ TEST(BlasRefit, AStaleHostCopyIsBroughtBackBeforeARelayout) {
   // Refit frames leave the boxes only in the kernel arrays; a relayout
   // (here: another mesh rebuilt, as when its refit got too poor) emits
   // every BLAS from its host copy, which must then hold the refit boxes,
-  // not the build's.
-  WaveGrid g{.cells = 60, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
-  TracedScene s(two_grids(g));
-  for (uint32_t frame = 1; frame <= 2; ++frame) {
-    g.amplitude = 0.05f + 0.01f * float(frame);
-    deform_wave_grid(s.scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
-    ASSERT_EQ(s.recompile().blas_refit, 1u);
+  // not the build's. With leaf records kept, the records are the refit's
+  // too; without (the default for a mesh whose every vertex moved), the
+  // relayout keeps the mesh flagged and writes none of its records.
+  for (const bool keep_records : {false, true}) {
+    SCOPED_TRACE(keep_records ? "records kept" : "no records");
+    WaveGrid g{.cells = 60, .size = 4.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+    AccelSettings settings = test_settings();
+    settings.deforming_leaf_records = keep_records;
+    TracedScene s(two_grids(g), settings);
+    for (uint32_t frame = 1; frame <= 2; ++frame) {
+      g.amplitude = 0.05f + 0.01f * float(frame);
+      deform_wave_grid(s.scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
+      ASSERT_EQ(s.recompile().blas_refit, 1u);
+    }
+    const uint32_t root = s.ks.blas_roots[0].bvh_root, wroot = s.ks.blas_roots[0].wide_root;
+    const std::vector<KBvhNode> nodes = s.ks.bvh_nodes;
+    const std::vector<KWideBvhNode> wide = s.ks.bvh_wide_nodes;
+    const std::vector<KLeafTriangle> leaf = s.ks.bvh_leaf_triangles;
+    const AccelUpdate up = s.accel.update(s.ks, rebuild_mesh_1());
+    ASSERT_EQ(up.blas_built, 1u);
+    ASSERT_TRUE(up.delta.bvh_nodes.reallocated);
+    ASSERT_EQ(s.ks.blas_roots[0].bvh_root, root);
+    ASSERT_EQ(s.ks.blas_roots[0].wide_root, wroot);
+    const size_t n = s.accel.blas(0).nodes.size(), wn = s.accel.blas(0).wide_nodes.size();
+    EXPECT_EQ(std::memcmp(nodes.data() + root, s.ks.bvh_nodes.data() + root, n * sizeof(KBvhNode)),
+              0);
+    EXPECT_EQ(std::memcmp(wide.data() + wroot, s.ks.bvh_wide_nodes.data() + wroot,
+                          wn * sizeof(KWideBvhNode)),
+              0);
+    const size_t records = s.accel.blas(0).prims.size();
+    EXPECT_EQ(s.ks.blas_roots[1].flags, 0u);
+    if (keep_records) {
+      EXPECT_EQ(s.ks.blas_roots[0].flags, 0u);
+      EXPECT_EQ(
+          std::memcmp(leaf.data(), s.ks.bvh_leaf_triangles.data(), records * sizeof(KLeafTriangle)),
+          0);
+    } else {
+      EXPECT_EQ(s.ks.blas_roots[0].flags, uint32_t(kBlasNoLeafRecords));
+      const std::vector<KLeafTriangle> zero(records, KLeafTriangle{});
+      EXPECT_EQ(
+          std::memcmp(zero.data(), s.ks.bvh_leaf_triangles.data(), records * sizeof(KLeafTriangle)),
+          0);
+    }
+    // And blas() (the lazily copied host copy) is what an eager refit of the
+    // build's host copy to this pose gives.
+    BvhLayouts eager = s.accel.blas(0);
+    refit_layouts(eager, triangle_boxes(mesh_geometry(s.ks, 0)));
+    EXPECT_EQ(std::memcmp(eager.nodes.data(), s.accel.blas(0).nodes.data(), n * sizeof(KBvhNode)),
+              0);
+    for (size_t i = 0; i < wn; ++i)
+      ASSERT_TRUE(same_wide(eager.wide_nodes[i], s.accel.blas(0).wide_nodes[i])) << i;
   }
-  const uint32_t root = s.ks.blas_roots[0].bvh_root, wroot = s.ks.blas_roots[0].wide_root;
-  const std::vector<KBvhNode> nodes = s.ks.bvh_nodes;
-  const std::vector<KWideBvhNode> wide = s.ks.bvh_wide_nodes;
-  const std::vector<KLeafTriangle> leaf = s.ks.bvh_leaf_triangles;
-  const AccelUpdate up = s.accel.update(s.ks, rebuild_mesh_1());
-  ASSERT_EQ(up.blas_built, 1u);
-  ASSERT_TRUE(up.delta.bvh_nodes.reallocated);
-  ASSERT_EQ(s.ks.blas_roots[0].bvh_root, root);
-  ASSERT_EQ(s.ks.blas_roots[0].wide_root, wroot);
-  const size_t n = s.accel.blas(0).nodes.size(), wn = s.accel.blas(0).wide_nodes.size();
-  EXPECT_EQ(std::memcmp(nodes.data() + root, s.ks.bvh_nodes.data() + root, n * sizeof(KBvhNode)),
-            0);
-  EXPECT_EQ(std::memcmp(wide.data() + wroot, s.ks.bvh_wide_nodes.data() + wroot,
-                        wn * sizeof(KWideBvhNode)),
-            0);
-  // Every vertex of mesh 0 moved at its refits: it is traced without leaf
-  // records (kBlasNoLeafRecords), and the relayout keeps that.
-  EXPECT_EQ(s.ks.blas_roots[0].flags, uint32_t(kBlasNoLeafRecords));
-  EXPECT_EQ(s.ks.blas_roots[1].flags, 0u);
-  (void)leaf;
-  // And blas() (the lazily copied host copy) is what an eager refit of the
-  // build's host copy to this pose gives.
-  BvhLayouts eager = s.accel.blas(0);
-  refit_layouts(eager, triangle_boxes(mesh_geometry(s.ks, 0)));
-  EXPECT_EQ(std::memcmp(eager.nodes.data(), s.accel.blas(0).nodes.data(), n * sizeof(KBvhNode)), 0);
-  for (size_t i = 0; i < wn; ++i)
-    ASSERT_TRUE(same_wide(eager.wide_nodes[i], s.accel.blas(0).wide_nodes[i])) << i;
 }
 
 // A scene's kernel arrays kept by an AccelStructure with given settings.

@@ -31,7 +31,6 @@ namespace tandem::accstruc_test {
 inline AccelSettings test_settings() {
   AccelSettings s;
   s.cache.enabled = false;
-  s.deforming_leaf_records = false;  // the record-less path is what is under test
   return s;
 }
 

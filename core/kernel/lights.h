@@ -54,9 +54,6 @@ TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst,
   return 0.5f * length(cross(e1, e2));
 }
 
-// Density (solid angle, including selection) with which sample_light picks
-// the point `sp_light` on an emissive triangle, seen from distance `dist`
-// along direction `wi` (unit, from the shading point to the light).
 // The solid-angle pdf of a triangle light of the given power and world area
 // (normal: either side's unit normal) towards a point at `dist` along wi.
 TANDEM_HD float triangle_light_pdf_of(const KernelData& kd, float power, float area_world,
@@ -69,6 +66,9 @@ TANDEM_HD float triangle_light_pdf_of(const KernelData& kd, float power, float a
   return pmf * dist * dist / (cos_l * area_world);
 }
 
+// Density (solid angle, including selection) with which sample_light picks
+// the point `sp_light` on an emissive triangle, seen from distance `dist`
+// along direction `wi` (unit, from the shading point to the light).
 TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi,
                                    float dist) {
   const KMaterial& m = kd.materials[sp_light.material];
