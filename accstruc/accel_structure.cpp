@@ -301,10 +301,17 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
   KLeafTriangle* out = ks.bvh_leaf_triangles.data() + b.prim;
   for (size_t i = 0; i < prims.size(); ++i)
     out[i] = make_leaf_triangle(g, prims[i]);
+  // The same records in the wide layout's entry order: each wide entry
+  // names its binary record (emit_blas_wide_entries).
+  const uint32_t* wide_entries = ks.bvh_wide_prim_indices.data() + b.wide_prim;
+  KLeafTriangle* wide_out = ks.bvh_wide_leaf_triangles.data() + b.wide_prim;
+  for (size_t j = 0; j < blas_[m].wide_prims.size(); ++j)
+    wide_out[j] = ks.bvh_leaf_triangles[wide_entries[j]];
 }
 
 void AccelStructure::emit_blas_flags(KernelScene& ks, uint32_t m, AccelUpdate& up) const {
-  const uint32_t flags = no_records_[m] ? kBlasNoLeafRecords : 0u;
+  const uint32_t flags = (no_records_[m] ? kBlasNoLeafRecords : 0u) |
+                         (wide_records_stale_[m] ? kBlasNoWideRecords : 0u);
   if (ks.blas_roots[m].flags == flags) return;
   ks.blas_roots[m].flags = flags;
   up.delta.blas_roots.mark(m, m + 1);
@@ -363,6 +370,8 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   ks.bvh_leaf_triangles.assign(prim, KLeafTriangle{});
   ks.bvh_wide_nodes.assign(wide_node, KWideBvhNode{});
   ks.bvh_wide_prim_indices.assign(wide_prim, 0u);
+  ks.bvh_wide_leaf_triangles.assign(wide_prim, KLeafTriangle{});
+  wide_records_stale_.assign(n, 0);  // emitted from the current vertices below
   tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
   if (ks.blas_roots.size() != n) {
     ks.blas_roots.assign(n, KBlasRoot{kInvalidIndex, kInvalidIndex});
@@ -385,6 +394,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   mark_all(up.delta.bvh_leaf_triangles);
   mark_all(up.delta.bvh_wide_nodes);
   mark_all(up.delta.bvh_wide_prim_indices);
+  mark_all(up.delta.bvh_wide_leaf_triangles);
   wide_stale_.assign(n, 0);  // every BLAS emitted from a current host copy
   laid_out_ = true;
 }
@@ -583,6 +593,9 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
       up.delta.bvh_nodes.mark(b.node + spans.nodes.begin, b.node + spans.nodes.end);
       up.delta.bvh_wide_nodes.mark(b.wide_node + spans.wide_nodes.begin,
                                    b.wide_node + spans.wide_nodes.end);
+      // Only the binary layout's records follow the vertices: the wide
+      // layout reads those until the next layout (kBlasNoWideRecords).
+      if (!no_records_[m]) wide_records_stale_[m] = 1;
       emit_blas_flags(ks, m, up);
       // The leaves' records hold the vertices: rewrite the moved ones
       // (BlasRefit did, in its leaf pass).

@@ -161,6 +161,10 @@ class AccelStructure {
   // Per BLAS: its leaf records are not kept (kBlasNoLeafRecords in its
   // KBlasRoot); set at a refit that found all of its vertices moved.
   std::vector<uint8_t> no_records_;
+  // Per BLAS: its wide-order records (bvh_wide_leaf_triangles) are not
+  // current (kBlasNoWideRecords): refit since the arrays were laid out,
+  // which rewrites only the binary layout's records.
+  std::vector<uint8_t> wide_records_stale_;
   BvhLayouts tlas_;
   LayoutBases tlas_base_;
   uint32_t tlas_capacity_instances_ = 0;

@@ -27,6 +27,12 @@ enum KBlasFlags : uint32_t {
   // each frame, so that the refit neither writes nor uploads 48 bytes a
   // triangle a frame; its records in the array are left stale.
   kBlasNoLeafRecords = 1u << 0,
+  // The BLAS's wide-order records (bvh_wide_leaf_triangles) are not current:
+  // the wide layout reads its triangles through the binary layout's records
+  // (the leaf record index its wide entry holds). Set by the BVH updater for
+  // a mesh refit since its arrays were laid out, so that a refit rewrites
+  // one set of records, not two.
+  kBlasNoWideRecords = 1u << 1,
 };
 
 // A mesh's BLAS roots (blas_roots, one per mesh; kInvalidIndex: the mesh has
@@ -84,7 +90,10 @@ static_assert(sizeof(KBvhNode) == 64 && alignof(KBvhNode) == 64, "GPU layout");
 // three dependent loads (leaf entry, triangle, vertices): on the large scenes
 // that chain of cache misses was half of the traversal's time. The vertices
 // are the mesh's own floats, so hits are bit for bit those of the indexed
-// test; the refit rewrites them when a mesh deforms.
+// test; the refit rewrites them when a mesh deforms. The wide layout has the
+// same records in its own entry order (bvh_wide_leaf_triangles, parallel to
+// bvh_wide_prim_indices), so that a wide leaf's records are next to each
+// other and follow from the node alone, as Embree's leaf blocks do.
 struct alignas(16) KLeafTriangle {
   Vec4 p0;  // xyz: vertex 0 (object space); w: the triangle's index in its mesh, as bits
   Vec4 p1;  // xyz: vertex 1; w: 0

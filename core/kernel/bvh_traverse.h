@@ -231,6 +231,20 @@ struct TwoLevelTrace {
                          make_vec3(lt.p2.x, lt.p2.y, lt.p2.z), float_as_uint(lt.p0.w), record);
   }
 
+  // Tests the triangle of wide leaf entry `wide_entry` (of
+  // bvh_wide_prim_indices) of the current BLAS: from its wide-order record,
+  // whose place follows from the node alone, or, when the BLAS's flags say
+  // those are not current (kBlasNoWideRecords) or not kept, through the
+  // binary leaf entry the wide entry names (leaf_triangle). Every path
+  // tests the same three points.
+  TANDEM_HD bool wide_leaf_triangle(uint32_t wide_entry, const uint32_t* record) {
+    if ((record[kRecordBlasFlags] & (kBlasNoLeafRecords | kBlasNoWideRecords)) != 0u)
+      return leaf_triangle(load_readonly(kd->bvh_wide_prim_indices + wide_entry), record);
+    const KLeafTriangle lt = load_readonly_16(kd->bvh_wide_leaf_triangles + wide_entry);
+    return test_triangle(make_vec3(lt.p0.x, lt.p0.y, lt.p0.z), make_vec3(lt.p1.x, lt.p1.y, lt.p1.z),
+                         make_vec3(lt.p2.x, lt.p2.y, lt.p2.z), float_as_uint(lt.p0.w), record);
+  }
+
   // Host only: starts fetching what the tests of leaf entries [first, first
   // + count) read first: their leaf records, or (no records) their entries
   // of bvh_prim_indices.
@@ -269,6 +283,15 @@ struct TwoLevelTrace {
     shear.sz = uint_as_float(record[kRecordShear + 2]);
     TriangleHit th;
     if (!intersect_triangle_watertight(shear, p0, p1, p2, tmin, tmax, &th)) return false;
+    if (!record_hit(th, prim, record)) return false;
+    return any_hit;
+  }
+
+  // A hit of triangle `prim` of the current BLAS inside the interval: false
+  // when the alpha test cuts it out; otherwise it becomes the closest hit
+  // (tmax shrinks to its t). Also the host's four-triangle test's
+  // (bvh_leaf_host.h), which finds the same hits.
+  TANDEM_HD bool record_hit(const TriangleHit& th, uint32_t prim, const uint32_t* record) {
     // The mesh's flags only now: most triangle tests miss.
     const uint32_t instance = record[kRecordInstance];
     const uint32_t mesh_flags = kd->meshes[kd->instances[instance].mesh].flags;
@@ -281,7 +304,7 @@ struct TwoLevelTrace {
     frame[kFrameHitV] = float_as_uint(th.v);
     frame[kFrameHitInstance] = instance;
     frame[kFrameHitPrim] = prim;
-    return any_hit;
+    return true;
   }
 };
 
@@ -417,12 +440,14 @@ TANDEM_HD void wide_child_box(const KWideBvhNode& n, Vec3 scale, uint32_t slot, 
 // node is; in the TLAS the hit instances go on the stack as an instance group
 // (prim_base, prim_hits: bits 0..23 only, so its top byte, unlike a node
 // group's, is zero) above the node's group, so they come first, in order.
-// In a BLAS, an entry of bvh_wide_prim_indices is not a triangle index but
-// the triangle's entry in bvh_leaf_triangles, the binary layout's leaf
-// records (accstruc's emit_blas_wide_entries), so both layouts test a
-// triangle from one record that the refit keeps current; in the TLAS it is
-// an instance index. Returns true when an any-hit query stopped. (The host
-// has its own loop in distance order, host_trace_two_level_wide.)
+// In a BLAS, a wide entry's triangle is tested from its wide-order record
+// (bvh_wide_leaf_triangles, at the entry's own index); its entry of
+// bvh_wide_prim_indices is not a triangle index but the triangle's entry in
+// bvh_leaf_triangles, the binary layout's records (accstruc's
+// emit_blas_wide_entries), which a BLAS refit since its layout reads
+// instead (wide_leaf_triangle); in the TLAS it is an instance index.
+// Returns true when an any-hit query stopped. (The host has its own loop in
+// distance order, host_trace_two_level_wide.)
 template <bool kCount>
 TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
                                     uint32_t root) {
@@ -467,16 +492,12 @@ TANDEM_HD bool trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhNod
         sp += 2;
       }
     } else if (prim_hits != 0) {
-      // A BLAS's wide entries name leaf records (bvh.h).
+      // A BLAS's wide entries have records of their own (bvh.h).
       const uint32_t* record = stack + blas_sp - kBvhInstanceRecordWords;
-#if !defined(__CUDA_ARCH__)
-      for (uint32_t bits = prim_hits; bits != 0; bits &= bits - 1u)
-        tr.prefetch_leaf_triangles(prim_indices[prim_base + count_trailing_zeros(bits)], 1, record);
-#endif
       while (prim_hits != 0) {
         const uint32_t p = count_trailing_zeros(prim_hits);
         prim_hits &= prim_hits - 1u;
-        if (tr.leaf_triangle(load_readonly(prim_indices + prim_base + p), record)) return true;
+        if (tr.wide_leaf_triangle(prim_base + p, record)) return true;
       }
     }
     // Next node: the nearest remaining child of the innermost group, or the

@@ -41,7 +41,9 @@ namespace tandem {
   X(KLeafTriangle,                                                                                \
     bvh_leaf_triangles)              /* per bvh_prim_indices entry: a BLAS triangle's vertices */ \
   X(KWideBvhNode, bvh_wide_nodes)    /* 8-wide compressed BVH: all BLAS, then the TLAS */         \
-  X(uint32_t, bvh_wide_prim_indices) /* leaf entries of bvh_wide_nodes */
+  X(uint32_t, bvh_wide_prim_indices) /* leaf entries of bvh_wide_nodes */                         \
+  X(KLeafTriangle,                                                                                \
+    bvh_wide_leaf_triangles) /* per bvh_wide_prim_indices entry: a BLAS triangle's vertices */
 
 #define TANDEM_KERNEL_ARRAYS(X) TANDEM_SCENE_ARRAYS(X) TANDEM_BVH_ARRAYS(X)
 
