@@ -83,14 +83,19 @@ struct HostWideRay {
 
 inline HostWideRay make_host_wide_ray(const BoxRay& r) {
   HostWideRay h;
-  for (int a = 0; a < 3; ++a) {
-    h.origin[a] = _mm_set1_ps(component(r.origin, a));
-    h.inv[a] = _mm_set1_ps(component(r.inv_dir, a));
-    const uint32_t lo = uint32_t(offsetof(KWideBvhNode, qlo)) + kWideBvhWidth * uint32_t(a);
-    const uint32_t hi = uint32_t(offsetof(KWideBvhNode, qhi)) + kWideBvhWidth * uint32_t(a);
-    const bool negative = ((r.octant >> a) & 1u) != 0;
-    h.near_plane[a] = negative ? hi : lo;
-    h.far_plane[a] = negative ? lo : hi;
+  h.origin[0] = _mm_set1_ps(r.origin.x);
+  h.origin[1] = _mm_set1_ps(r.origin.y);
+  h.origin[2] = _mm_set1_ps(r.origin.z);
+  h.inv[0] = _mm_set1_ps(r.inv_dir.x);
+  h.inv[1] = _mm_set1_ps(r.inv_dir.y);
+  h.inv[2] = _mm_set1_ps(r.inv_dir.z);
+  // qhi follows qlo: a negative direction swaps near and far.
+  constexpr uint32_t lo = uint32_t(offsetof(KWideBvhNode, qlo));
+  constexpr uint32_t swap = uint32_t(offsetof(KWideBvhNode, qhi)) - lo;
+  for (uint32_t a = 0; a < 3; ++a) {
+    const uint32_t negative = (r.octant >> a) & 1u;
+    h.near_plane[a] = lo + kWideBvhWidth * a + negative * swap;
+    h.far_plane[a] = lo + kWideBvhWidth * a + (negative ^ 1u) * swap;
   }
   return h;
 }
@@ -311,8 +316,8 @@ inline uint32_t host_wide_leaf_count(const KWideBvhNode& n, uint32_t s) {
 // loop is done.
 inline uint32_t host_wide_next_node(const KWideBvhNode& n, uint32_t inner,
                                     const float t_entry[kWideBvhWidth], uint32_t octant, float tmax,
-                                    const KWideBvhNode* nodes, HostBvhStackEntry* stack,
-                                    uint32_t& sp) {
+                                    bool by_distance, const KWideBvhNode* nodes,
+                                    HostBvhStackEntry* stack, uint32_t& sp) {
   const uint32_t imask = n.imask;
   uint32_t next = kInvalidIndex;
   if (inner != 0u) {
@@ -333,6 +338,18 @@ inline uint32_t host_wide_next_node(const KWideBvhNode& n, uint32_t inner,
         next = n.child_base + host_popcount8(imask & ((1u << a) - 1u));
         if (!(t_entry[b] > tmax) && sp < kHostWideStackSize)
           stack[sp++] = {n.child_base + host_popcount8(imask & ((1u << b) - 1u)), t_entry[b]};
+      }
+    } else if (!by_distance) {
+      // Octant order (the portable loop's), farthest pushed first.
+      uint32_t ordered = 0;  // bit (s ^ octant) for slot s
+      for (uint32_t bits = inner; bits != 0; bits &= bits - 1u)
+        ordered |= 1u << (count_trailing_zeros(bits) ^ octant);
+      while (ordered != 0) {
+        const uint32_t pos = 31u - uint32_t(__builtin_clz(ordered));
+        ordered &= ~(1u << pos);
+        const uint32_t s = pos ^ octant;
+        if (next != kInvalidIndex && sp < kHostWideStackSize) stack[sp++] = {next, tmax};
+        next = n.child_base + host_popcount8(imask & ((1u << s) - 1u));
       }
     } else {
       uint32_t slot[kWideBvhWidth];
@@ -356,9 +373,12 @@ inline uint32_t host_wide_next_node(const KWideBvhNode& n, uint32_t inner,
 
 // Starts fetching the interior children among `inner` (hit mask), both
 // cache lines of each 80-byte node: called as soon as the boxes are tested,
-// so the fetches overlap the leaves' triangle tests.
-inline void host_wide_prefetch_children(const KWideBvhNode& n, uint32_t inner,
+// so the fetches overlap the leaves' triangle tests (`leaves`, the hit
+// leaves) and each other. A lone child with no leaf to test is loaded next
+// anyway: then nothing.
+inline void host_wide_prefetch_children(const KWideBvhNode& n, uint32_t inner, uint32_t leaves,
                                         const KWideBvhNode* nodes) {
+  if (leaves == 0u && (inner & (inner - 1u)) == 0u) return;
   const uint32_t imask = n.imask;
   for (; inner != 0; inner &= inner - 1u) {
     const uint32_t s = count_trailing_zeros(inner);
@@ -446,8 +466,8 @@ inline bool host_trace_wide_blas(TwoLevelTrace<kCount>& tr, const KWideBvhNode* 
     if (records != HostWideRecords::kWide) prefetch_readonly(entries + n.prim_base);
     float t_entry[kWideBvhWidth];
     const uint32_t hits = host_wide_visit<kCount, Isa>(tr, wr, n, true, t_entry);
-    host_wide_prefetch_children(n, hits & n.imask, nodes);
     const uint32_t leaves = hits & ~uint32_t(n.imask);
+    host_wide_prefetch_children(n, hits & n.imask, leaves, nodes);
     if (leaves != 0u) {
       for (uint32_t bits = leaves; bits != 0; bits &= bits - 1u)
         host_wide_prefetch_leaf(tr, n, count_trailing_zeros(bits), records, record);
@@ -472,7 +492,8 @@ inline bool host_trace_wide_blas(TwoLevelTrace<kCount>& tr, const KWideBvhNode* 
 #endif
       }
     }
-    node_index = host_wide_next_node(n, hits & n.imask, t_entry, octant, tr.tmax, nodes, stack, sp);
+    node_index = host_wide_next_node(n, hits & n.imask, t_entry, octant, tr.tmax, !tr.any_hit,
+                                     nodes, stack, sp);
   } while (node_index != kInvalidIndex);
   return false;
 }
@@ -484,7 +505,8 @@ template <bool kCount, class Isa>
 inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWideBvhNode* nodes,
                                           uint32_t root) {
   const uint32_t* prim_indices = tr.kd->bvh_wide_prim_indices;
-  const HostWideRay world = make_host_wide_ray(tr.box);
+  const BoxRay world_box = tr.box;
+  const HostWideRay world = make_host_wide_ray(world_box);
   const uint32_t octant = tr.octant();
   HostBvhStackEntry stack[kHostWideStackSize];
   uint32_t record[kBvhInstanceRecordWords];
@@ -494,8 +516,8 @@ inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWide
     const KWideBvhNode& n = nodes[node_index];
     float t_entry[kWideBvhWidth];
     const uint32_t hits = host_wide_visit<kCount, Isa>(tr, world, n, false, t_entry);
-    host_wide_prefetch_children(n, hits & n.imask, nodes);
     const uint32_t leaves = hits & ~uint32_t(n.imask);
+    host_wide_prefetch_children(n, hits & n.imask, leaves, nodes);
     if (leaves != 0u) {
       uint32_t slot[kWideBvhWidth];
       float t[kWideBvhWidth];
@@ -508,12 +530,14 @@ inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWide
           const uint32_t blas = tr.enter_instance(prim_indices[first + k], true, record);
           if (blas == kInvalidIndex) continue;
           const bool stop = host_trace_wide_blas<kCount, Isa>(tr, nodes, blas, record);
-          tr.leave_instance(record);
+          // leave_instance() without its divisions: the world ray as it was.
+          tr.box = world_box;
           if (stop) return true;
         }
       }
     }
-    node_index = host_wide_next_node(n, hits & n.imask, t_entry, octant, tr.tmax, nodes, stack, sp);
+    node_index = host_wide_next_node(n, hits & n.imask, t_entry, octant, tr.tmax, !tr.any_hit,
+                                     nodes, stack, sp);
   } while (node_index != kInvalidIndex);
   return false;
 }
