@@ -147,11 +147,9 @@ AccelStructure::AccelStructure(AccelSettings settings) : settings_(std::move(set
   // A wide leaf slot holds at most 3 triangles and a wide node 8 slots.
   settings_.blas.max_leaf_size = std::clamp<uint32_t>(settings_.blas.max_leaf_size, 1u, 16u);
   settings_.tlas.max_leaf_size = 1;
-  if (settings_.blas.spatial_split_budget <= 0.0f) {
-    if (const char* v = std::getenv("TANDEM_BVH_SPATIAL_SPLITS")) {
-      const float budget = std::strtof(v, nullptr);
-      settings_.blas.spatial_split_budget = budget > 0.0f && budget <= 4.0f ? budget : 0.0f;
-    }
+  if (const char* v = std::getenv("TANDEM_BVH_SPATIAL_SPLITS")) {
+    const float budget = std::strtof(v, nullptr);
+    settings_.blas.spatial_split_budget = budget > 0.0f && budget <= 4.0f ? budget : 0.0f;
   }
   if (settings_.cache.enabled) {
     std::filesystem::path dir = settings_.cache.directory.empty()
@@ -171,7 +169,8 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     const MeshGeometry g = mesh_geometry(ks, m);
-    const bool split = settings_.blas.spatial_split_budget > 0.0f && !deforms_[m];
+    const bool split = settings_.blas.spatial_split_budget > 0.0f && !deforms_[m] &&
+                       (ks.meshes[m].flags & kMeshDeforms) == 0u;
     const BuildSettings& bs = split ? settings_.blas : refittable;
     blas_split_[m] = 0;
     // Measured before the first refit of the new tree (refit_blas).

@@ -189,8 +189,9 @@ Scene make_arena_scene() {
     JointMatrix palette[kWalkerJoints];
     walker_palette(0.0, walkers[i], palette);
     deform_mesh(rig.deformation, palette, nullptr, rig.mesh);
-    scene.add_instance({"arena.walker." + std::to_string(i), scene.add_mesh(std::move(rig.mesh)),
-                        glm::mat4(1.0f)});
+    const uint32_t mesh = scene.add_mesh(std::move(rig.mesh));
+    scene.set_mesh_deforms(mesh);
+    scene.add_instance({"arena.walker." + std::to_string(i), mesh, glm::mat4(1.0f)});
   }
 
   // A low sun and a pale sky; the orbs add moving coloured light.

@@ -604,6 +604,11 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
   }
   for (Mesh& m : builder.new_meshes())
     scene.add_mesh(std::move(m));
+  // Meshes that the animations will deform every frame.
+  if (options.animations != nullptr) {
+    for (const GltfDeformedMesh& d : animations.deformed)
+      scene.set_mesh_deforms(d.deformation.mesh);
+  }
   for (const Instance& i : builder.instances())
     scene.add_instance(i);
   for (const Light& l : builder.lights())

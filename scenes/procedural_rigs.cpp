@@ -232,6 +232,7 @@ Scene make_skinned_grid_scene(uint32_t resolution) {
   const uint32_t material = scene.add_material(mat);
   ProceduralRig rig = make_skinned_grid_rig(resolution, material);
   const uint32_t mesh = scene.add_mesh(std::move(rig.mesh));
+  scene.set_mesh_deforms(mesh);
   scene.add_instance({"rig.skinned-grid", mesh, glm::mat4(1.0f)});
   Light sun;
   sun.name = "sun";

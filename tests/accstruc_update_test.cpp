@@ -56,14 +56,18 @@ void expect_same_hits(const TracedScene& s, const std::function<Hit(const RaySam
 }
 
 TEST(AccelUpdate, RefitMatchesFreshBuildAndEmbree) {
-  TracedScene s(make_procedural_scene(150000, 21));
-  // The largest instanced rock mesh and the (single-instance) terrain.
+  Scene scene = make_procedural_scene(150000, 21);
+  // The largest instanced rock mesh and the (single-instance) terrain, built
+  // as meshes that deform (without spatial splits, so that they can be refit).
   uint32_t rock = 0;
-  for (uint32_t m = 0; m < s.scene.meshes().size(); ++m) {
-    if (s.scene.meshes()[m].name == "rock") rock = m;
+  for (uint32_t m = 0; m < scene.meshes().size(); ++m) {
+    if (scene.meshes()[m].name == "rock") rock = m;
   }
   const uint32_t terrain = 0;
-  ASSERT_EQ(s.scene.meshes()[terrain].name, "terrain");
+  ASSERT_EQ(scene.meshes()[terrain].name, "terrain");
+  scene.set_mesh_deforms(rock);
+  scene.set_mesh_deforms(terrain);
+  TracedScene s(std::move(scene));
   const uint32_t rock_tris = uint32_t(s.scene.meshes()[rock].triangles.size());
   const double sah_before = s.accel.blas(rock).sah_cost;
 

@@ -47,6 +47,10 @@ enum KMeshFlags : uint32_t {
   kMeshHasUv1 = 1u << 3,
   kMeshHasAlphaTest = 1u << 4,  // some triangle uses MASK/BLEND: run the alpha test
   kMeshHasEmission = 1u << 5,
+  // For the host's BVH builder, not the kernels: a deformer rewrites the
+  // mesh's vertices every frame (Scene::set_mesh_deforms), so its BLAS is
+  // built to be refit (no spatial splits).
+  kMeshDeforms = 1u << 6,
 };
 
 struct KMesh {

@@ -29,7 +29,8 @@ void SceneCompiler::compile_meshes(const Scene& scene, KernelScene& out, SceneDe
     km.triangle_count = uint32_t(m.triangles.size());
     km.flags = (m.normals.empty() ? 0u : kMeshHasNormals) |
                (m.tangents.empty() ? 0u : kMeshHasTangents) | (m.uv0.empty() ? 0u : kMeshHasUv0) |
-               (m.uv1.empty() ? 0u : kMeshHasUv1);
+               (m.uv1.empty() ? 0u : kMeshHasUv1) |
+               (scene.mesh_deforms(uint32_t(i)) ? kMeshDeforms : 0u);
     for (uint32_t mat : m.triangle_materials) {
       const KMaterial& k = out.materials[std::min<size_t>(mat, out.materials.size() - 1)];
       if (k.alpha_mode != kAlphaOpaque) km.flags |= kMeshHasAlphaTest;

@@ -50,6 +50,7 @@ uint32_t Scene::add_mesh(Mesh m) {
   bounds_cache_.mesh_added();
   mesh_vertex_ranges_.push_back({0, uint32_t(meshes_.back().positions.size())});
   mesh_vertex_versions_.push_back(next_vertex_version());
+  mesh_deforms_.push_back(0);
   return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
@@ -77,6 +78,13 @@ void Scene::set_instance_transform(uint32_t instance, const glm::mat4& transform
   instances_.at(instance).transform = transform;
   instances_dirty_.mark(instance, kDirtyTransform);
   bounds_cache_.instance_changed(instance);
+}
+
+void Scene::set_mesh_deforms(uint32_t mesh, bool deforms) {
+  uint8_t& d = mesh_deforms_.at(mesh);
+  if (d == uint8_t(deforms)) return;
+  d = uint8_t(deforms);
+  meshes_dirty_.mark(mesh, kDirtyTopology);
 }
 
 Material& Scene::edit_material(uint32_t material) {

@@ -167,6 +167,12 @@ class Scene {
   Mesh& edit_mesh_vertices(uint32_t mesh, uint32_t first_vertex, uint32_t count);
   Camera& edit_camera();
   Environment& edit_environment();
+  // Marks a mesh whose vertices a deformer rewrites every frame (a skin,
+  // morph targets): its BLAS is then built to be refit each frame rather
+  // than with the spatial splits of static meshes (kMeshDeforms). Meant for
+  // loaders, before the first compile; a later change rebuilds the mesh's
+  // BLAS (kDirtyTopology).
+  void set_mesh_deforms(uint32_t mesh, bool deforms = true);
 
   // --- reading -------------------------------------------------------------
   const std::vector<Texture>& textures() const { return textures_; }
@@ -177,6 +183,9 @@ class Scene {
   const Camera& camera() const { return camera_; }
   const Environment& environment() const { return environment_; }
   bool has_camera() const { return has_camera_; }
+  bool mesh_deforms(uint32_t mesh) const {
+    return mesh < mesh_deforms_.size() && mesh_deforms_[mesh] != 0;
+  }
 
   size_t triangle_count_unique() const;     // sum over meshes
   size_t triangle_count_instanced() const;  // sum over instances
@@ -250,6 +259,7 @@ class Scene {
   // kDirtyVertices, reset with the dirty list.
   std::vector<VertexRange> mesh_vertex_ranges_;
   std::vector<uint64_t> mesh_vertex_versions_;
+  std::vector<uint8_t> mesh_deforms_;
   void mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end);
   mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;
