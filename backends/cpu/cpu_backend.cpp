@@ -22,7 +22,11 @@ std::string CpuBackend::name() const {
 }
 
 BackendTraits CpuBackend::traits() const {
-  return {.needs_bvh = traversal_ == CpuTraversal::kTandemBvh, .uses_host_cores = true};
+  // The host's wide loop (bvh_wide_host.h) beats its binary one on every
+  // measured scene (docs/performance/host_traversal.md).
+  return {.needs_bvh = traversal_ == CpuTraversal::kTandemBvh,
+          .bvh_layout = kBvhLayoutWide,
+          .uses_host_cores = true};
 }
 
 void CpuBackend::sync(const KernelScene& scene, const SceneDelta& delta) {

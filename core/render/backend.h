@@ -92,6 +92,10 @@ struct BackendTraits {
   // syncs the union of its delta and the compiler's; the others never pay
   // for the build.
   bool needs_bvh = false;
+  // With needs_bvh: the layout of Tandem's BVH this backend traces fastest.
+  // The core tracer uses the wide one when every backend that needs the BVH
+  // prefers it (they all trace the one kd.bvh.layout names).
+  KBvhLayout bvh_layout = kBvhLayoutBinary;
   // render() runs on the host's CPU cores (TBB workers). Two such backends
   // compete for the same cores, so splitting a frame between them cannot beat
   // the faster one alone; the core tracer uses this to decide.

@@ -51,9 +51,20 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
   // keep only that one.
   AccelSettings accel;
   accel.refit_unused_layout = false;
+  accel.layout = bvh_layout();
   for (const BackendTraits& t : traits_) {
     if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>(accel);
   }
+}
+
+KBvhLayout CoreTracer::bvh_layout() const {
+  bool any = false, all_wide = true;
+  for (const BackendTraits& t : traits_) {
+    if (!t.needs_bvh) continue;
+    any = true;
+    all_wide = all_wide && t.bvh_layout == kBvhLayoutWide;
+  }
+  return any && all_wide ? kBvhLayoutWide : kBvhLayoutBinary;
 }
 
 // While no backend traces Tandem's BVH (the GPU that needed it fell back to
@@ -70,6 +81,9 @@ SceneDelta CoreTracer::update_accstruc(const SceneDelta& delta) {
     accel_missed_->merge(delta);
     return delta;
   }
+  // The backends that trace it may have changed (a GPU fell back): the
+  // layout follows them, the other one catching up in this update.
+  accel_->set_layout(bvh_layout());
   if (accel_missed_) {
     SceneDelta missed = std::move(*accel_missed_);
     accel_missed_.reset();

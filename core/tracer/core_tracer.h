@@ -174,6 +174,9 @@ class CoreTracer {
 
   std::vector<std::unique_ptr<Backend>> backends_;
   std::vector<BackendTraits> traits_;  // as of the last begin_frame()
+  // The BVH layout for traits_: wide when every backend that traces the BVH
+  // prefers it, else binary.
+  KBvhLayout bvh_layout() const;
   TracerSettings settings_;
   SceneCompiler compiler_;
   KernelScene kernel_scene_;
