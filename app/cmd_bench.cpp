@@ -234,8 +234,9 @@ int run_bench(const std::vector<std::string>& argv) {
 
   if (args.has("accstruc")) {
     report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));
-    // The same path tracing on the host backend: our BVH (binary layout,
-    // filled in by run_accstruc_bench) under the same kernels.
+    // The same path tracing on the host backend: our BVH (in the layout the
+    // host backend traces, filled in by run_accstruc_bench) under the same
+    // kernels.
     CpuBackend host{CpuTraversal::kTandemBvh};
     host.sync(ks, delta);
     const OfflineRenderResult h = render_offline(host, settings.width, settings.height, options);
