@@ -162,12 +162,12 @@ TEST(SpatialBvh, SameHitsAsEmbree) {
   expect_embree_hits(s, "FlightHelmet");
 }
 
-TEST(SpatialBvh, ADeformingMeshIsRebuiltWithoutSplitsThenRefit) {
-  const SpatialSplitsOn on;
-  // A sliver soup gets split references; a wave grid may not.
+// A scene of one sliver soup mesh of `tris` triangles (which gets split
+// references), marked as deforming or not.
+Scene sliver_soup_scene(uint32_t tris, bool deforms) {
   std::vector<Vec3> positions;
   std::vector<KTriangle> triangles;
-  sliver_soup(20000, 9, &positions, &triangles);
+  sliver_soup(tris, 9, &positions, &triangles);
   Mesh soup;
   soup.name = "soup";
   for (const Vec3& p : positions)
@@ -177,13 +177,24 @@ TEST(SpatialBvh, ADeformingMeshIsRebuiltWithoutSplitsThenRefit) {
   soup.triangle_materials.assign(triangles.size(), 0);
   Scene scene;
   scene.add_material(Material{});
-  scene.add_instance({"soup", scene.add_mesh(std::move(soup)), glm::mat4(1.0f)});
-  TracedScene s(std::move(scene));
-  const size_t tris = triangles.size();
+  const uint32_t mesh = scene.add_mesh(std::move(soup));
+  if (deforms) scene.set_mesh_deforms(mesh);
+  scene.add_instance({"soup", mesh, glm::mat4(1.0f)});
+  return scene;
+}
+
+void wave_soup(Scene& scene, uint32_t frame) {
+  for (glm::vec3& p : scene.edit_mesh_vertices(0).positions)
+    p.y += 0.01f * std::sin(p.x + float(frame));
+}
+
+TEST(SpatialBvh, ADeformingMeshIsRebuiltWithoutSplitsThenRefit) {
+  const SpatialSplitsOn on;
+  TracedScene s(sliver_soup_scene(20000, false));
+  const size_t tris = 20000;
   ASSERT_GT(s.accel.blas(0).prims.size(), tris);  // split
   for (uint32_t frame = 1; frame <= 4; ++frame) {
-    for (glm::vec3& p : s.scene.edit_mesh_vertices(0).positions)
-      p.y += 0.01f * std::sin(p.x + float(frame));
+    wave_soup(s.scene, frame);
     const AccelUpdate up = s.recompile();
     if (frame == 1) {
       // Rebuilt once, without splits: each triangle listed once.
@@ -196,6 +207,26 @@ TEST(SpatialBvh, ADeformingMeshIsRebuiltWithoutSplitsThenRefit) {
     }
   }
   expect_embree_hits(s, "soup");
+}
+
+// Splits are the default for static meshes; a mesh its loader marks as
+// deforming (Scene::set_mesh_deforms, kMeshDeforms) is built without them
+// from the start, so its first deformed frame is a refit, not a rebuild.
+TEST(SpatialBvh, StaticMeshesAreSplitByDefaultAndMarkedDeformingOnesBuiltToRefit) {
+  ASSERT_EQ(std::getenv("TANDEM_BVH_SPATIAL_SPLITS"), nullptr) << "the test checks the default";
+  const uint32_t tris = 20000;
+  TracedScene fixed(sliver_soup_scene(tris, false));
+  EXPECT_GT(fixed.accel.blas(0).prims.size(), tris);
+  TracedScene moving(sliver_soup_scene(tris, true));
+  EXPECT_NE(moving.ks.meshes[0].flags & kMeshDeforms, 0u);
+  EXPECT_EQ(moving.accel.blas(0).prims.size(), tris);
+  for (uint32_t frame = 1; frame <= 3; ++frame) {
+    wave_soup(moving.scene, frame);
+    const AccelUpdate up = moving.recompile();
+    EXPECT_EQ(up.blas_refit, 1u) << frame;
+    EXPECT_EQ(up.blas_refit_rebuilt, 0u) << frame;
+  }
+  expect_embree_hits(moving, "deforming soup");
 }
 
 }  // namespace

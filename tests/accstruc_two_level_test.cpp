@@ -147,5 +147,49 @@ TEST(TwoLevelTraversalProcedural, SameAsLoopPerLevel) {
   expect_same_traversal(s, "procedural");
 }
 
+// The host's wide loop runs in AVX2 where the CPU has it and in SSE2
+// elsewhere (bvh_wide_host.h): the same box and triangle tests lane for
+// lane, so the same hits bit for bit and the same work, on every query.
+class HostWideIsa {
+ public:
+  explicit HostWideIsa(bool avx2) : saved_(host_wide_isa.avx2) { host_wide_isa.avx2 = avx2; }
+  ~HostWideIsa() { host_wide_isa.avx2 = saved_; }
+
+ private:
+  bool saved_;
+};
+
+TEST(TwoLevelTraversalProcedural, Sse2AndAvx2LoopsAgreeBitForBit) {
+  const TracedScene s(make_procedural_scene(60'000, 3));
+  {
+    const HostWideIsa sse2(false);
+    expect_same_traversal(s, "procedural, SSE2 loop");
+  }
+  if (!host_cpu_has_avx2()) GTEST_SKIP() << "this CPU has no AVX2: only the SSE2 loop ran";
+  const KernelData kd = s.kd();
+  std::vector<RaySample> rays = primary_rays(s, kRaysPerKind, 21);
+  for (const auto& list : {diffuse_rays(s, kRaysPerKind, 22), shadow_rays(s, kRaysPerKind, 23)})
+    rays.insert(rays.end(), list.begin(), list.end());
+  uint32_t hits = 0;
+  for (const bool any_hit : {false, true}) {
+    for (const RaySample& r : rays) {
+      BvhCounters c_sse2, c_avx2;
+      Hit sse2, avx2;
+      {
+        const HostWideIsa isa(false);
+        sse2 = bvh_trace_counted<true>(kd, r.ray, r.alpha_key, kBvhLayoutWide, any_hit, &c_sse2);
+      }
+      {
+        const HostWideIsa isa(true);
+        avx2 = bvh_trace_counted<true>(kd, r.ray, r.alpha_key, kBvhLayoutWide, any_hit, &c_avx2);
+      }
+      ASSERT_TRUE(same_bits(sse2, avx2)) << "t " << sse2.t << " vs " << avx2.t;
+      ASSERT_TRUE(same_counters(c_sse2, c_avx2));
+      hits += hit_valid(avx2) ? 1u : 0u;
+    }
+  }
+  EXPECT_GT(hits, rays.size() / 2);
+}
+
 }  // namespace
 }  // namespace tandem

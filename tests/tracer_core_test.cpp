@@ -21,10 +21,13 @@ namespace {
 // only that copy, with the kernels the GPU runs.
 class SnapshotBackend final : public Backend {
  public:
+  explicit SnapshotBackend(KBvhLayout layout = kBvhLayoutBinary) : layout_(layout) {}
   std::string name() const override { return "snapshot"; }
   BackendTraits traits() const override {
-    return {.needs_bvh = true, .reads_host_scene_while_rendering = false};
+    return {.needs_bvh = true, .bvh_layout = layout_, .reads_host_scene_while_rendering = false};
   }
+  // The layout its copy of the scene's BVH says to trace.
+  uint32_t traced_layout() const { return copy_.bvh.layout; }
   // Applies exactly the delta, as a device upload would: a change the
   // tracer forgets to report leaves the copy stale.
   void sync(const KernelScene& scene, const SceneDelta& delta) override {
@@ -46,6 +49,7 @@ class SnapshotBackend final : public Backend {
   }
 
  private:
+  KBvhLayout layout_;
   KernelScene copy_;
   KernelData kd_{};
 };
@@ -193,6 +197,32 @@ TEST(CoreTracer, HeteroAccumulationMatchesSingleBackendStatistically) {
     const double se = std::sqrt((sum_d2 / double(n) - mean * mean) / double(n));
     EXPECT_LT(std::fabs(mean), 5.0 * se + 1e-6) << "channel " << c;
   }
+}
+
+// The BVH's layout is the wide one only when every backend that traces it
+// prefers it (the host backend does, a GPU backend does not), and the image
+// does not depend on it beyond the last bits of a tie.
+TEST(CoreTracer, BvhLayoutIsTheOneEveryBackendTracingItPrefers) {
+  EXPECT_EQ(CpuBackend(CpuTraversal::kTandemBvh).traits().bvh_layout, kBvhLayoutWide);
+  const TracerSettings settings = small_settings(0.5f, false);
+  Scene scene = make_cornell_box();
+  for (const KBvhLayout second : {kBvhLayoutWide, kBvhLayoutBinary}) {
+    std::vector<std::unique_ptr<Backend>> backends;
+    backends.push_back(std::make_unique<SnapshotBackend>(kBvhLayoutWide));
+    backends.push_back(std::make_unique<SnapshotBackend>(second));
+    const SnapshotBackend* a = static_cast<const SnapshotBackend*>(backends[0].get());
+    const SnapshotBackend* b = static_cast<const SnapshotBackend*>(backends[1].get());
+    CoreTracer tracer(std::move(backends), settings);
+    tracer.render_frame(scene);
+    EXPECT_EQ(a->traced_layout(), uint32_t(second));
+    EXPECT_EQ(b->traced_layout(), uint32_t(second));
+  }
+  const ImageRGB host = render_frames({"host"}, settings, 2);
+  const ImageRGB binary = render_frames({"snapshot"}, settings, 2);
+  size_t identical = 0;
+  for (size_t i = 0; i < host.rgb.size(); ++i)
+    identical += host.rgb[i] == binary.rgb[i];
+  EXPECT_GE(double(identical), 0.99 * double(host.rgb.size()));
 }
 
 TEST(CoreTracer, SceneChangeRestartsAccumulationAndReportsDelta) {
