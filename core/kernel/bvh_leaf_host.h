@@ -48,9 +48,10 @@ inline HostShear4 make_host_shear4(const BoxRay& box, const uint32_t* record) {
   s.kx = (box.octant >> 8) & 3u;
   s.ky = (box.octant >> 10) & 3u;
   s.kz = box.octant >> 12;
-  s.ox = _mm_set1_ps(component(box.origin, int(s.kx)));
-  s.oy = _mm_set1_ps(component(box.origin, int(s.ky)));
-  s.oz = _mm_set1_ps(component(box.origin, int(s.kz)));
+  const float origin[3] = {box.origin.x, box.origin.y, box.origin.z};
+  s.ox = _mm_set1_ps(origin[s.kx]);
+  s.oy = _mm_set1_ps(origin[s.ky]);
+  s.oz = _mm_set1_ps(origin[s.kz]);
   s.sx = _mm_set1_ps(uint_as_float(record[kRecordShear]));
   s.sy = _mm_set1_ps(uint_as_float(record[kRecordShear + 1]));
   s.sz = _mm_set1_ps(uint_as_float(record[kRecordShear + 2]));

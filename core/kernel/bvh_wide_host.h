@@ -81,6 +81,27 @@ struct HostWideRay {
   uint32_t near_plane[3], far_plane[3];  // byte offsets into KWideBvhNode
 };
 
+// The near and far plane offsets of each direction octant: qhi follows
+// qlo, and a negative direction swaps near and far.
+struct HostWidePlanes {
+  uint32_t near_plane[3], far_plane[3];
+};
+struct HostWidePlaneTable {
+  HostWidePlanes octant[8];
+  constexpr HostWidePlaneTable() : octant() {
+    constexpr uint32_t lo = uint32_t(offsetof(KWideBvhNode, qlo));
+    constexpr uint32_t swap = uint32_t(offsetof(KWideBvhNode, qhi)) - lo;
+    for (uint32_t o = 0; o < 8; ++o) {
+      for (uint32_t a = 0; a < 3; ++a) {
+        const uint32_t negative = (o >> a) & 1u;
+        octant[o].near_plane[a] = lo + kWideBvhWidth * a + negative * swap;
+        octant[o].far_plane[a] = lo + kWideBvhWidth * a + (negative ^ 1u) * swap;
+      }
+    }
+  }
+};
+inline constexpr HostWidePlaneTable kHostWidePlanes{};
+
 inline HostWideRay make_host_wide_ray(const BoxRay& r) {
   HostWideRay h;
   h.origin[0] = _mm_set1_ps(r.origin.x);
@@ -89,13 +110,10 @@ inline HostWideRay make_host_wide_ray(const BoxRay& r) {
   h.inv[0] = _mm_set1_ps(r.inv_dir.x);
   h.inv[1] = _mm_set1_ps(r.inv_dir.y);
   h.inv[2] = _mm_set1_ps(r.inv_dir.z);
-  // qhi follows qlo: a negative direction swaps near and far.
-  constexpr uint32_t lo = uint32_t(offsetof(KWideBvhNode, qlo));
-  constexpr uint32_t swap = uint32_t(offsetof(KWideBvhNode, qhi)) - lo;
+  const HostWidePlanes& planes = kHostWidePlanes.octant[r.octant & 7u];
   for (uint32_t a = 0; a < 3; ++a) {
-    const uint32_t negative = (r.octant >> a) & 1u;
-    h.near_plane[a] = lo + kWideBvhWidth * a + negative * swap;
-    h.far_plane[a] = lo + kWideBvhWidth * a + (negative ^ 1u) * swap;
+    h.near_plane[a] = planes.near_plane[a];
+    h.far_plane[a] = planes.far_plane[a];
   }
   return h;
 }
@@ -519,9 +537,20 @@ inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWide
     const uint32_t leaves = hits & ~uint32_t(n.imask);
     host_wide_prefetch_children(n, hits & n.imask, leaves, nodes);
     if (leaves != 0u) {
+      // Instances nearest first; an any-hit query (whose interval does not
+      // shrink) in slot order.
       uint32_t slot[kWideBvhWidth];
       float t[kWideBvhWidth];
-      const uint32_t count = host_wide_sorted(leaves, t_entry, octant, slot, t);
+      uint32_t count = 0;
+      if (tr.any_hit) {
+        for (uint32_t bits = leaves; bits != 0; bits &= bits - 1u) {
+          const uint32_t s = count_trailing_zeros(bits);
+          slot[count] = s;
+          t[count++] = t_entry[s];
+        }
+      } else {
+        count = host_wide_sorted(leaves, t_entry, octant, slot, t);
+      }
       for (uint32_t i = 0; i < count; ++i) {
         if (t[i] > tr.tmax) continue;
         const uint32_t first = host_wide_leaf_first(n, slot[i]);
