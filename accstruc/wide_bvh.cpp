@@ -8,6 +8,10 @@
 #include <stdexcept>
 #include <utility>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace tandem {
 
 namespace {
@@ -48,53 +52,123 @@ int choose_exponent(float lo, float hi) {
   return e;
 }
 
+// One axis's planes of the eight slots, conservatively: qlo[s] the largest q
+// with origin + q * scale <= lo[s] (0 at least), qhi[s] the smallest with
+// origin + q * scale >= hi[s] (255 at most); a slot not in `live` gets the
+// inverted 255 / 0. floor and ceil by truncation (which is floor for the
+// positive values that reach it), then stepped until the decoded plane, in
+// float exactly as the traversal decodes it, holds the box.
+#if !defined(__SSE2__)
+void quantize_planes_scalar(float o, float sc, float inv, const float lo[kWideBvhWidth],
+                            const float hi[kWideBvhWidth], uint32_t live, uint8_t qlo_out[],
+                            uint8_t qhi_out[]) {
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    if (!((live >> s) & 1u)) {
+      qlo_out[s] = 255;
+      qhi_out[s] = 0;
+      continue;
+    }
+    float f = (lo[s] - o) * inv;
+    uint32_t qlo = f > 0.0f ? (f >= 255.0f ? 255u : uint32_t(f)) : 0u;
+    while (qlo > 0 && decode(o, qlo, sc) > lo[s])
+      --qlo;
+    f = (hi[s] - o) * inv;
+    uint32_t qhi = 0;
+    if (f > 0.0f) {
+      qhi = f >= 255.0f ? 255u : uint32_t(f);
+      qhi += qhi < 255u && float(qhi) < f ? 1u : 0u;
+    }
+    while (qhi < 255 && decode(o, qhi, sc) < hi[s])
+      ++qhi;
+    qlo_out[s] = uint8_t(qlo);
+    qhi_out[s] = uint8_t(qhi);
+  }
+}
+#endif
+
+// quantize_planes_scalar() four slots at a time: a refit re-quantises every
+// wide node every frame, and the slot-by-slot loop with its branches was
+// more than the rest of the refit (a million skinned vertices, 2026-12-03).
+// The same float operations lane by lane: (x - o) * inv; max(f, 0) and
+// min(., 255) clamp as the comparisons do (a NaN gives 0); cvttps truncates
+// as the conversion does; the decoded planes are o + float(q) * sc.
+void quantize_planes(float o, float sc, float inv, const float lo[kWideBvhWidth],
+                     const float hi[kWideBvhWidth], uint32_t live, uint8_t qlo_out[],
+                     uint8_t qhi_out[]) {
+#if defined(__SSE2__)
+  const __m128 vo = _mm_set1_ps(o), vsc = _mm_set1_ps(sc), vinv = _mm_set1_ps(inv);
+  const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(255.0f);
+  const __m128i izero = _mm_setzero_si128(), itop = _mm_set1_epi32(255);
+  const auto decoded = [&](__m128i q) {
+    return _mm_add_ps(vo, _mm_mul_ps(_mm_cvtepi32_ps(q), vsc));
+  };
+  __m128i qlo[2], qhi[2];
+  for (int h = 0; h < 2; ++h) {
+    const __m128 l = _mm_load_ps(lo + 4 * h), u = _mm_load_ps(hi + 4 * h);
+    __m128 f = _mm_mul_ps(_mm_sub_ps(l, vo), vinv);
+    __m128i q = _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, zero), top));
+    for (;;) {  // while (q > 0 && decode(q) > lo) --q, per lane
+      const __m128i step =
+          _mm_and_si128(_mm_cmpgt_epi32(q, izero), _mm_castps_si128(_mm_cmpgt_ps(decoded(q), l)));
+      if (_mm_movemask_epi8(step) == 0) break;
+      q = _mm_add_epi32(q, step);
+    }
+    qlo[h] = q;
+    f = _mm_mul_ps(_mm_sub_ps(u, vo), vinv);
+    q = _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(f, zero), top));
+    // Round up where the truncation dropped a fraction (f > 0 and below 255).
+    q = _mm_sub_epi32(q, _mm_and_si128(_mm_cmplt_epi32(q, itop),
+                                       _mm_castps_si128(_mm_cmplt_ps(_mm_cvtepi32_ps(q), f))));
+    for (;;) {  // while (q < 255 && decode(q) < hi) ++q, per lane
+      const __m128i step =
+          _mm_and_si128(_mm_cmplt_epi32(q, itop), _mm_castps_si128(_mm_cmplt_ps(decoded(q), u)));
+      if (_mm_movemask_epi8(step) == 0) break;
+      q = _mm_sub_epi32(q, step);
+    }
+    qhi[h] = q;
+  }
+  // Eight values of 0..255 to bytes; dead slots inverted.
+  alignas(16) uint8_t bl[16], bh[16];
+  _mm_store_si128(reinterpret_cast<__m128i*>(bl),
+                  _mm_packus_epi16(_mm_packs_epi32(qlo[0], qlo[1]), izero));
+  _mm_store_si128(reinterpret_cast<__m128i*>(bh),
+                  _mm_packus_epi16(_mm_packs_epi32(qhi[0], qhi[1]), izero));
+  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+    const bool on = ((live >> s) & 1u) != 0;
+    qlo_out[s] = on ? bl[s] : uint8_t(255);
+    qhi_out[s] = on ? bh[s] : uint8_t(0);
+  }
+#else
+  quantize_planes_scalar(o, sc, inv, lo, hi, live, qlo_out, qhi_out);
+#endif
+}
+
 // Quantises the boxes of the slots in `used` (bit per slot) conservatively:
 // the decoded box always contains the real one. Empty boxes decode inverted.
 void quantize(KWideBvhNode& n, const Aabb boxes[kWideBvhWidth], uint32_t used) {
+  // The slots' planes by axis, for quantize_planes().
+  alignas(16) float lo[3][kWideBvhWidth], hi[3][kWideBvhWidth];
+  uint32_t live = 0;
   Aabb all;
   for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
-    if (((used >> s) & 1u) && !boxes[s].empty()) all.grow(boxes[s]);
+    const Aabb& b = boxes[s];
+    lo[0][s] = b.lo.x, lo[1][s] = b.lo.y, lo[2][s] = b.lo.z;
+    hi[0][s] = b.hi.x, hi[1][s] = b.hi.y, hi[2][s] = b.hi.z;
+    if (((used >> s) & 1u) && !b.empty()) {
+      live |= 1u << s;
+      all.grow(b);
+    }
   }
   if (all.empty()) all = Aabb{{0, 0, 0}, {0, 0, 0}};
   n.origin = all.lo;
-  float scale[3], inverse[3];
   for (int a = 0; a < 3; ++a) {
     const int e = choose_exponent(component(all.lo, a), component(all.hi, a));
     n.exponent[a] = uint8_t(e + 127);
-    scale[a] = exp2_int(e);
     // 2^-e is a normal float for every e chosen, so x * 2^-e rounds the
     // same real number as x / 2^e: the same planes, without a division
     // per plane (a refit re-quantises every node every frame).
-    inverse[a] = exp2_int(-e);
-  }
-  for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
-    const bool live = ((used >> s) & 1u) && !boxes[s].empty();
-    for (int a = 0; a < 3; ++a) {
-      if (!live) {
-        n.qlo[a][s] = 255;
-        n.qhi[a][s] = 0;
-        continue;
-      }
-      const float o = component(n.origin, a), sc = scale[a], inv = inverse[a];
-      const float lo = component(boxes[s].lo, a), hi = component(boxes[s].hi, a);
-      // floor and ceil clamped to [0, 255], by truncation (which is floor
-      // for the positive values that reach it): std::floor and std::ceil
-      // are library calls without SSE4.1.
-      float f = (lo - o) * inv;
-      uint32_t qlo = f > 0.0f ? (f >= 255.0f ? 255u : uint32_t(f)) : 0u;
-      while (qlo > 0 && decode(o, qlo, sc) > lo)
-        --qlo;
-      f = (hi - o) * inv;
-      uint32_t qhi = 0;
-      if (f > 0.0f) {
-        qhi = f >= 255.0f ? 255u : uint32_t(f);
-        qhi += qhi < 255u && float(qhi) < f ? 1u : 0u;
-      }
-      while (qhi < 255 && decode(o, qhi, sc) < hi)
-        ++qhi;
-      n.qlo[a][s] = uint8_t(qlo);
-      n.qhi[a][s] = uint8_t(qhi);
-    }
+    quantize_planes(component(n.origin, a), exp2_int(e), exp2_int(-e), lo[a], hi[a], live, n.qlo[a],
+                    n.qhi[a]);
   }
 }
 

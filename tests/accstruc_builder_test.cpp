@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -135,6 +136,74 @@ BvhLayouts build_layouts(const std::vector<Aabb>& boxes, const BuildSettings& s 
 
 // ---------------------------------------------------------------------------
 // SAH quality
+
+// The planes of one slot and axis as the wide layout's quantisation defines
+// them (a reference kept apart from accstruc/wide_bvh.cpp's vector code):
+// floor and ceil of the scaled distances from the origin, clamped to
+// [0, 255], then stepped until the decoded plane holds the box.
+void reference_planes(float o, float sc, float lo, float hi, uint8_t* qlo_out, uint8_t* qhi_out) {
+  const float inv = uint_as_float(uint32_t(254 - int((float_as_uint(sc) >> 23) & 0xffu)) << 23);
+  const auto decode = [&](uint32_t q) { return o + float(q) * sc; };
+  float f = (lo - o) * inv;
+  uint32_t qlo = f > 0.0f ? (f >= 255.0f ? 255u : uint32_t(f)) : 0u;
+  while (qlo > 0 && decode(qlo) > lo)
+    --qlo;
+  f = (hi - o) * inv;
+  uint32_t qhi = 0;
+  if (f > 0.0f) {
+    qhi = f >= 255.0f ? 255u : uint32_t(f);
+    qhi += qhi < 255u && float(qhi) < f ? 1u : 0u;
+  }
+  while (qhi < 255 && decode(qhi) < hi)
+    ++qhi;
+  *qlo_out = uint8_t(qlo);
+  *qhi_out = uint8_t(qhi);
+}
+
+// quantize_wide_node() (the refit's per-frame quantisation, four slots at a
+// time in SSE) gives every plane the reference's byte, and decoded boxes
+// that contain the slots' boxes, on random and awkward boxes: tiny, huge,
+// flat, far from the origin, slots empty or unused.
+TEST(BvhBuilder, WideQuantisationMatchesTheReferenceByteForByte) {
+  std::mt19937 rng(77);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const float magnitudes[] = {1e-6f, 1e-2f, 1.0f, 37.0f, 1e4f, 1e12f};
+  uint32_t planes = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const float mag = magnitudes[trial % 6];
+    const Vec3 center = {(unit(rng) - 0.5f) * mag * 50.0f, (unit(rng) - 0.5f) * mag,
+                         (unit(rng) - 0.5f) * mag * 3.0f};
+    Aabb boxes[kWideBvhWidth];
+    uint32_t used = 0;
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      if (unit(rng) < 0.85f) used |= 1u << s;
+      if (unit(rng) < 0.05f) continue;  // an empty box
+      Vec3 a = center + Vec3{unit(rng) - 0.5f, unit(rng) - 0.5f, unit(rng) - 0.5f} * mag;
+      Vec3 b = a + Vec3{unit(rng), unit(rng), unit(rng)} * (mag * unit(rng));
+      if (unit(rng) < 0.1f) b.y = a.y;  // flat
+      boxes[s] = Aabb{a, b};
+    }
+    KWideBvhNode n{};
+    quantize_wide_node(n, boxes, used);
+    for (uint32_t s = 0; s < kWideBvhWidth; ++s) {
+      const bool live = ((used >> s) & 1u) && !boxes[s].empty();
+      for (int a = 0; a < 3; ++a) {
+        uint8_t qlo = 255, qhi = 0;
+        if (live) {
+          reference_planes(component(n.origin, a), wide_node_scale(n, a), component(boxes[s].lo, a),
+                           component(boxes[s].hi, a), &qlo, &qhi);
+          ++planes;
+        }
+        ASSERT_EQ(n.qlo[a][s], qlo) << "trial " << trial << " slot " << s << " axis " << a;
+        ASSERT_EQ(n.qhi[a][s], qhi) << "trial " << trial << " slot " << s << " axis " << a;
+      }
+      if (live) {
+        EXPECT_TRUE(contains(wide_slot_box(n, s), boxes[s])) << "trial " << trial;
+      }
+    }
+  }
+  EXPECT_GT(planes, 100000u);
+}
 
 TEST(BvhBuilder, SahCostBeatsMedianSplit) {
   std::vector<std::pair<std::string, Mesh>> meshes;
