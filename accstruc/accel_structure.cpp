@@ -221,9 +221,10 @@ std::vector<uint32_t> AccelStructure::refit_blas(KernelScene& ks,
                                                  const std::vector<uint32_t>& meshes,
                                                  const ArrayChange& positions) {
   std::vector<uint8_t> poor(meshes.size(), 0);
-  const bool keep_wide = settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide;
+  const bool wide_in_use = settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide;
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
+    const bool keep_wide = wide_in_use && !binary_only(ks, m);
     BvhLayouts& l = blas_[m];
     const MeshGeometry g = mesh_geometry(ks, m);
     if (blas_split_[m]) {
@@ -308,9 +309,15 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
     wide_out[j] = ks.bvh_leaf_triangles[wide_entries[j]];
 }
 
+bool AccelStructure::binary_only(const KernelScene& ks, uint32_t m) const {
+  return settings_.deforming_binary_only && settings_.layout == kBvhLayoutWide &&
+         (deforms_[m] != 0 || (ks.meshes[m].flags & kMeshDeforms) != 0u);
+}
+
 void AccelStructure::emit_blas_flags(KernelScene& ks, uint32_t m, AccelUpdate& up) const {
   const uint32_t flags = (no_records_[m] ? kBlasNoLeafRecords : 0u) |
-                         (wide_records_stale_[m] ? kBlasNoWideRecords : 0u);
+                         (wide_records_stale_[m] ? kBlasNoWideRecords : 0u) |
+                         (binary_only(ks, m) ? kBlasBinaryOnly : 0u);
   if (ks.blas_roots[m].flags == flags) return;
   ks.blas_roots[m].flags = flags;
   up.delta.blas_roots.mark(m, m + 1);
@@ -542,13 +549,17 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   }
   std::vector<uint32_t> refit;
   for (uint32_t m : delta.meshes_refit) {
-    if (m < n && !std::binary_search(rebuild.begin(), rebuild.end(), m)) refit.push_back(m);
+    if (m < n && !std::binary_search(rebuild.begin(), rebuild.end(), m)) {
+      refit.push_back(m);
+      deforms_[m] = 1;
+    }
   }
   // Wide nodes left behind while the binary layout was in use catch up once
   // they are (a refit of an unchanged mesh re-quantises them).
   if (settings_.refit_unused_layout || settings_.layout == kBvhLayoutWide) {
     for (uint32_t m = 0; m < wide_stale_.size() && m < n; ++m) {
-      if (wide_stale_[m] && !std::binary_search(rebuild.begin(), rebuild.end(), m))
+      if (wide_stale_[m] && !binary_only(ks, m) &&
+          !std::binary_search(rebuild.begin(), rebuild.end(), m))
         refit.push_back(m);
     }
   }
@@ -625,6 +636,9 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   if (ks.bvh.layout != uint32_t(settings_.layout)) {
     ks.bvh.layout = settings_.layout;
     up.delta.bvh_constants = true;
+    // Which meshes keep only their binary layout follows the layout.
+    for (uint32_t m = 0; m < n; ++m)
+      emit_blas_flags(ks, m, up);
   }
   return up;
 }

@@ -66,6 +66,13 @@ struct AccelSettings {
   // reports the records (48 bytes a triangle a frame, half of a skinned
   // mesh's delta). true: every mesh keeps them (the hits are the same).
   bool deforming_leaf_records = false;
+  // true (for arrays that only the host's loops trace, as CoreTracer's host
+  // backends do): in the wide layout, a mesh that deforms (kMeshDeforms, or
+  // refit once) keeps only its binary layout current and is flagged
+  // kBlasBinaryOnly, which the host's wide loop traverses in binary. The
+  // wide nodes' re-quantisation was three quarters of a million skinned
+  // vertices' refit; the static meshes keep the faster wide traversal.
+  bool deforming_binary_only = false;
   BvhCacheSettings cache;
 };
 
@@ -126,6 +133,8 @@ class AccelStructure {
   // left it stale.
   void sync_host_copy(const KernelScene& ks, uint32_t mesh) const;
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
+  // Whether mesh m keeps only its binary layout current (kBlasBinaryOnly).
+  bool binary_only(const KernelScene& ks, uint32_t m) const;
   // ks.blas_roots[mesh].flags from no_records_, marked in up.delta when changed.
   void emit_blas_flags(KernelScene& ks, uint32_t mesh, AccelUpdate& up) const;
   void rebuild_tlas(KernelScene& ks, AccelUpdate& up);

@@ -124,6 +124,12 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
   SceneCompiler compiler;
   AccelSettings accel_settings;
   accel_settings.refit_unused_layout = config == DeformConfig::kBothLayouts;
+  // The layout the configuration's backends trace, as CoreTracer picks it:
+  // the host backend's alone, the CUDA backend's with it.
+  if (config == DeformConfig::kHost) {
+    accel_settings.layout = CpuBackend(CpuTraversal::kTandemBvh).traits().bvh_layout;
+    accel_settings.deforming_binary_only = true;
+  }
   AccelStructure accel(accel_settings);
   std::unique_ptr<CpuBackend> cpu;
   if (embree) cpu = std::make_unique<CpuBackend>(CpuTraversal::kEmbree);

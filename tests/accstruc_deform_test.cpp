@@ -156,6 +156,54 @@ TEST(AccelDeform, WithoutLeafRecordsTheHitsAreTheSameBits) {
   }
 }
 
+// Arrays that only the host's loops trace (CoreTracer's host backends) keep
+// a deforming mesh in the binary layout alone (kBlasBinaryOnly): the wide
+// loop traverses its binary nodes and the static floor's wide ones, and
+// finds the closest hits the binary layout finds, frame after frame, while
+// the refit leaves the mesh's wide nodes alone.
+TEST(AccelDeform, BinaryOnlyDeformingMeshesHitLikeTheBinaryLayout) {
+  WaveGrid g{.cells = 64, .size = 4.0f, .amplitude = 0.05f, .wavelength = 0.9f};
+  AccelSettings host = test_settings();
+  host.layout = kBvhLayoutWide;
+  host.refit_unused_layout = false;
+  host.deforming_binary_only = true;
+  Scene scene = wave_scene(g);
+  scene.set_mesh_deforms(0);  // as a loader marks a skinned mesh
+  TracedScene s(std::move(scene), host);
+  const std::vector<KWideBvhNode> wide_before = s.ks.bvh_wide_nodes;
+  for (uint32_t frame = 1; frame <= 8; ++frame) {
+    // The wave travels at its build amplitude: refits, no policy rebuild.
+    deform_wave_grid(s.scene.edit_mesh_vertices(0), g, 0.05f * float(frame));
+    const AccelUpdate up = s.recompile();
+    ASSERT_EQ(up.blas_refit, 1u) << "frame " << frame;
+    ASSERT_NE(s.ks.blas_roots[0].flags & kBlasBinaryOnly, 0u) << "frame " << frame;
+    ASSERT_EQ(s.ks.blas_roots[1].flags & kBlasBinaryOnly, 0u) << "frame " << frame;
+    EXPECT_FALSE(up.delta.bvh_wide_nodes.any() &&
+                 up.delta.bvh_wide_nodes.begin < s.ks.blas_roots[1].wide_root)
+        << "the deforming mesh's wide nodes were rewritten, frame " << frame;
+    const KernelData kd = s.kd();
+    uint32_t hits = 0;
+    for (const RaySample& r : primary_rays(s, 2000, frame)) {
+      for (const bool any : {false, true}) {
+        const Hit wide = bvh_trace(kd, r.ray, r.alpha_key, kBvhLayoutWide, any);
+        const Hit binary = bvh_trace(kd, r.ray, r.alpha_key, kBvhLayoutBinary, any);
+        ASSERT_EQ(hit_valid(wide), hit_valid(binary)) << "frame " << frame;
+        if (!any && hit_valid(wide)) {
+          ASSERT_EQ(std::memcmp(&wide.t, &binary.t, sizeof(float)), 0) << "frame " << frame;
+          hits += 1;
+        }
+      }
+    }
+    EXPECT_GT(hits, 1000u) << "frame " << frame;
+  }
+  // Its wide nodes are the build's, left alone.
+  const uint32_t w0 = s.ks.blas_roots[0].wide_root, w1 = s.ks.blas_roots[1].wide_root;
+  EXPECT_EQ(std::memcmp(s.ks.bvh_wide_nodes.data() + w0, wide_before.data() + w0,
+                        (w1 - w0) * sizeof(KWideBvhNode)),
+            0);
+  expect_hits_like_embree(s, "binary-only deforming grid", 4000, 0.999);
+}
+
 TEST(AccelDeform, RebuildPolicyFiresOnlyUnderALargeDeformation) {
   WaveGrid g{.cells = 80, .size = 4.0f, .amplitude = 0.02f, .wavelength = 1.0f};
   TracedScene s(wave_scene(g));

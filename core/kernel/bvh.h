@@ -33,6 +33,12 @@ enum KBlasFlags : uint32_t {
   // a mesh refit since its arrays were laid out, so that a refit rewrites
   // one set of records, not two.
   kBlasNoWideRecords = 1u << 1,
+  // Only the binary layout of the BLAS is current: a mesh that deforms,
+  // whose wide nodes the per-frame refit leaves alone because the arrays are
+  // traced by the host's loops only (AccelSettings::deforming_binary_only).
+  // The host's wide loop traverses its binary nodes; the portable loops
+  // never meet the flag.
+  kBlasBinaryOnly = 1u << 2,
 };
 
 // A mesh's BLAS roots (blas_roots, one per mesh; kInvalidIndex: the mesh has

@@ -558,7 +558,15 @@ inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWide
         for (uint32_t k = 0; k < instances; ++k) {
           const uint32_t blas = tr.enter_instance(prim_indices[first + k], true, record);
           if (blas == kInvalidIndex) continue;
-          const bool stop = host_trace_wide_blas<kCount, Isa>(tr, nodes, blas, record);
+          // A deforming mesh whose wide nodes are not kept current: its
+          // binary ones (kBlasBinaryOnly).
+          const bool stop =
+              (record[kRecordBlasFlags] & kBlasBinaryOnly) != 0u
+                  ? host_trace_blas(
+                        tr, tr.kd->bvh_nodes,
+                        tr.kd->blas_roots[tr.kd->instances[record[kRecordInstance]].mesh].bvh_root,
+                        record)
+                  : host_trace_wide_blas<kCount, Isa>(tr, nodes, blas, record);
           // leave_instance() without its divisions: the world ray as it was.
           tr.box = world_box;
           if (stop) return true;

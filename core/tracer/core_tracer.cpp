@@ -52,6 +52,9 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
   AccelSettings accel;
   accel.refit_unused_layout = false;
   accel.layout = bvh_layout();
+  // The wide layout is chosen only when the host's loops alone trace it:
+  // deforming meshes can then be refit in the binary layout alone.
+  accel.deforming_binary_only = true;
   for (const BackendTraits& t : traits_) {
     if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>(accel);
   }
