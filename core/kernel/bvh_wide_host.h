@@ -1,7 +1,8 @@
 // Host-only traversal of the wide layout in distance order (included by
 // bvh_traverse_host.h, outside nvcc), in two instruction sets: SSE2, which
 // every x86-64 has, and AVX2 where the CPU has it (the eight child boxes of
-// a node in one pass instead of two), chosen at run time per query.
+// a node in one pass instead of two), chosen once at start-up
+// (host_wide_isa).
 #pragma once
 
 #include <cstddef>
@@ -29,8 +30,8 @@ namespace tandem {
 // (trace_two_level_wide) visits a node's children in octant order (slot ^
 // octant, roughly front to back) from a stack of node groups, because a GPU
 // thread has no registers for sorting. The host decodes and tests the eight
-// child boxes four at a time in SSE, keeps each hit child's entry distance,
-// and visits the children nearest first:
+// child boxes together (AVX2, or two halves in SSE2), keeps each hit child's
+// entry distance, and visits the children nearest first:
 //   - a hit leaf's triangles are tested before any child is descended into,
 //     leaves in order of entry distance, so the closest hit found shrinks the
 //     interval of every box test after it; a leaf's triangles are tested
@@ -40,7 +41,12 @@ namespace tandem {
 //     dropped (its box test would fail);
 //   - the interior children hit are prefetched as soon as the boxes are
 //     tested, and a hit leaf's records (bvh_wide_leaf_triangles, next to
-//     each other in the wide layout's entry order) right after.
+//     each other in the wide layout's entry order) right after;
+//   - an any-hit query, whose interval does not shrink before it stops,
+//     takes children in the portable loop's octant order and leaves and
+//     instances in slot order: sorting buys it nothing;
+//   - a BLAS flagged kBlasBinaryOnly (a deforming mesh whose wide nodes are
+//     not kept current) is traversed in its binary layout.
 // The box tests are the portable test's float operations lane for lane
 // (origin + q * scale, then (plane - o) * inv, the far distance scaled, x then
 // y then z), so a child is hit exactly when the portable loop hits it. The
