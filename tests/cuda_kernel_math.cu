@@ -13,6 +13,11 @@ __global__ void sincos_pi_kernel(const float* x, SinCos* out, unsigned n) {
   if (i < n) out[i] = sincos_pi(x[i]);
 }
 
+__global__ void atan2_pi_kernel(const float* y, const float* x, float* out, unsigned n) {
+  const unsigned i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) out[i] = atan2_pi(y[i], x[i]);
+}
+
 __global__ void srgb8_kernel(float* out) {
   out[threadIdx.x] = srgb8_to_linear(threadIdx.x);
 }
@@ -45,6 +50,18 @@ void device_sincos_pi(const std::vector<float>& x, std::vector<SinCos>* out) {
   TANDEM_CUDA_CHECK(cudaGetLastError());
   out->resize(n);
   TANDEM_CUDA_CHECK(cudaMemcpy(out->data(), d_out.ptr, n * sizeof(SinCos), cudaMemcpyDeviceToHost));
+}
+
+void device_atan2_pi(const std::vector<float>& y, const std::vector<float>& x,
+                     std::vector<float>* out) {
+  const unsigned n = unsigned(x.size());
+  ScratchArray<float> d_y(n), d_x(n), d_out(n);
+  TANDEM_CUDA_CHECK(cudaMemcpy(d_y.ptr, y.data(), n * sizeof(float), cudaMemcpyHostToDevice));
+  TANDEM_CUDA_CHECK(cudaMemcpy(d_x.ptr, x.data(), n * sizeof(float), cudaMemcpyHostToDevice));
+  atan2_pi_kernel<<<(n + 255) / 256, 256>>>(d_y.ptr, d_x.ptr, d_out.ptr, n);
+  TANDEM_CUDA_CHECK(cudaGetLastError());
+  out->resize(n);
+  TANDEM_CUDA_CHECK(cudaMemcpy(out->data(), d_out.ptr, n * sizeof(float), cudaMemcpyDeviceToHost));
 }
 
 void device_srgb8_to_linear(std::vector<float>* out) {

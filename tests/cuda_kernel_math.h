@@ -12,6 +12,9 @@ namespace tandem {
 // sincos_pi of every x on the device, and srgb8_to_linear(0..255). Throws
 // CudaError when a runtime call fails.
 void device_sincos_pi(const std::vector<float>& x, std::vector<SinCos>* out);
+// atan2_pi(y[i], x[i]) on the device.
+void device_atan2_pi(const std::vector<float>& y, const std::vector<float>& x,
+                     std::vector<float>* out);
 void device_srgb8_to_linear(std::vector<float>* out);
 // The sheen lobe (sheen_brdf(wo[i], wi[i], alpha[i])) and its tabulated
 // albedo (sheen_albedo(wo[i].z, alpha[i])) on the device: they rest on the

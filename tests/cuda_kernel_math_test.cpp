@@ -56,6 +56,37 @@ TEST(CudaGpu, SinCosPiMatchesHostBitForBit) {
   EXPECT_EQ(differ, 0u) << "of " << x.size() << " arguments";
 }
 
+TEST(CudaGpu, Atan2PiMatchesHostBitForBit) {
+  TANDEM_REQUIRE_REAL_GPU();
+  // Directions all round the circle at several magnitudes, and the signed
+  // zeros and infinities.
+  std::vector<float> y, x;
+  for (int k = 0; k < (1 << 20); ++k) {
+    const SinCos a = sincos_pi(float(k) * 0x1p-19f);
+    const float scale = std::ldexp(1.0f, (k % 61) - 30);
+    y.push_back(a.sin * scale);
+    x.push_back(a.cos * scale);
+  }
+  for (float yy : {0.0f, -0.0f, 1.0f, -1.0f, INFINITY, -INFINITY}) {
+    for (float xx : {0.0f, -0.0f, 1.0f, -1.0f, INFINITY, -INFINITY}) {
+      y.push_back(yy);
+      x.push_back(xx);
+    }
+  }
+  std::vector<float> device;
+  device_atan2_pi(y, x, &device);
+  ASSERT_EQ(device.size(), x.size());
+  size_t differ = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    const float host = atan2_pi(y[i], x[i]);
+    if (bits(host) != bits(device[i]) && ++differ <= 5) {
+      ADD_FAILURE() << std::hexfloat << "(" << y[i] << ", " << x[i] << "): host " << host
+                    << " device " << device[i];
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "of " << x.size() << " arguments";
+}
+
 TEST(CudaGpu, SrgbDecodeTableMatchesHostBitForBit) {
   TANDEM_REQUIRE_REAL_GPU();
   std::vector<float> device;

@@ -71,11 +71,14 @@ TANDEM_HD_INLINE float mis_power_heuristic(float pdf_a, float pdf_b) {
 // Equirectangular (latitude-longitude) mapping with +y up. u = 0.5 looks down
 // -z, matching the usual HDRI orientation used by glTF viewers.
 TANDEM_HD_INLINE Vec2 direction_to_equirect(Vec3 d) {
-  const float u = atan2f(d.x, -d.z) * kInv2Pi + 0.5f;
+  // atan2_pi (trig.h) rather than atan2f: the same bits on the CPU and the
+  // GPU, and a quarter of glibc's instructions (every missed ray looks its
+  // direction up).
+  const float u = atan2_pi(d.x, -d.z) * 0.5f + 0.5f;
   // theta from atan2 rather than acos(d.y): acos is ill-conditioned near the
   // poles, where float d.y = 1 - 6e-8 steps move theta by 3e-4 rad, and the
   // sin(theta) Jacobian in env_pdf then disagrees with env_sample's (or is 0).
-  const float v = atan2f(sqrtf(d.x * d.x + d.z * d.z), d.y) * kInvPi;
+  const float v = atan2_pi(sqrtf(d.x * d.x + d.z * d.z), d.y);
   return {u - floorf(u), v};
 }
 TANDEM_HD_INLINE Vec3 equirect_to_direction(float u, float v) {

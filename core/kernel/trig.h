@@ -59,4 +59,41 @@ TANDEM_HD_INLINE float cos_pi(float x) {
   return sincos_pi(x).cos;
 }
 
+// atan(r) / pi for |r| <= tan(pi / 8): r / pi + r * t * Q(t) with t = r^2,
+// Q fitted as the sine's and cosine's polynomials (relative error 7e-10 in
+// exact arithmetic). 1 / pi is split into a float and its remainder, so the
+// result rounds without a bias (atan2f times the float 1 / pi, 4e-8 low,
+// put the equirectangular lookups a third of an ulp low on average).
+TANDEM_HD_INLINE float atan_pi_reduced(float r) {
+  const float t = r * r;
+  const float tail =
+      0x1.b9391p-27f +
+      t * (-0x1.b2994ep-4f +
+           t * (0x1.04bd12p-4f + t * (-0x1.735ffp-5f + t * (0x1.13f164p-5f + t * -0x1.3b677p-6f))));
+  return r * 0x1.45f306p-2f + r * tail;
+}
+
+// atan2(y, x) / pi, in [-1, 1], in plain float arithmetic: the same bits
+// from g++ and from nvcc (-fmad=false), where atan2f (glibc's, libdevice's)
+// differs between them in its last bits; and about a quarter of glibc's
+// instructions (the equirectangular lookups of every missed ray call it
+// twice). Accuracy: at most 3 ulp from atan2 of the exact arguments over
+// pi, and no bias (tests/kernel_trig_test.cpp). The signs follow atan2's: atan2_pi(+-0,
+// -0) = +-1, atan2_pi(-0, x > 0) = -0; a NaN argument gives NaN.
+TANDEM_HD_INLINE float atan2_pi(float y, float x) {
+  if (!(x == x) || !(y == y)) return x + y;
+  const float ax = fabsf(x), ay = fabsf(y);
+  const bool steep = ay > ax;
+  const float big = steep ? ay : ax, small = steep ? ax : ay;
+  // small / big in [0, 1]: 0 for 0 / 0, 1 for inf / inf.
+  const float a = small == big ? (big > 0.0f ? 1.0f : 0.0f) : small / big;
+  // Past tan(pi / 8), atan(a) = pi / 4 + atan((a - 1) / (a + 1)).
+  const bool far = a > 0x1.a827dap-2f;
+  float at = atan_pi_reduced(far ? (a - 1.0f) / (a + 1.0f) : a);
+  if (far) at += 0.25f;
+  if (steep) at = 0.5f - at;
+  if ((float_as_uint(x) >> 31) != 0u) at = 1.0f - at;
+  return (float_as_uint(y) >> 31) != 0u ? -at : at;
+}
+
 }  // namespace tandem
