@@ -28,7 +28,7 @@ inline KernelScene make_environment_scene(float rotation) {
   env.has_map = 1;
   env.width = kEnvWidth;
   env.height = kEnvHeight;
-  env.rotation = rotation;
+  set_environment_rotation(env, rotation);
   env.map_integral = build_environment_cdfs(ks.view(), ks.env_marginal_cdf, ks.env_conditional_cdf);
   return ks;
 }

@@ -217,8 +217,11 @@ struct KEnvironment {
   uint32_t width, height;
   float rotation;      // radians about +y
   float map_integral;  // sum of sin-weighted luminance (for pdf normalisation)
+  // cos and sin of the rotation, sincos_pi(rotation / pi) taken once by the
+  // scene compiler: every missed ray and every sample of the map turns by it.
+  float rotation_cos, rotation_sin;
 };
-static_assert(sizeof(KEnvironment) == 32, "GPU layout");
+static_assert(sizeof(KEnvironment) == 40, "GPU layout");
 
 struct KIntegratorParams {
   uint32_t max_depth;       // scattering events; 1 = direct lighting only

@@ -1,5 +1,6 @@
 // The environment: its constants and, for a map, the texels and the
 // sampling CDFs.
+#include "core/kernel/environment.h"
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/light_tables.h"
@@ -11,7 +12,7 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
   KEnvironment& k = out.constants.environment;
   k = {};
   k.color = to_vec3(e.color * e.intensity);
-  k.rotation = e.rotation;
+  set_environment_rotation(k, e.rotation);
   out.env_texels.clear();
   out.env_marginal_cdf.clear();
   out.env_conditional_cdf.clear();
