@@ -64,14 +64,17 @@ command -v "$blender" >/dev/null || { echo "error: blender ('$blender') not foun
 if [[ "$variant" == helmet ]]; then
   # Blender's glTF importer needs numpy in Blender's Python (Debian: the
   # python3-numpy package): say so now rather than after Tandem's render.
+  # `|| probe=$?`: under set -e a bare non-zero status would end the script
+  # here, silently, before the message below.
+  probe=0
   "$blender" -b --factory-startup --python-expr \
     'import os, sys
 try:
     import numpy
 except ImportError:
     sys.stdout.flush(); os._exit(3)
-os._exit(0)' >/dev/null 2>&1
-  case $? in
+os._exit(0)' >/dev/null 2>&1 || probe=$?
+  case $probe in
     0) ;;
     3) echo "error: VARIANT=helmet needs numpy in Blender's Python for its glTF importer" \
             "(Debian/Ubuntu: apt-get install python3-numpy)" >&2; exit 1 ;;
