@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 
 #include "core/kernel/integrator.h"
 #include "core/kernel/lights.h"
@@ -156,6 +157,40 @@ TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
   EXPECT_NEAR(y.y, 1.0f, 1e-6f);
   const Vec3 x = rotate_y(make_vec3(1, 0, 0), 0.7f), z = rotate_y(make_vec3(0, 0, 1), 0.7f);
   EXPECT_NEAR(dot(cross(x, y), z), 1.0f, 1e-5f);
+}
+
+// The compiled environment carries the rotation's cosine and sine, which
+// the kernels turn by instead of calling rotate_y: a scene compiled with a
+// rotation must look its map up (and turn its samples) exactly as
+// rotate_y(d, -angle) (and rotate_y(d, angle)) would, bit for bit.
+TEST(KernelEnvironment, CompiledRotationTurnsLikeRotateYBitForBit) {
+  for (const float angle : {0.0f, 0.7f, -2.1f, 3.5f, 1e-3f}) {
+    Scene scene;
+    Environment& e = scene.edit_environment();
+    e.width = 8;
+    e.height = 4;
+    for (uint32_t i = 0; i < e.width * e.height; ++i)
+      e.texels.push_back(glm::vec3(0.1f + 0.05f * float(i), 0.2f, 0.3f));
+    e.rotation = angle;
+    RenderSettings settings;
+    settings.width = settings.height = 8;
+    SceneCompiler compiler;
+    KernelScene ks;
+    compiler.compile(scene, settings, ks);
+    const KernelData kd = ks.view();
+    ASSERT_EQ(kd.constants.environment.has_map, 1u);
+    EXPECT_EQ(kd.constants.environment.rotation, angle);
+    TestRng rng(250);
+    for (int s = 0; s < 1000; ++s) {
+      const float u2 = rng.next(), u1 = rng.next();
+      const Vec3 d = sample_uniform_sphere(u1, u2);
+      const Vec2 got = env_map_uv(kd, d), want = direction_to_equirect(rotate_y(d, -angle));
+      ASSERT_EQ(std::memcmp(&got, &want, sizeof got), 0) << angle << " sample " << s;
+      const KEnvironment& k = kd.constants.environment;
+      const Vec3 turned = rotate_y_cs(d, k.rotation_cos, k.rotation_sin), ref = rotate_y(d, angle);
+      ASSERT_EQ(std::memcmp(&turned, &ref, sizeof turned), 0) << angle << " sample " << s;
+    }
+  }
 }
 
 TEST(KernelEnvironment, ConstantColorIsUniform) {
