@@ -380,7 +380,7 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   wide_records_stale_.assign(n, 0);  // emitted from the current vertices below
   tbb::parallel_for(0u, n, [&](uint32_t m) { emit_blas(ks, m); });
   if (ks.blas_roots.size() != n) {
-    ks.blas_roots.assign(n, KBlasRoot{kInvalidIndex, kInvalidIndex});
+    ks.blas_roots.assign(n, KBlasRoot{kInvalidIndex, kInvalidIndex, 0u, 0u});
     mark_all(up.delta.blas_roots);
   }
   for (uint32_t m = 0; m < n; ++m) {

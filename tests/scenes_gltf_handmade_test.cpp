@@ -341,6 +341,40 @@ TEST(GltfImages, ConvertsEveryChannelLayoutToRgba8) {
   EXPECT_FALSE(gltf::image_to_rgba8(img, out));
 }
 
+// Every layout over an image of several pixels with every byte different,
+// against the glTF rules written out here pixel by pixel: grey fills r, g
+// and b, a missing alpha is opaque, 16-bit values (little endian) round to
+// the nearest 8-bit step. Catches a loop that strides or offsets wrongly.
+TEST(GltfImages, EveryLayoutConvertsEveryPixel) {
+  for (const int bits : {8, 16}) {
+    for (int c = 1; c <= 4; ++c) {
+      tinygltf::Image img;
+      img.width = 5;
+      img.height = 3;
+      img.bits = bits;
+      img.component = c;
+      const size_t bytes = size_t(bits / 8), pixels = 15;
+      for (size_t i = 0; i < pixels * size_t(c) * bytes; ++i)
+        img.image.push_back(static_cast<unsigned char>(37 * i + 11));
+      std::vector<uint32_t> out;
+      ASSERT_TRUE(gltf::image_to_rgba8(img, out)) << bits << " bits, " << c << " channels";
+      ASSERT_EQ(out.size(), pixels);
+      for (size_t p = 0; p < pixels; ++p) {
+        uint32_t ch[4];
+        for (int k = 0; k < c; ++k) {
+          const unsigned char* q = &img.image[(p * size_t(c) + size_t(k)) * bytes];
+          const uint32_t v = bits == 8 ? q[0] : uint32_t(q[0]) | (uint32_t(q[1]) << 8);
+          ch[k] = bits == 8 ? v : uint32_t(std::lround(double(v) * 255.0 / 65535.0));
+        }
+        const uint32_t r = ch[0], g = c >= 3 ? ch[1] : ch[0], b = c >= 3 ? ch[2] : ch[0];
+        const uint32_t a = c == 2 ? ch[1] : (c == 4 ? ch[3] : 255u);
+        EXPECT_EQ(out[p], r | (g << 8) | (b << 16) | (a << 24))
+            << bits << " bits, " << c << " channels, pixel " << p;
+      }
+    }
+  }
+}
+
 TEST_F(GltfHandMade, GpuInstancingComposesWithTheNode) {
   GltfTestFile d;
   d.vec3(kTriangle);

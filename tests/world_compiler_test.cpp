@@ -3,6 +3,8 @@
 // the light data stays consistent with the instances.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/world/kernel_scene.h"
@@ -107,6 +109,54 @@ TEST(SceneCompiler, MaterialEditTouchesOnlyThatMaterial) {
   EXPECT_FALSE(d.instances_changed);
   EXPECT_FALSE(d.lights.any());
   EXPECT_NEAR(c.ks.materials[0].base_color.y, 0.3f, 1e-6f);
+}
+
+// The mean luminance of an emissive texture scales its material's emission
+// for light sampling; the compiler takes it at the texture's first use as
+// an emissive texture (not for every texture of a model). Checked against
+// the sRGB curve written out here, after the first compile and after an
+// edit that makes a second texture emissive.
+TEST(SceneCompiler, EmissiveTexturesCarryTheirMeanLuminance) {
+  TwoQuads t = make_two_quads();
+  const auto texture = [](uint32_t seed) {
+    Texture tex;
+    tex.width = 4;
+    tex.height = 3;
+    for (uint32_t i = 0; i < tex.width * tex.height; ++i) {
+      const uint32_t v = (seed + 53u * i) * 2654435761u;
+      tex.rgba8.push_back(v | 0xff000000u);
+    }
+    return tex;
+  };
+  const auto mean_luminance = [](const Texture& tex) {
+    const auto decode = [](uint32_t byte) {
+      const double c = double(byte & 0xffu) / 255.0;
+      return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+    };
+    double sum = 0.0;
+    for (uint32_t px : tex.rgba8)
+      sum += 0.2126 * decode(px) + 0.7152 * decode(px >> 8) + 0.0722 * decode(px >> 16);
+    return sum / double(tex.rgba8.size());
+  };
+  const Texture base = texture(1), glow = texture(2);
+  const uint32_t base_tex = t.scene.add_texture(base), glow_tex = t.scene.add_texture(glow);
+  t.scene.edit_material(0).base_color_texture.texture = int32_t(base_tex);
+  t.scene.edit_material(t.lamp_material).emissive_texture.texture = int32_t(glow_tex);
+  Compiled c;
+  c.compile(t.scene);
+  const double glow_mean = mean_luminance(glow), base_mean = mean_luminance(base);
+  ASSERT_GT(std::fabs(glow_mean - base_mean), 0.01);
+  EXPECT_NEAR(c.ks.materials[t.lamp_material].emission_luminance_scale, glow_mean,
+              1e-5 * glow_mean);
+  EXPECT_EQ(c.ks.materials[0].emission_luminance_scale, 1.0f);  // not emissive-textured
+  // An edit makes the floor's base colour texture its emissive one too.
+  Material& floor = t.scene.edit_material(0);
+  floor.emissive = glm::vec3(1.0f);
+  floor.emissive_texture.texture = int32_t(base_tex);
+  c.compile(t.scene);
+  EXPECT_NEAR(c.ks.materials[0].emission_luminance_scale, base_mean, 1e-5 * base_mean);
+  EXPECT_NEAR(c.ks.materials[t.lamp_material].emission_luminance_scale, glow_mean,
+              1e-5 * glow_mean);
 }
 
 }  // namespace

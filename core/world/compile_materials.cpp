@@ -64,9 +64,9 @@ KMaterial SceneCompiler::compile_material(const Scene& scene, const Material& m)
   k.sheen_color_tex = ref(m.sheen_color_texture, true);
   k.sheen_roughness_tex = ref(m.sheen_roughness_texture, false);
   if (k.emissive_tex.texture >= 0) {
-    k.emission_luminance_scale = texture_mean_luminance_[size_t(m.emissive_texture.texture)];
+    k.emission_luminance_scale =
+        texture_mean_luminance(scene, uint32_t(m.emissive_texture.texture));
   }
-  (void)scene;
   return k;
 }
 

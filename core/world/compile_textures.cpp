@@ -8,6 +8,21 @@
 
 namespace tandem {
 
+float SceneCompiler::texture_mean_luminance(const Scene& scene, uint32_t texture) {
+  if (texture >= texture_mean_luminance_.size() || texture >= scene.textures().size()) return 0.0f;
+  float& mean = texture_mean_luminance_[texture];
+  if (mean < 0.0f) {
+    const Texture& t = scene.textures()[texture];
+    double sum = 0.0;
+    for (uint32_t px : t.rgba8) {
+      const Vec3 c = {srgb8_to_linear(px), srgb8_to_linear(px >> 8), srgb8_to_linear(px >> 16)};
+      sum += luminance(c);
+    }
+    mean = t.rgba8.empty() ? 0.0f : float(sum / double(t.rgba8.size()));
+  }
+  return mean;
+}
+
 uint32_t SceneCompiler::texture_index(uint32_t texture, bool srgb) const {
   return texture_slots_.at((uint64_t(texture) << 1) | (srgb ? 1u : 0u));
 }
@@ -19,17 +34,11 @@ void SceneCompiler::compile_textures(const Scene& scene, KernelScene& out) {
   out.textures.clear();
   texture_slots_.clear();
   texture_texel_offset_.assign(scene.textures().size(), 0);
-  texture_mean_luminance_.assign(scene.textures().size(), 0.0f);
+  texture_mean_luminance_.assign(scene.textures().size(), -1.0f);
   for (size_t i = 0; i < scene.textures().size(); ++i) {
     const Texture& t = scene.textures()[i];
     texture_texel_offset_[i] = uint32_t(out.texels.size());
     out.texels.insert(out.texels.end(), t.rgba8.begin(), t.rgba8.end());
-    double sum = 0.0;
-    for (uint32_t px : t.rgba8) {
-      const Vec3 c = {srgb8_to_linear(px), srgb8_to_linear(px >> 8), srgb8_to_linear(px >> 16)};
-      sum += luminance(c);
-    }
-    texture_mean_luminance_[i] = t.rgba8.empty() ? 0.0f : float(sum / double(t.rgba8.size()));
   }
   auto slot_for = [&](int32_t tex, bool srgb) {
     if (tex < 0 || size_t(tex) >= scene.textures().size()) return;

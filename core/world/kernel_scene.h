@@ -151,6 +151,11 @@ class SceneCompiler {
   // compile_textures.cpp
   void compile_textures(const Scene& scene, KernelScene& out);
   uint32_t texture_index(uint32_t texture, bool srgb) const;
+  // The sRGB-decoded mean luminance of texture `texture`, computed at its
+  // first use as an emissive texture after compile_textures() (only those
+  // need it; every texel of every texture was a quarter of a second of a
+  // textured model's compile).
+  float texture_mean_luminance(const Scene& scene, uint32_t texture);
   // compile_materials.cpp
   void compile_materials(const Scene& scene, KernelScene& out);
   KMaterial compile_material(const Scene& scene, const Material& m);
@@ -186,7 +191,7 @@ class SceneCompiler {
   size_t counts_[5] = {};  // textures, materials, meshes, instances, lights at last compile
   std::map<uint64_t, uint32_t> texture_slots_;  // (texture, srgb) -> KTexture index
   std::vector<uint32_t> texture_texel_offset_;
-  std::vector<float> texture_mean_luminance_;  // sRGB-decoded, for emissive power
+  std::vector<float> texture_mean_luminance_;  // texture_mean_luminance(); < 0: not yet
   std::vector<bool> mesh_emissive_;            // mesh uses an emissive material
   float lights_radius_ = -1.0f;                // scene radius the light powers were computed with
   // Every light's power as in light_alias, in the order of out.lights
