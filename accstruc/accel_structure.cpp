@@ -169,8 +169,7 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
   tbb::parallel_for(size_t(0), meshes.size(), [&](size_t i) {
     const uint32_t m = meshes[i];
     const MeshGeometry g = mesh_geometry(ks, m);
-    const bool split = settings_.blas.spatial_split_budget > 0.0f && !deforms_[m] &&
-                       (ks.meshes[m].flags & kMeshDeforms) == 0u;
+    const bool split = settings_.blas.spatial_split_budget > 0.0f && !mesh_deforms(ks, m);
     const BuildSettings& bs = split ? settings_.blas : refittable;
     blas_split_[m] = 0;
     // Measured before the first refit of the new tree (refit_blas).
@@ -309,9 +308,13 @@ void AccelStructure::emit_blas(KernelScene& ks, uint32_t m) const {
     wide_out[j] = ks.bvh_leaf_triangles[wide_entries[j]];
 }
 
+bool AccelStructure::mesh_deforms(const KernelScene& ks, uint32_t m) const {
+  return deforms_[m] != 0 || (ks.meshes[m].flags & kMeshDeforms) != 0u;
+}
+
 bool AccelStructure::binary_only(const KernelScene& ks, uint32_t m) const {
   return settings_.deforming_binary_only && settings_.layout == kBvhLayoutWide &&
-         (deforms_[m] != 0 || (ks.meshes[m].flags & kMeshDeforms) != 0u);
+         mesh_deforms(ks, m);
 }
 
 void AccelStructure::emit_blas_flags(KernelScene& ks, uint32_t m, AccelUpdate& up) const {

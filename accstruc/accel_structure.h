@@ -133,6 +133,8 @@ class AccelStructure {
   // left it stale.
   void sync_host_copy(const KernelScene& ks, uint32_t mesh) const;
   void emit_blas(KernelScene& ks, uint32_t mesh) const;
+  // Whether mesh m is marked as deforming (kMeshDeforms) or was refit once.
+  bool mesh_deforms(const KernelScene& ks, uint32_t m) const;
   // Whether mesh m keeps only its binary layout current (kBlasBinaryOnly).
   bool binary_only(const KernelScene& ks, uint32_t m) const;
   // ks.blas_roots[mesh].flags from no_records_, marked in up.delta when changed.

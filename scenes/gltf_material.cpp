@@ -545,19 +545,17 @@ class MaterialConverter {
   MaterialResult result_;
 };
 
-}  // namespace
-
-namespace {
-
-// One channel of pixel i as 8 bits: a byte as it is, a 16-bit value (little
-// endian, as tinygltf stores it) rounded to the nearest of 255 steps.
+// One channel as 8 bits: a byte as it is, a 16-bit value (in the host's
+// byte order, as stb and so tinygltf store it) rounded to the nearest of 255
+// steps.
 template <int kBytes>
 inline uint32_t channel8(const unsigned char* p) {
   if constexpr (kBytes == 1) {
     return *p;
   } else {
-    const uint32_t v = uint32_t(p[0]) | (uint32_t(p[1]) << 8);
-    return (v * 255u + 32767u) / 65535u;
+    uint16_t v;
+    std::memcpy(&v, p, 2);
+    return (uint32_t(v) * 255u + 32767u) / 65535u;
   }
 }
 
