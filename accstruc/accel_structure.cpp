@@ -146,6 +146,9 @@ Aabb transform_box(const Mat34& m, const Aabb& b) {
 AccelStructure::AccelStructure(AccelSettings settings) : settings_(std::move(settings)) {
   // A wide leaf slot holds at most 3 triangles and a wide node 8 slots.
   settings_.blas.max_leaf_size = std::clamp<uint32_t>(settings_.blas.max_leaf_size, 1u, 16u);
+  settings_.deforming_blas.max_leaf_size =
+      std::clamp<uint32_t>(settings_.deforming_blas.max_leaf_size, 1u, 16u);
+  settings_.deforming_blas.spatial_split_budget = 0.0f;  // refit every frame
   settings_.tlas.max_leaf_size = 1;
   if (const char* v = std::getenv("TANDEM_BVH_SPATIAL_SPLITS")) {
     const float budget = std::strtof(v, nullptr);
@@ -170,7 +173,12 @@ void AccelStructure::build_blas(const KernelScene& ks, const std::vector<uint32_
     const uint32_t m = meshes[i];
     const MeshGeometry g = mesh_geometry(ks, m);
     const bool split = settings_.blas.spatial_split_budget > 0.0f && !mesh_deforms(ks, m);
-    const BuildSettings& bs = split ? settings_.blas : refittable;
+    // Only a mesh the scene marks as deforming gets the deforming meshes'
+    // leaves: its tree then depends on the scene alone, not on whether it
+    // was edited before, so a fresh compile of the same scene builds it too.
+    const bool marked = (ks.meshes[m].flags & kMeshDeforms) != 0u;
+    const BuildSettings& bs =
+        split ? settings_.blas : (marked ? settings_.deforming_blas : refittable);
     blas_split_[m] = 0;
     // Measured before the first refit of the new tree (refit_blas).
     blas_built_quality_[m] = kQualityUnknown;

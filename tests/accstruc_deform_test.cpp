@@ -162,6 +162,38 @@ TEST(AccelDeform, WithoutLeafRecordsTheHitsAreTheSameBits) {
   }
 }
 
+// A mesh the scene marks as deforming gets AccelSettings::deforming_blas:
+// leaves of up to 8 triangles, far fewer nodes for the refit to sweep; the
+// same mesh unmarked keeps the static leaves of at most 4, also after it was
+// refit (its tree depends on the scene, not on its edits).
+TEST(AccelDeform, MarkedDeformingMeshesGetLargerLeaves) {
+  WaveGrid g{.cells = 64, .size = 4.0f, .amplitude = 0.05f, .wavelength = 0.9f};
+  const auto largest_leaf = [](const BvhLayouts& l) {
+    uint32_t most = 0;
+    for (const KBvhNode& n : l.nodes) {
+      for (uint32_t c = 0; c < 2; ++c) {
+        if (n.child[c] & kBvhLeafFlag) most = std::max(most, n.count[c]);
+      }
+    }
+    return most;
+  };
+  Scene marked_scene = wave_scene(g);
+  marked_scene.set_mesh_deforms(0);
+  TracedScene marked(std::move(marked_scene)), plain(wave_scene(g));
+  for (uint32_t frame = 1; frame <= 2; ++frame) {
+    for (TracedScene* s : {&marked, &plain}) {
+      deform_wave_grid(s->scene.edit_mesh_vertices(0), g, 0.05f * float(frame));
+      ASSERT_EQ(s->recompile().blas_refit, 1u) << "frame " << frame;
+    }
+  }
+  const BvhLayouts &m = marked.accel.blas(0), &p = plain.accel.blas(0);
+  EXPECT_GT(largest_leaf(m), 4u);
+  EXPECT_LE(largest_leaf(m), AccelSettings{}.deforming_blas.max_leaf_size);
+  EXPECT_LE(largest_leaf(p), 4u);
+  EXPECT_LT(2 * m.nodes.size(), p.nodes.size())
+      << m.nodes.size() << " nodes marked, " << p.nodes.size() << " unmarked";
+}
+
 // Arrays that only the host's loops trace (CoreTracer's host backends) keep
 // a deforming mesh in the binary layout alone (kBlasBinaryOnly): the wide
 // loop traverses its binary nodes and the static floor's wide ones, and
