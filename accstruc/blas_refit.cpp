@@ -197,6 +197,9 @@ void BlasRefit::clear() {
   indexed_ = false;
   vertex_count_ = triangle_count_ = 0;
   leaf_tris_.clear();
+  leaf_verts_.clear();
+  leaf_sizes_.clear();
+  vertex_lists_ = false;
   non_members_.clear();
   tasks_.clear();
   top_.clear();
@@ -307,6 +310,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
       t.leaf_hi = hi;
     }
     std::sort(top_.begin(), top_.end(), std::greater<uint32_t>());
+    index_leaf_vertices(l, g.vertex_count);
     for (uint32_t t = 0; t < tasks_.size(); ++t) {
       for (uint32_t i = tasks_[t].lo; i < tasks_[t].hi; ++i)
         task_of[i] = t;
@@ -396,6 +400,52 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
   return true;
 }
 
+void BlasRefit::index_leaf_vertices(const BvhLayouts& l, uint32_t vertex_count) {
+  // The binary leaves holding triangles, by first entry.
+  std::vector<std::pair<uint32_t, uint32_t>> leaves;  // first entry, count
+  for (const KBvhNode& node : l.nodes) {
+    for (uint32_t c = 0; c < 2; ++c) {
+      if ((node.child[c] & kBvhLeafFlag) && node.count[c] > 0) {
+        if (node.count[c] > 255) return;
+        leaves.push_back({node.child[c] & ~kBvhLeafFlag, node.count[c]});
+      }
+    }
+  }
+  if (vertex_count >= kLastOfLeaf) return;
+  std::sort(leaves.begin(), leaves.end());
+  leaf_verts_.reserve(2 * leaves.size());
+  leaf_sizes_.reserve(leaves.size());
+  std::vector<uint32_t> last_use;  // a leaf's vertices, the last used first
+  for (Task& t : tasks_) {
+    t.leaves_lo = uint32_t(leaf_sizes_.size());
+    t.verts_lo = uint32_t(leaf_verts_.size());
+    auto k = std::lower_bound(leaves.begin(), leaves.end(), std::make_pair(t.leaf_lo, 0u));
+    uint32_t covered = t.leaf_lo;
+    for (; k != leaves.end() && k->first < t.leaf_hi; ++k) {
+      if (k->first != covered) break;
+      covered += k->second;
+      last_use.clear();
+      for (uint32_t e = k->first + k->second; e-- > k->first;) {
+        for (uint32_t j = 3; j-- > 0;) {
+          const uint32_t v = leaf_tris_[kEntryWords * size_t(e) + j];
+          if (std::find(last_use.begin(), last_use.end(), v) == last_use.end())
+            last_use.push_back(v);
+        }
+      }
+      for (size_t j = last_use.size(); j-- > 0;)
+        leaf_verts_.push_back(last_use[j] | (j == 0 ? kLastOfLeaf : 0u));
+      leaf_sizes_.push_back(uint8_t(k->second));
+    }
+    t.leaves_hi = uint32_t(leaf_sizes_.size());
+    if (covered != t.leaf_hi) {  // not the task's leaves end to end
+      leaf_verts_.clear();
+      leaf_sizes_.clear();
+      return;
+    }
+  }
+  vertex_lists_ = true;
+}
+
 BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const LayoutBases& bases,
                                    KBvhNode* nodes, KWideBvhNode* wide_nodes,
                                    KLeafTriangle* leaf_triangles, bool overwrite_records) const {
@@ -430,6 +480,7 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
   // the sweep then reads one 32-byte box a leaf, not two on average.
 #if defined(__SSE2__)
   const bool per_leaf = wide_nodes == nullptr;
+  const bool by_vertex = per_leaf && leaf_triangles == nullptr && vertex_lists_;
 #else
   const bool per_leaf = false;
 #endif
@@ -581,6 +632,46 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
 #endif
   };
 
+#if defined(__SSE2__)
+  // The leaf pass when only each binary leaf's box is wanted (per_leaf) and
+  // no records are written (a mesh that deforms whole): the box of a leaf's
+  // distinct vertices, each loaded once, instead of its triangles' boxes
+  // (a grid's leaf of two triangles: 4 vertex loads, not 6, and 4-byte
+  // indices, not 16-byte entries). The same bits: minps / maxps return the
+  // second operand of equal inputs (+0 and -0), so a union's zero is the
+  // last one met; the list keeps the vertices in the order of their last
+  // use by the leaf's triangles, which meets the same one last. A vertex
+  // that is not finite or beyond kMaxCoordinate asks for a rebuild, as its
+  // triangle's box does in leaf_pass (then the boxes do not matter).
+  const auto leaf_pass_by_vertex = [&](const Task& task, TaskBox* out, Out& o) {
+    constexpr uint32_t kAhead = 192;  // vertices
+    const uint32_t* const list = leaf_verts_.data();
+    const uint8_t* const sizes = leaf_sizes_.data();
+    const float* const pf = &positions[0].x;
+    const uint32_t listed = uint32_t(leaf_verts_.size());
+    const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 limit = _mm_set1_ps(kMaxCoordinate);
+    __m128 ok = _mm_castsi128_ps(_mm_set1_epi32(-1));
+    uint32_t j = task.verts_lo, e = task.leaf_lo;
+    for (uint32_t k = task.leaves_lo; k < task.leaves_hi; ++k) {
+      __m128 lo = empty_lo(), hi = empty_hi();
+      for (;;) {
+        if (j + kAhead < listed)
+          __builtin_prefetch(pf + 3 * size_t(list[j + kAhead] & ~kLastOfLeaf));
+        const uint32_t w = list[j++];
+        const __m128 p = _mm_loadu_ps(pf + 3 * size_t(w & ~kLastOfLeaf));
+        lo = _mm_min_ps(lo, p);
+        hi = _mm_max_ps(hi, p);
+        ok = _mm_and_ps(ok, _mm_cmple_ps(_mm_and_ps(p, abs), limit));
+        if (w & kLastOfLeaf) break;
+      }
+      out[e - task.leaf_lo] = {lo, hi};
+      e += sizes[k];
+    }
+    if ((_mm_movemask_ps(ok) & 7) != 7) o.invalid = true;
+  };
+#endif
+
   // Child references in the kernel arrays include the bases.
 #if defined(__SSE2__)
   // A child's box in node form, inside a task: a leaf's from the leaf
@@ -697,7 +788,15 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     static thread_local std::vector<TaskBox> task_boxes;
     if (task_boxes.size() < task.leaf_hi - task.leaf_lo)
       task_boxes.resize(task.leaf_hi - task.leaf_lo);
+#if defined(__SSE2__)
+    if (by_vertex) {
+      leaf_pass_by_vertex(task, task_boxes.data(), o);
+    } else {
+      leaf_pass(task, task_boxes.data(), o);
+    }
+#else
     leaf_pass(task, task_boxes.data(), o);
+#endif
     const TaskBoxes tb{task_boxes.data(), task.leaf_lo, task.leaf_hi, per_leaf};
 #if defined(__SSE2__)
     double area = 0.0;  // in a register: o.area is in memory (refit_node_sse)

@@ -32,6 +32,11 @@
 // (bvh_leaf_triangles), which a second pass used to read the same vertices
 // again for.
 //
+// Without wide nodes and records to write (a mesh that deforms whole, traced
+// in binary alone), the leaf pass needs only each binary leaf's box: it is
+// taken from the leaf's distinct vertices (listed by index(), each loaded
+// once) rather than from its triangles' three each, with the same bits.
+//
 // index() refuses (returns false) hierarchies it cannot map that way; the
 // caller then keeps using refit_layouts().
 #pragma once
@@ -92,14 +97,25 @@ class BlasRefit {
     uint32_t lo = 0, hi = 0;            // binary nodes [lo, hi): one subtree
     uint32_t wide_lo = 0, wide_hi = 0;  // its wide nodes in anchored_
     uint32_t leaf_lo = 0, leaf_hi = 0;  // its leaf entries, contiguous (preorder)
+    // Its binary leaves in leaf_sizes_ and their first word in leaf_verts_.
+    uint32_t leaves_lo = 0, leaves_hi = 0, verts_lo = 0;
   };
   // A wide node re-quantised once binary node `anchor` is refit.
   struct Anchored {
     uint32_t anchor, wide;
   };
+  // Fills leaf_verts_ and leaf_sizes_ and the tasks' ranges in them.
+  void index_leaf_vertices(const BvhLayouts& l, uint32_t vertex_count);
   bool indexed_ = false;
   uint32_t vertex_count_ = 0, triangle_count_ = 0;
-  std::vector<uint32_t> leaf_tris_;    // 3 vertex indices per binary leaf entry
+  std::vector<uint32_t> leaf_tris_;  // 3 vertex indices per binary leaf entry
+  // Per binary leaf holding triangles, in leaf-entry order: its distinct
+  // vertices, in the order of their last use by its triangles, kLastOfLeaf
+  // on the last (leaf_verts_), and its triangle count (leaf_sizes_). Empty
+  // when a leaf holds more than 255 triangles.
+  std::vector<uint32_t> leaf_verts_;
+  std::vector<uint8_t> leaf_sizes_;
+  bool vertex_lists_ = false;          // leaf_verts_ and leaf_sizes_ cover every task
   std::vector<uint32_t> non_members_;  // triangles left out at the build
   std::vector<Task> tasks_;
   std::vector<uint32_t> top_;            // nodes above the tasks, descending

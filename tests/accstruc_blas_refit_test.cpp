@@ -31,14 +31,14 @@ struct Blas {
   std::vector<uint32_t> wide_prims;
   std::vector<KLeafTriangle> leaf;  // bvh_leaf_triangles, at bases.prim
 
-  explicit Blas(const Mesh& m) {
+  explicit Blas(const Mesh& m, const BuildSettings& build = {}) {
     for (const glm::vec3& p : m.positions)
       positions.push_back({p.x, p.y, p.z});
     positions.push_back({0, 0, 0});
     for (const glm::uvec3& t : m.triangles)
       triangles.push_back({t.x, t.y, t.z, 0});
     const std::vector<Aabb> boxes = triangle_boxes(geometry());
-    layouts = make_layouts(build_bvh(boxes, BuildSettings{}), boxes, kWideMaxLeafPrims, 1.0f, 1.0f);
+    layouts = make_layouts(build_bvh(boxes, build), boxes, kWideMaxLeafPrims, 1.0f, 1.0f);
     nodes.resize(bases.node + layouts.nodes.size());
     prims.resize(bases.prim + layouts.prims.size());
     wide.resize(bases.wide_node + layouts.wide_nodes.size());
@@ -270,6 +270,64 @@ TEST(BlasRefit, WithoutTheWideLayoutTheBinaryNodesAndRecordsAreTheSame) {
                            binary.nodes.data() + binary.bases.node, nullptr,
                            binary.leaf.data() + binary.bases.prim, overwrite)
                     .members_changed);
+  }
+}
+
+TEST(BlasRefit, WithoutRecordsOrWideNodesEachLeafsVerticesGiveTheSameBits) {
+  // A mesh that deforms whole and is traced in binary alone: the leaf pass
+  // takes each binary leaf's box from its distinct vertices, once each. The
+  // nodes, spans, bounds and quality are the general refit's bit for bit,
+  // for the default leaves and the deforming meshes' larger ones, also when
+  // a leaf's box meets +0 and -0 on an axis (minps keeps the last of equal
+  // inputs, so the vertices' order decides which zero a box keeps).
+  const BuildSettings deforming = AccelSettings{}.deforming_blas;
+  for (const BuildSettings& build : {BuildSettings{}, deforming}) {
+    WaveGrid g{.cells = 150, .size = 6.0f, .amplitude = 0.1f, .wavelength = 1.3f};
+    Mesh mesh = make_wave_grid(g);
+    Blas general(mesh, build), fast(mesh, build);
+    BlasRefit refit;
+    ASSERT_TRUE(refit.index(fast.layouts, fast.geometry()));
+    for (uint32_t frame = 1; frame <= 4; ++frame) {
+      g.amplitude = 0.1f + 0.3f * float(frame);
+      deform_wave_grid(mesh, g, 0.1f * float(frame));
+      if (frame % 2 == 0) {
+        // Flat, with zeros of both signs mixed (a hash of the vertex).
+        for (size_t v = 0; v < mesh.positions.size(); ++v) {
+          const uint32_t h = uint32_t(v) * 2654435761u;
+          mesh.positions[v].y = (h >> 7) & 1u ? -0.0f : 0.0f;
+          if ((h >> 9) & 1u) mesh.positions[v].x = (h >> 11) & 1u ? -0.0f : 0.0f;
+        }
+      }
+      general.set(mesh);
+      fast.set(mesh);
+      const double q = refit_layouts(general.layouts, triangle_boxes(general.geometry()));
+      const NodeSpans spans = emit_refit_nodes(general.layouts, general.bases,
+                                               general.nodes.data() + general.bases.node,
+                                               general.wide.data() + general.bases.wide_node);
+      const BlasRefit::Result r =
+          refit.refit(fast.layouts, fast.geometry(), fast.bases,
+                      fast.nodes.data() + fast.bases.node, nullptr, nullptr, true);
+      EXPECT_FALSE(r.members_changed) << frame;
+      EXPECT_NEAR(r.quality, q, 1e-9 * q) << frame;
+      EXPECT_EQ(r.spans.nodes.begin, spans.nodes.begin) << frame;
+      EXPECT_EQ(r.spans.nodes.end, spans.nodes.end) << frame;
+      EXPECT_TRUE(r.leaf_spans.empty()) << frame;
+      for (size_t i = 0; i < fast.nodes.size(); ++i) {
+        ASSERT_EQ(std::memcmp(&general.nodes[i], &fast.nodes[i], sizeof(KBvhNode)), 0)
+            << "leaves of up to " << build.max_leaf_size << ", frame " << frame << ", node " << i;
+      }
+      EXPECT_EQ(std::memcmp(&general.layouts.bounds, &fast.layouts.bounds, sizeof(Aabb)), 0);
+    }
+    // A vertex gone to NaN, or beyond kMaxCoordinate, asks for a rebuild.
+    for (const float bad : {std::nanf(""), 2.0f * kMaxCoordinate}) {
+      const float kept = fast.positions[fast.triangles[7].v1].y;
+      fast.positions[fast.triangles[7].v1].y = bad;
+      EXPECT_TRUE(refit
+                      .refit(fast.layouts, fast.geometry(), fast.bases,
+                             fast.nodes.data() + fast.bases.node, nullptr, nullptr, true)
+                      .members_changed);
+      fast.positions[fast.triangles[7].v1].y = kept;
+    }
   }
 }
 
