@@ -110,11 +110,15 @@ class BlasRefit {
   uint32_t vertex_count_ = 0, triangle_count_ = 0;
   std::vector<uint32_t> leaf_tris_;  // 3 vertex indices per binary leaf entry
   // Per binary leaf holding triangles, in leaf-entry order: its distinct
-  // vertices, in the order of their last use by its triangles, kLastOfLeaf
-  // on the last (leaf_verts_), and its triangle count (leaf_sizes_). Empty
-  // when a leaf holds more than 255 triangles.
+  // vertices in the order of their last use by its triangles, the last one
+  // repeated up to a multiple of four (leaf_verts_), and its triangle count
+  // and groups of four (leaf_sizes_). Empty when a leaf holds more than 255
+  // triangles.
+  struct LeafSize {
+    uint8_t triangles, groups;
+  };
   std::vector<uint32_t> leaf_verts_;
-  std::vector<uint8_t> leaf_sizes_;
+  std::vector<LeafSize> leaf_sizes_;
   bool vertex_lists_ = false;          // leaf_verts_ and leaf_sizes_ cover every task
   std::vector<uint32_t> non_members_;  // triangles left out at the build
   std::vector<Task> tasks_;
