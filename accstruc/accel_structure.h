@@ -48,11 +48,12 @@ struct AccelSettings {
   // is rebuilt without them at its first refit and stays without them.
   BuildSettings blas = {.spatial_split_budget = 1.0f};
   // A BLAS of a mesh the scene marks as deforming (kMeshDeforms: skins,
-  // morph targets, procedural rigs) is refit every frame, so leaves of up to 8 triangles, which the
-  // SAH prefers to split only where a node's traversal costs more than four triangle tests. On a
-  // million-vertex skinned grid the binary nodes fall from about 1 M to
-  // 250 K and the refit takes about half the time, for about 3 % more
-  // render time (docs/performance/deforming_meshes.md, Round 12).
+  // morph targets, procedural rigs) is refit every frame, so it gets leaves
+  // of up to 8 triangles, split by the SAH only where a node costs as much
+  // as four triangle tests. On a million-vertex skinned grid the binary
+  // nodes fall from about 1 M to 250 K and the refit takes about half the
+  // time, for 1-3 % more render time (docs/performance/deforming_meshes.md,
+  // Round 12).
   BuildSettings deforming_blas = {.max_leaf_size = 8, .traversal_cost = 4.0f};
   // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
   BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};

@@ -310,7 +310,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
       t.leaf_hi = hi;
     }
     std::sort(top_.begin(), top_.end(), std::greater<uint32_t>());
-    index_leaf_vertices(l, g.vertex_count);
+    index_leaf_vertices(l);
     for (uint32_t t = 0; t < tasks_.size(); ++t) {
       for (uint32_t i = tasks_[t].lo; i < tasks_[t].hi; ++i)
         task_of[i] = t;
@@ -400,7 +400,7 @@ bool BlasRefit::index(const BvhLayouts& l, const MeshGeometry& g) {
   return true;
 }
 
-void BlasRefit::index_leaf_vertices(const BvhLayouts& l, uint32_t vertex_count) {
+void BlasRefit::index_leaf_vertices(const BvhLayouts& l) {
   // The binary leaves holding triangles, by first entry.
   std::vector<std::pair<uint32_t, uint32_t>> leaves;  // first entry, count
   for (const KBvhNode& node : l.nodes) {

@@ -105,7 +105,7 @@ class BlasRefit {
     uint32_t anchor, wide;
   };
   // Fills leaf_verts_ and leaf_sizes_ and the tasks' ranges in them.
-  void index_leaf_vertices(const BvhLayouts& l, uint32_t vertex_count);
+  void index_leaf_vertices(const BvhLayouts& l);
   bool indexed_ = false;
   uint32_t vertex_count_ = 0, triangle_count_ = 0;
   std::vector<uint32_t> leaf_tris_;  // 3 vertex indices per binary leaf entry
