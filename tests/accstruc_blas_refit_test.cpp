@@ -333,27 +333,30 @@ TEST(BlasRefit, WithoutRecordsOrWideNodesEachLeafsVerticesGiveTheSameBits) {
 
 TEST(BlasRefit, SmallTreesAndSplitLeavesToo) {
   // From a single leaf (one node, an empty second child) to a few nodes:
-  // the wide leaves split binary leaves of four into three and one.
-  for (uint32_t cells : {1u, 2u, 3u, 5u, 9u}) {
-    WaveGrid g{.cells = cells, .size = 2.0f, .amplitude = 0.2f, .wavelength = 0.7f};
-    Mesh mesh = make_wave_grid(g);
-    Blas general(mesh), fast(mesh);
-    BlasRefit refit;
-    ASSERT_TRUE(refit.index(fast.layouts, fast.geometry())) << cells;
-    deform_wave_grid(mesh, g, 0.3f);
-    general.set(mesh);
-    fast.set(mesh);
-    refit_layouts(general.layouts, triangle_boxes(general.geometry()));
-    emit_refit_nodes(general.layouts, general.bases, general.nodes.data() + general.bases.node,
-                     general.wide.data() + general.bases.wide_node);
-    fast.refit_with(refit);
-    fast.sync_host();
-    expect_same_arrays(general, fast, "small grid");
-    const std::vector<KLeafTriangle> records = fast.expected_leaf_records();
-    EXPECT_EQ(std::memcmp(records.data(), fast.leaf.data(), records.size() * sizeof(KLeafTriangle)),
-              0)
-        << cells;
-  }
+  // the wide leaves split binary leaves of four into three and one (and,
+  // with the deforming meshes' leaves of up to eight, into up to three
+  // slots), up to a grid big enough for those larger leaves.
+  for (const BuildSettings& build : {BuildSettings{}, AccelSettings{}.deforming_blas})
+    for (uint32_t cells : {1u, 2u, 3u, 5u, 9u, 24u}) {
+      WaveGrid g{.cells = cells, .size = 2.0f, .amplitude = 0.2f, .wavelength = 0.7f};
+      Mesh mesh = make_wave_grid(g);
+      Blas general(mesh, build), fast(mesh, build);
+      BlasRefit refit;
+      ASSERT_TRUE(refit.index(fast.layouts, fast.geometry())) << cells;
+      deform_wave_grid(mesh, g, 0.3f);
+      general.set(mesh);
+      fast.set(mesh);
+      refit_layouts(general.layouts, triangle_boxes(general.geometry()));
+      emit_refit_nodes(general.layouts, general.bases, general.nodes.data() + general.bases.node,
+                       general.wide.data() + general.bases.wide_node);
+      fast.refit_with(refit);
+      fast.sync_host();
+      expect_same_arrays(general, fast, "small grid");
+      const std::vector<KLeafTriangle> records = fast.expected_leaf_records();
+      EXPECT_EQ(
+          std::memcmp(records.data(), fast.leaf.data(), records.size() * sizeof(KLeafTriangle)), 0)
+          << cells;
+    }
 }
 
 TEST(BlasRefit, MembersChangingAskForARebuild) {
