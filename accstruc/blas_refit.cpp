@@ -83,15 +83,18 @@ inline __m128 empty_lo() {
 inline __m128 empty_hi() {
   return _mm_set1_ps(-kFloatMax);
 }
+// Per lane: |p| <= kMaxCoordinate (false for NaN and infinity), the test
+// aabb_valid() makes of a box's corners.
+inline __m128 within_limits(__m128 p) {
+  const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  return _mm_cmple_ps(_mm_and_ps(p, abs), _mm_set1_ps(kMaxCoordinate));
+}
 // The triangle's box from three 16-byte vertex loads (xyz + the next
 // float); false where a coordinate is not finite or beyond kMaxCoordinate.
 inline bool triangle_box4(__m128 a, __m128 b, __m128 c, Box4& out) {
   out.lo = _mm_min_ps(_mm_min_ps(_mm_min_ps(empty_lo(), a), b), c);
   out.hi = _mm_max_ps(_mm_max_ps(_mm_max_ps(empty_hi(), a), b), c);
-  const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)), m = _mm_set1_ps(kMaxCoordinate);
-  const __m128 ok = _mm_and_ps(
-      _mm_and_ps(_mm_cmple_ps(_mm_and_ps(a, abs), m), _mm_cmple_ps(_mm_and_ps(b, abs), m)),
-      _mm_cmple_ps(_mm_and_ps(c, abs), m));
+  const __m128 ok = _mm_and_ps(_mm_and_ps(within_limits(a), within_limits(b)), within_limits(c));
   return (_mm_movemask_ps(ok) & 7) == 7;
 }
 inline Aabb to_aabb(const Box4& b) {
@@ -382,8 +385,6 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
     const LeafSize* const sizes = leaf_sizes_.data();
     const float* const pf = &positions[0].x;
     const uint32_t listed = uint32_t(leaf_verts_.size());
-    const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-    const __m128 limit = _mm_set1_ps(kMaxCoordinate);
     __m128 ok = _mm_castsi128_ps(_mm_set1_epi32(-1));
     uint32_t j = task.verts_lo, e = task.leaf_lo;
     for (uint32_t k = task.leaves_lo; k < task.leaves_hi; ++k) {
@@ -401,11 +402,8 @@ BlasRefit::Result BlasRefit::refit(BvhLayouts& l, const MeshGeometry& g, const L
         // its second, the later one, as a chain in list order would.
         lo = _mm_min_ps(lo, _mm_min_ps(_mm_min_ps(p0, p1), _mm_min_ps(p2, p3)));
         hi = _mm_max_ps(hi, _mm_max_ps(_mm_max_ps(p0, p1), _mm_max_ps(p2, p3)));
-        const __m128 ok01 = _mm_and_ps(_mm_cmple_ps(_mm_and_ps(p0, abs), limit),
-                                       _mm_cmple_ps(_mm_and_ps(p1, abs), limit));
-        const __m128 ok23 = _mm_and_ps(_mm_cmple_ps(_mm_and_ps(p2, abs), limit),
-                                       _mm_cmple_ps(_mm_and_ps(p3, abs), limit));
-        ok = _mm_and_ps(ok, _mm_and_ps(ok01, ok23));
+        ok = _mm_and_ps(ok, _mm_and_ps(_mm_and_ps(within_limits(p0), within_limits(p1)),
+                                       _mm_and_ps(within_limits(p2), within_limits(p3))));
       }
       out[e - task.leaf_lo] = {lo, hi};
       e += sizes[k].triangles;
