@@ -12,16 +12,7 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-#define TANDEM_HOST_AVX2 1
-// Functions compiled for AVX2 (without FMA: no contraction may change a
-// product's rounding) in a build for the x86-64 baseline; called only when
-// the CPU has AVX2.
-#define TANDEM_TARGET_AVX2 __attribute__((target("avx2")))
-#else
-#define TANDEM_HOST_AVX2 0
-#endif
+#include "core/util/host_isa.h"
 
 namespace tandem {
 
@@ -591,16 +582,6 @@ inline bool host_trace_two_level_wide_isa(TwoLevelTrace<kCount>& tr, const KWide
 struct HostWideIsaChoice {
   bool avx2 = false;
 };
-inline bool host_cpu_has_avx2() {
-#if TANDEM_HOST_AVX2
-  __builtin_cpu_init();
-  if (!__builtin_cpu_supports("avx2")) return false;
-  const char* v = std::getenv("TANDEM_HOST_ISA");
-  return v == nullptr || std::strcmp(v, "sse2") != 0;
-#else
-  return false;
-#endif
-}
 inline HostWideIsaChoice host_wide_isa{host_cpu_has_avx2()};
 
 // The whole loop, each instruction set compiled into one function (flatten:
