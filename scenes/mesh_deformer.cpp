@@ -1,5 +1,6 @@
 #include "scenes/mesh_deformer.h"
 
+#include "core/util/host_isa.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/running_box.h"
 
@@ -16,6 +17,8 @@
 #endif
 
 namespace tandem {
+
+DeformIsaChoice deform_isa{host_cpu_has_avx2()};
 
 JointMatrix joint_matrix(const glm::mat4& a) {
   JointMatrix j;
@@ -109,7 +112,8 @@ struct ActiveTarget {
 
 struct Job {
   const MeshDeformation& d;
-  const Columns* palette;  // null: not skinned
+  const Columns* palette;   // null: not skinned
+  const JointMatrix* rows;  // the same palette as given (rows); null: not skinned
   const std::vector<ActiveTarget>& active;
   bool morph_p, morph_n, morph_t;
   Mesh& out;
@@ -228,6 +232,150 @@ void normalise_block(const Job& job, size_t begin, size_t end) {
     put_normal(job, v, normalised_or_kept(load3(out[v]), base[v]));
 }
 
+#if TANDEM_HOST_AVX2
+// The common skin (four influences, normals, no tangents, no morph) eight
+// vertices at a time for CPUs with AVX2: what follows the blend, a vertex
+// a lane. One vertex a 4-float register (the baseline loop) leaves a lane
+// idle and spends a shuffle on every broadcast and cross product; here the
+// position, cofactor, sign and normalisation are plain multiplies and adds
+// of eight lanes. The blend gathers each vertex's matrices through its
+// joints, two vertices a register (v + k in the low half, v + 4 + k in the
+// high), the matrices as their three rows; one in-lane transpose a row
+// then gives each matrix element for the eight vertices in order.
+//
+// Bit for bit deform_block() + normalise_block(): the same operations on
+// the same operands in the same order, lane by lane (the blend's sums from
+// +0, the column combinations, cross(), dot3(), the estimate and Newton
+// step), and no FMA. Tests compare the two (deform_isa).
+#define TANDEM_AVX2_INLINE TANDEM_TARGET_AVX2 __attribute__((always_inline)) inline
+
+struct Soa8 {
+  __m256 x, y, z;
+};
+// In each 128-bit half, the 4x4 transpose of rows a, b, c, d.
+struct Transposed8 {
+  __m256 t[4];
+};
+TANDEM_AVX2_INLINE Transposed8 transpose8(__m256 a, __m256 b, __m256 c, __m256 d) {
+  const __m256 ab_lo = _mm256_unpacklo_ps(a, b), cd_lo = _mm256_unpacklo_ps(c, d);
+  const __m256 ab_hi = _mm256_unpackhi_ps(a, b), cd_hi = _mm256_unpackhi_ps(c, d);
+  return {{_mm256_shuffle_ps(ab_lo, cd_lo, _MM_SHUFFLE(1, 0, 1, 0)),
+           _mm256_shuffle_ps(ab_lo, cd_lo, _MM_SHUFFLE(3, 2, 3, 2)),
+           _mm256_shuffle_ps(ab_hi, cd_hi, _MM_SHUFFLE(1, 0, 1, 0)),
+           _mm256_shuffle_ps(ab_hi, cd_hi, _MM_SHUFFLE(3, 2, 3, 2))}};
+}
+// Eight consecutive 12-byte vertices from `at`; the 16-byte load of the
+// eighth reads the x of a ninth, which must exist.
+TANDEM_AVX2_INLINE Soa8 load_soa8(const float* at) {
+  const Transposed8 t =
+      transpose8(_mm256_loadu2_m128(at + 12, at), _mm256_loadu2_m128(at + 15, at + 3),
+                 _mm256_loadu2_m128(at + 18, at + 6), _mm256_loadu2_m128(at + 21, at + 9));
+  return {t.t[0], t.t[1], t.t[2]};
+}
+// The eight vertices back as 24 consecutive floats.
+TANDEM_AVX2_INLINE void store_soa8(float* at, const Soa8& s) {
+  // Per half: x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3 of its four vertices.
+  const __m256 xy01 = _mm256_unpacklo_ps(s.x, s.y), xy23 = _mm256_unpackhi_ps(s.x, s.y);
+  const __m256 z0_x1 = _mm256_shuffle_ps(s.z, s.x, _MM_SHUFFLE(1, 1, 0, 0));
+  const __m256 y1_z1 = _mm256_shuffle_ps(xy01, s.z, _MM_SHUFFLE(1, 1, 3, 3));
+  const __m256 z2_x3_y3 = _mm256_shuffle_ps(s.z, xy23, _MM_SHUFFLE(3, 2, 2, 2));
+  const __m256 y3_z3 = _mm256_shuffle_ps(xy23, s.z, _MM_SHUFFLE(3, 3, 3, 3));
+  const __m256 a = _mm256_shuffle_ps(xy01, z0_x1, _MM_SHUFFLE(2, 0, 1, 0));
+  const __m256 b = _mm256_shuffle_ps(y1_z1, xy23, _MM_SHUFFLE(1, 0, 2, 0));
+  const __m256 c = _mm256_shuffle_ps(z2_x3_y3, y3_z3, _MM_SHUFFLE(2, 1, 2, 0));
+  _mm256_storeu_ps(at, _mm256_permute2f128_ps(a, b, 0x20));
+  _mm256_storeu_ps(at + 8, _mm256_permute2f128_ps(c, a, 0x30));
+  _mm256_storeu_ps(at + 16, _mm256_permute2f128_ps(b, c, 0x31));
+}
+// a * x + b * y + c * z, summed in that order.
+TANDEM_AVX2_INLINE __m256 combine8(__m256 a, __m256 x, __m256 b, __m256 y, __m256 c, __m256 z) {
+  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, x), _mm256_mul_ps(b, y)),
+                       _mm256_mul_ps(c, z));
+}
+// cross(v4, v4)'s products and differences, a coordinate a register.
+TANDEM_AVX2_INLINE Soa8 cross8(const Soa8& a, const Soa8& b) {
+  return {_mm256_sub_ps(_mm256_mul_ps(a.y, b.z), _mm256_mul_ps(a.z, b.y)),
+          _mm256_sub_ps(_mm256_mul_ps(a.z, b.x), _mm256_mul_ps(a.x, b.z)),
+          _mm256_sub_ps(_mm256_mul_ps(a.x, b.y), _mm256_mul_ps(a.y, b.x))};
+}
+// One influence of the blend: rows += weight * the joint's rows.
+template <int kInfluence>
+TANDEM_AVX2_INLINE void blend_influence8(__m256 weights, const JointMatrix& lo,
+                                         const JointMatrix& hi, __m256 rows[3]) {
+  const __m256 w =
+      _mm256_permute_ps(weights, _MM_SHUFFLE(kInfluence, kInfluence, kInfluence, kInfluence));
+  for (int r = 0; r < 3; ++r) {
+    rows[r] =
+        _mm256_add_ps(rows[r], _mm256_mul_ps(w, _mm256_loadu2_m128(hi.m + 4 * r, lo.m + 4 * r)));
+  }
+}
+
+TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const Job& job,
+                                                                          size_t begin,
+                                                                          size_t end) {
+  const MeshDeformation& d = job.d;
+  const JointMatrix* palette = job.rows;
+  // Groups whose 16-byte loads of the eighth vertex stay inside the arrays.
+  const size_t last = d.vertex_count() - 1;
+  size_t v = begin;
+  for (; v + 8 <= end && v + 8 <= last; v += 8) {
+    __m256 rows[4][3];  // [pair k: vertices v + k and v + 4 + k][row]
+    for (int k = 0; k < 4; ++k) {
+      const size_t a = v + size_t(k), b = a + 4;
+      const uint16_t* ja = &d.joints[4 * a];
+      const uint16_t* jb = &d.joints[4 * b];
+      const __m256 w = _mm256_loadu2_m128(&d.weights[4 * b], &d.weights[4 * a]);
+      rows[k][0] = rows[k][1] = rows[k][2] = _mm256_setzero_ps();
+      blend_influence8<0>(w, palette[ja[0]], palette[jb[0]], rows[k]);
+      blend_influence8<1>(w, palette[ja[1]], palette[jb[1]], rows[k]);
+      blend_influence8<2>(w, palette[ja[2]], palette[jb[2]], rows[k]);
+      blend_influence8<3>(w, palette[ja[3]], palette[jb[3]], rows[k]);
+    }
+    // Row r of the eight matrices, transposed: element (r, j) of column j.
+    Soa8 c[4];
+    for (int r = 0; r < 3; ++r) {
+      const Transposed8 t = transpose8(rows[0][r], rows[1][r], rows[2][r], rows[3][r]);
+      for (int j = 0; j < 4; ++j)
+        (r == 0 ? c[j].x : r == 1 ? c[j].y : c[j].z) = t.t[j];
+    }
+    const Soa8 p = load_soa8(&d.base_positions[v].x);
+    const Soa8 n = load_soa8(&d.base_normals[v].x);
+    const Soa8 sp{_mm256_add_ps(combine8(c[0].x, p.x, c[1].x, p.y, c[2].x, p.z), c[3].x),
+                  _mm256_add_ps(combine8(c[0].y, p.x, c[1].y, p.y, c[2].y, p.z), c[3].y),
+                  _mm256_add_ps(combine8(c[0].z, p.x, c[1].z, p.y, c[2].z, p.z), c[3].z)};
+    store_soa8(&job.out.positions[v].x, sp);
+    if (job.kernel_positions != nullptr) store_soa8(&job.kernel_positions[v].x, sp);
+    // The cofactor columns, the determinant's sign, the skinned normal.
+    const Soa8 k0 = cross8(c[1], c[2]), k1 = cross8(c[2], c[0]), k2 = cross8(c[0], c[1]);
+    const __m256 det = combine8(c[0].x, k0.x, c[0].y, k0.y, c[0].z, k0.z);
+    const __m256 sign = _mm256_blendv_ps(_mm256_set1_ps(1.0f), _mm256_set1_ps(-1.0f),
+                                         _mm256_cmp_ps(det, _mm256_setzero_ps(), _CMP_LT_OQ));
+    const Soa8 sn{_mm256_mul_ps(sign, combine8(k0.x, n.x, k1.x, n.y, k2.x, n.z)),
+                  _mm256_mul_ps(sign, combine8(k0.y, n.x, k1.y, n.y, k2.y, n.z)),
+                  _mm256_mul_ps(sign, combine8(k0.z, n.x, k1.z, n.y, k2.z, n.z))};
+    // normalise_block(): the estimate, one Newton step, the base normal
+    // where the length is zero, huge or NaN.
+    const __m256 len2 = combine8(sn.x, sn.x, sn.y, sn.y, sn.z, sn.z);
+    const __m256 r = _mm256_rsqrt_ps(len2);
+    const __m256 inv = _mm256_mul_ps(
+        r, _mm256_sub_ps(
+               _mm256_set1_ps(1.5f),
+               _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.5f), len2), r), r)));
+    const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(len2, _mm256_set1_ps(1e-30f), _CMP_GT_OQ),
+                                    _mm256_cmp_ps(len2, _mm256_set1_ps(1e30f), _CMP_LT_OQ));
+    const Soa8 un{_mm256_blendv_ps(n.x, _mm256_mul_ps(sn.x, inv), ok),
+                  _mm256_blendv_ps(n.y, _mm256_mul_ps(sn.y, inv), ok),
+                  _mm256_blendv_ps(n.z, _mm256_mul_ps(sn.z, inv), ok)};
+    store_soa8(&job.out.normals[v].x, un);
+    if (job.kernel_normals != nullptr) store_soa8(&job.kernel_normals[v].x, un);
+  }
+  // The rest one vertex at a time (still AVX2's encoding: flatten).
+  deform_block<true, false, true, false, 4>(job, v, end);
+  normalise_block(job, v, end);
+}
+#undef TANDEM_AVX2_INLINE
+#endif
+
 template <bool kSkin, bool kMorph, bool kNormals, bool kTangents, uint32_t kInfluences = 0>
 void deform_and_normalise_block(const Job& job, size_t begin, size_t end) {
   deform_block<kSkin, kMorph, kNormals, kTangents, kInfluences>(job, begin, end);
@@ -240,6 +388,9 @@ template <bool kSkin, bool kMorph>
 BlockFn pick(bool normals, bool tangents, uint32_t influences) {
   if (normals && kSkin && !kMorph) {
     if (influences == 4) {
+#if TANDEM_HOST_AVX2
+      if (!tangents && deform_isa.avx2) return &skin4_normals_block_avx2;
+#endif
       return tangents ? &deform_and_normalise_block<kSkin, kMorph, true, true, 4>
                       : &deform_and_normalise_block<kSkin, kMorph, true, false, 4>;
     }
@@ -349,6 +500,7 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
   }
   Job job{d,
           skinned ? columns.data() : nullptr,
+          skinned ? palette : nullptr,
           active,
           !d.position_deltas.empty(),
           normals && !d.normal_deltas.empty(),

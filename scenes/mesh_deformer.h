@@ -64,6 +64,14 @@ struct MeshDeformation {
   bool skinned() const { return influences > 0; }
 };
 
+// Whether the skinning's hot loop runs its AVX2 copy (the same bits as the
+// baseline's): where the CPU has AVX2, unless TANDEM_HOST_ISA=sse2; tests
+// switch it to compare both.
+struct DeformIsaChoice {
+  bool avx2 = false;
+};
+extern DeformIsaChoice deform_isa;
+
 // Writes the deformed vertices of `d` into `out` (positions, and normals and
 // tangents when the base has them), in parallel over blocks of vertices.
 // `palette` has d.palette_size entries when d is skinned (else unused);

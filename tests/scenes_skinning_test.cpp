@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -20,6 +21,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "core/util/errors.h"
+#include "core/util/host_isa.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/gltf_animation.h"
@@ -538,36 +540,43 @@ TEST(MeshDeformer, NormalsUseTheInverseTransposeAndStayUnit) {
 
 TEST(MeshDeformer, NormalsNormalisedFourAtATimeEqualTheOneAtATimePath) {
   // The unmorphed skinned path normalises its normals four at a time after
-  // each block; the morphed path one at a time, right after skinning. A
-  // morph target of zero deltas at weight 1 changes no bit of the input, so
-  // both must give the same bits: over several blocks and a ragged tail. (The
-  // unmorphed path also blends its four influences unrolled, the morphed one
-  // in the loop over the mesh's count: the same bits too.)
+  // each block (on CPUs with AVX2: the whole vertex eight at a time, a vertex
+  // a lane); the morphed path one at a time, right after skinning. A morph
+  // target of zero deltas at weight 1 changes no bit of the input, so all
+  // must give the same bits: over several blocks and a ragged tail, with
+  // mirrored joints (a negative determinant) and exact zeros of both signs;
+  // normals that collapse below. (The unmorphed path also blends its four
+  // influences unrolled, the morphed one in the loop over the mesh's count:
+  // the same bits too.)
   const size_t n = 2 * 4096 + 4099;
   MeshDeformation d;
-  d.palette_size = 3;
+  d.palette_size = 4;
   d.influences = 4;
   for (size_t v = 0; v < n; ++v) {
     const float a = 0.001f * float(v);
     d.base_positions.push_back({std::sin(a) * 3.0f, std::cos(0.7f * a), 0.01f * float(v % 97)});
     d.base_normals.push_back(glm::normalize(glm::vec3(std::cos(a), 1.0f, std::sin(3.0f * a))));
+    if (v % 7 == 3) d.base_positions.back() = glm::vec3(-0.0f, 0.0f, -0.0f);
     const float w0 = float(v % 5) / 8.0f, w1 = float(v % 3) / 8.0f;
-    d.joints.insert(d.joints.end(), {0, 1, 2, 1});
-    d.weights.insert(d.weights.end(), {w0, w1, 1.0f - w0 - w1, 0.0f});
+    d.joints.insert(d.joints.end(), {0, 1, 2, 3});
+    if (v % 11 == 5) {
+      d.weights.insert(d.weights.end(), {0.0f, 0.0f, 0.0f, 1.0f});  // the mirror alone
+    } else {
+      d.weights.insert(d.weights.end(), {w0, w1, 1.0f - w0 - w1, 0.0f});
+    }
   }
-  const JointMatrix palette[3] = {
+  const JointMatrix palette[4] = {
       joint_matrix(glm::rotate(glm::mat4(1.0f), 0.4f, glm::vec3(0, 0, 1))),
       joint_matrix(glm::scale(glm::translate(glm::mat4(1.0f), glm::vec3(1, 2, 3)),
                               glm::vec3(2.0f, 0.5f, 1.0f))),
-      joint_matrix(glm::rotate(glm::mat4(1.0f), -1.1f, glm::vec3(1, 1, 0)))};
+      joint_matrix(glm::rotate(glm::mat4(1.0f), -1.1f, glm::vec3(1, 1, 0))),
+      joint_matrix(glm::scale(glm::mat4(1.0f), glm::vec3(-1.0f, 1.5f, 1.0f)))};
   const auto mesh = [&] {
     Mesh m;
     m.positions.resize(n);
     m.normals.resize(n);
     return m;
   };
-  Mesh batched = mesh();
-  deform_mesh(d, palette, nullptr, batched);
   MeshDeformation morphed = d;
   morphed.targets = 1;
   morphed.position_deltas.assign(n, glm::vec3(0.0f));
@@ -575,18 +584,34 @@ TEST(MeshDeformer, NormalsNormalisedFourAtATimeEqualTheOneAtATimePath) {
   const float weight = 1.0f;
   Mesh single = mesh();
   deform_mesh(morphed, palette, &weight, single);
-  EXPECT_EQ(std::memcmp(batched.positions.data(), single.positions.data(), n * sizeof(glm::vec3)),
-            0);
-  EXPECT_EQ(std::memcmp(batched.normals.data(), single.normals.data(), n * sizeof(glm::vec3)), 0);
-  for (size_t v = 0; v < n; v += 1013)
-    EXPECT_NEAR(glm::length(batched.normals[v]), 1.0f, 1e-6f) << v;
 
-  // A blend that collapses (a zero matrix) keeps the base normal, in the
-  // batch and in the tail alike.
-  const JointMatrix zero[3] = {};
-  Mesh collapsed = mesh();
-  deform_mesh(d, zero, nullptr, collapsed);
-  EXPECT_EQ(std::memcmp(collapsed.normals.data(), d.base_normals.data(), n * sizeof(glm::vec3)), 0);
+  const DeformIsaChoice saved = deform_isa;
+  for (const bool avx2 : {false, true}) {
+    if (avx2 && !host_cpu_has_avx2()) {
+      std::printf("(no AVX2 on this CPU: the baseline loop only)\n");
+      continue;
+    }
+    SCOPED_TRACE(avx2 ? "AVX2" : "baseline");
+    deform_isa.avx2 = avx2;
+    Mesh batched = mesh();
+    deform_mesh(d, palette, nullptr, batched);
+    EXPECT_EQ(std::memcmp(batched.positions.data(), single.positions.data(), n * sizeof(glm::vec3)),
+              0);
+    EXPECT_EQ(std::memcmp(batched.normals.data(), single.normals.data(), n * sizeof(glm::vec3)), 0);
+    for (size_t v = 0; v < n; v += 1013)
+      EXPECT_NEAR(glm::length(batched.normals[v]), 1.0f, 1e-6f) << v;
+    // The mirrored vertices' normals keep facing out: det < 0 flips the
+    // cofactor back.
+    EXPECT_GT(batched.normals[5].y, 0.0f);
+    // A blend that collapses (a zero matrix) keeps the base normal, in the
+    // batch and in the tail alike.
+    const JointMatrix zero[4] = {};
+    Mesh collapsed = mesh();
+    deform_mesh(d, zero, nullptr, collapsed);
+    EXPECT_EQ(std::memcmp(collapsed.normals.data(), d.base_normals.data(), n * sizeof(glm::vec3)),
+              0);
+  }
+  deform_isa = saved;
 }
 
 TEST(MeshDeformer, WalkerAndGridRigsStayFiniteAndMove) {
