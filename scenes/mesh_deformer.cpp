@@ -105,6 +105,63 @@ inline glm::vec3 normalised_or_kept(v4 v, const glm::vec3& fallback) {
   return store3(v * splat(inverse_sqrt(len2)));
 }
 
+// The box of positions [begin, end) of a block just written (in the cache),
+// with the comparisons of the compiler's copy_positions_with_bounds() in
+// the same order: for finite positions min and max do not depend on the
+// order, and the compiler's positive_zeros() makes -0 and +0 alike, so the
+// box is the one the compiler would have taken.
+struct BlockBox {
+  float lo[3], hi[3];
+  bool finite;
+};
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr BlockBox kEmptyBox{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, true};
+// The compiler's RunningBox, started from the box so far: the path where
+// there is no SSE (compiled everywhere, so it cannot rot unbuilt).
+[[maybe_unused]] void grow_box_scalar(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
+  RunningBox r;
+  r.lx = b.lo[0], r.ly = b.lo[1], r.lz = b.lo[2];
+  r.hx = b.hi[0], r.hy = b.hi[1], r.hz = b.hi[2];
+  r.finite = b.finite;
+  for (size_t v = begin; v < end; ++v)
+    r.add(p[v].x, p[v].y, p[v].z);
+  b = {{r.lx, r.ly, r.lz}, {r.hx, r.hy, r.hz}, r.finite};
+}
+void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
+#if defined(__SSE__)
+  // One 16-byte load a vertex (the kernel positions have a readable element
+  // past the last one; lane 3 is ignored): minps(x, lo) is x < lo ? x : lo
+  // and maxps(x, hi) is hi < x ? x : hi, grow_box_scalar()'s comparisons lane
+  // by lane. x - x is 0 for a finite x and NaN otherwise, and the NaN stays
+  // in the sum.
+  __m128 lo = _mm_setr_ps(b.lo[0], b.lo[1], b.lo[2], 0.0f);
+  __m128 hi = _mm_setr_ps(b.hi[0], b.hi[1], b.hi[2], 0.0f);
+  __m128 bad = _mm_setzero_ps();
+  for (size_t v = begin; v < end; ++v) {
+    const __m128 x = _mm_loadu_ps(&p[v].x);
+    lo = _mm_min_ps(x, lo);
+    hi = _mm_max_ps(x, hi);
+    bad = _mm_add_ps(bad, _mm_sub_ps(x, x));
+  }
+  alignas(16) float l[4], h[4], n[4];
+  _mm_store_ps(l, lo);
+  _mm_store_ps(h, hi);
+  _mm_store_ps(n, bad);
+  b = {{l[0], l[1], l[2]},
+       {h[0], h[1], h[2]},
+       b.finite && n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f};
+#else
+  grow_box_scalar(b, p, begin, end);
+#endif
+}
+void join_box(BlockBox& a, const BlockBox& b) {
+  for (int k = 0; k < 3; ++k) {
+    a.lo[k] = b.lo[k] < a.lo[k] ? b.lo[k] : a.lo[k];
+    a.hi[k] = a.hi[k] < b.hi[k] ? b.hi[k] : a.hi[k];
+  }
+  a.finite = a.finite && b.finite;
+}
+
 struct ActiveTarget {
   uint32_t index;
   float weight;
@@ -143,7 +200,7 @@ inline void put_tangent(const Job& job, size_t v, const glm::vec4& t) {
 // four (glTF's JOINTS_0 / WEIGHTS_0) is the common case, and the loop's
 // counter, branch and index arithmetic were a tenth of the vertex's work.
 template <bool kSkin, bool kMorph, bool kNormals, bool kTangents, uint32_t kInfluences = 0>
-void deform_block(const Job& job, size_t begin, size_t end) {
+void deform_block(const Job& job, size_t begin, size_t end, BlockBox* box) {
   const MeshDeformation& d = job.d;
   const size_t vertices = d.vertex_count();
   const uint32_t influences = kInfluences != 0 ? kInfluences : d.influences;
@@ -198,6 +255,8 @@ void deform_block(const Job& job, size_t begin, size_t end) {
       put_tangent(job, v, glm::vec4(normalised_or_kept(st, glm::vec3(t)), t.w));
     }
   }
+  // The block's box while its positions are still in the cache.
+  if (box != nullptr) grow_box(*box, job.kernel_positions, begin, end);
 }
 
 // normalised_or_kept() of the skinned normals a block left in out.normals,
@@ -292,6 +351,9 @@ TANDEM_AVX2_INLINE __m256 combine8(__m256 a, __m256 x, __m256 b, __m256 y, __m25
   return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, x), _mm256_mul_ps(b, y)),
                        _mm256_mul_ps(c, z));
 }
+TANDEM_AVX2_INLINE __m256 add3_8(__m256 a, __m256 b, __m256 c) {
+  return _mm256_add_ps(_mm256_add_ps(a, b), c);
+}
 // cross(v4, v4)'s products and differences, a coordinate a register.
 TANDEM_AVX2_INLINE Soa8 cross8(const Soa8& a, const Soa8& b) {
   return {_mm256_sub_ps(_mm256_mul_ps(a.y, b.z), _mm256_mul_ps(a.z, b.y)),
@@ -311,10 +373,16 @@ TANDEM_AVX2_INLINE void blend_influence8(__m256 weights, const JointMatrix& lo,
 }
 
 TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const Job& job,
-                                                                          size_t begin,
-                                                                          size_t end) {
+                                                                          size_t begin, size_t end,
+                                                                          BlockBox* box) {
   const MeshDeformation& d = job.d;
   const JointMatrix* palette = job.rows;
+  // The box of the positions, lane by lane from the registers (grow_box()'s
+  // minimum, maximum and x - x sum; the order of a minimum does not matter
+  // but for the sign of a zero, which the caller's box makes positive).
+  Soa8 lo{_mm256_set1_ps(kInf), _mm256_set1_ps(kInf), _mm256_set1_ps(kInf)};
+  Soa8 hi{_mm256_set1_ps(-kInf), _mm256_set1_ps(-kInf), _mm256_set1_ps(-kInf)};
+  __m256 bad = _mm256_setzero_ps();
   // Groups whose 16-byte loads of the eighth vertex stay inside the arrays.
   const size_t last = d.vertex_count() - 1;
   size_t v = begin;
@@ -345,6 +413,12 @@ TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const 
                   _mm256_add_ps(combine8(c[0].z, p.x, c[1].z, p.y, c[2].z, p.z), c[3].z)};
     store_soa8(&job.out.positions[v].x, sp);
     if (job.kernel_positions != nullptr) store_soa8(&job.kernel_positions[v].x, sp);
+    if (box != nullptr) {
+      lo = {_mm256_min_ps(sp.x, lo.x), _mm256_min_ps(sp.y, lo.y), _mm256_min_ps(sp.z, lo.z)};
+      hi = {_mm256_max_ps(sp.x, hi.x), _mm256_max_ps(sp.y, hi.y), _mm256_max_ps(sp.z, hi.z)};
+      bad = _mm256_add_ps(bad, add3_8(_mm256_sub_ps(sp.x, sp.x), _mm256_sub_ps(sp.y, sp.y),
+                                      _mm256_sub_ps(sp.z, sp.z)));
+    }
     // The cofactor columns, the determinant's sign, the skinned normal.
     const Soa8 k0 = cross8(c[1], c[2]), k1 = cross8(c[2], c[0]), k2 = cross8(c[0], c[1]);
     const __m256 det = combine8(c[0].x, k0.x, c[0].y, k0.y, c[0].z, k0.z);
@@ -369,20 +443,33 @@ TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const 
     store_soa8(&job.out.normals[v].x, un);
     if (job.kernel_normals != nullptr) store_soa8(&job.kernel_normals[v].x, un);
   }
+  if (box != nullptr) {
+    alignas(32) float l[3][8], h[3][8], n[8];
+    _mm256_store_ps(l[0], lo.x), _mm256_store_ps(l[1], lo.y), _mm256_store_ps(l[2], lo.z);
+    _mm256_store_ps(h[0], hi.x), _mm256_store_ps(h[1], hi.y), _mm256_store_ps(h[2], hi.z);
+    _mm256_store_ps(n, bad);
+    BlockBox lanes = kEmptyBox;
+    for (int k = 0; k < 8; ++k) {
+      join_box(lanes, {{l[0][k], l[1][k], l[2][k]}, {h[0][k], h[1][k], h[2][k]}, n[k] == 0.0f});
+    }
+    join_box(*box, lanes);
+  }
   // The rest one vertex at a time (still AVX2's encoding: flatten).
-  deform_block<true, false, true, false, 4>(job, v, end);
+  deform_block<true, false, true, false, 4>(job, v, end, box);
   normalise_block(job, v, end);
 }
 #undef TANDEM_AVX2_INLINE
 #endif
 
 template <bool kSkin, bool kMorph, bool kNormals, bool kTangents, uint32_t kInfluences = 0>
-void deform_and_normalise_block(const Job& job, size_t begin, size_t end) {
-  deform_block<kSkin, kMorph, kNormals, kTangents, kInfluences>(job, begin, end);
+void deform_and_normalise_block(const Job& job, size_t begin, size_t end, BlockBox* box) {
+  deform_block<kSkin, kMorph, kNormals, kTangents, kInfluences>(job, begin, end, box);
   normalise_block(job, begin, end);
 }
 
-using BlockFn = void (*)(const Job&, size_t, size_t);
+// A block of vertices [begin, end); with `box` (only when writing the
+// kernel arrays), the box of their positions added to it.
+using BlockFn = void (*)(const Job&, size_t, size_t, BlockBox*);
 
 template <bool kSkin, bool kMorph>
 BlockFn pick(bool normals, bool tangents, uint32_t influences) {
@@ -415,63 +502,6 @@ struct KernelTarget {
   Vec3* normals = nullptr;
   Vec4* tangents = nullptr;
 };
-
-// The box of positions [begin, end) of a block just written (in the cache),
-// with the comparisons of the compiler's copy_positions_with_bounds() in
-// the same order: for finite positions min and max do not depend on the
-// order, and the compiler's positive_zeros() makes -0 and +0 alike, so the
-// box is the one the compiler would have taken.
-struct BlockBox {
-  float lo[3], hi[3];
-  bool finite;
-};
-constexpr float kInf = std::numeric_limits<float>::infinity();
-constexpr BlockBox kEmptyBox{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, true};
-// The compiler's RunningBox, started from the box so far: the path where
-// there is no SSE (compiled everywhere, so it cannot rot unbuilt).
-[[maybe_unused]] void grow_box_scalar(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
-  RunningBox r;
-  r.lx = b.lo[0], r.ly = b.lo[1], r.lz = b.lo[2];
-  r.hx = b.hi[0], r.hy = b.hi[1], r.hz = b.hi[2];
-  r.finite = b.finite;
-  for (size_t v = begin; v < end; ++v)
-    r.add(p[v].x, p[v].y, p[v].z);
-  b = {{r.lx, r.ly, r.lz}, {r.hx, r.hy, r.hz}, r.finite};
-}
-void grow_box(BlockBox& b, const Vec3* p, size_t begin, size_t end) {
-#if defined(__SSE__)
-  // One 16-byte load a vertex (the kernel positions have a readable element
-  // past the last one; lane 3 is ignored): minps(x, lo) is x < lo ? x : lo
-  // and maxps(x, hi) is hi < x ? x : hi, grow_box_scalar()'s comparisons lane
-  // by lane. x - x is 0 for a finite x and NaN otherwise, and the NaN stays
-  // in the sum.
-  __m128 lo = _mm_setr_ps(b.lo[0], b.lo[1], b.lo[2], 0.0f);
-  __m128 hi = _mm_setr_ps(b.hi[0], b.hi[1], b.hi[2], 0.0f);
-  __m128 bad = _mm_setzero_ps();
-  for (size_t v = begin; v < end; ++v) {
-    const __m128 x = _mm_loadu_ps(&p[v].x);
-    lo = _mm_min_ps(x, lo);
-    hi = _mm_max_ps(x, hi);
-    bad = _mm_add_ps(bad, _mm_sub_ps(x, x));
-  }
-  alignas(16) float l[4], h[4], n[4];
-  _mm_store_ps(l, lo);
-  _mm_store_ps(h, hi);
-  _mm_store_ps(n, bad);
-  b = {{l[0], l[1], l[2]},
-       {h[0], h[1], h[2]},
-       b.finite && n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f};
-#else
-  grow_box_scalar(b, p, begin, end);
-#endif
-}
-void join_box(BlockBox& a, const BlockBox& b) {
-  for (int k = 0; k < 3; ++k) {
-    a.lo[k] = b.lo[k] < a.lo[k] ? b.lo[k] : a.lo[k];
-    a.hi[k] = a.hi[k] < b.hi[k] ? b.hi[k] : a.hi[k];
-  }
-  a.finite = a.finite && b.finite;
-}
 
 // deform_mesh(), also writing the vertices into `kernel` (when not null)
 // and then returning their box in `box`; false when nothing was written
@@ -517,17 +547,18 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
                              : (morph ? pick<false, true>(normals, tangents, d.influences)
                                       : pick<false, false>(normals, tangents, d.influences));
   if (kernel == nullptr) {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices, kBlock),
-                      [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end()); });
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, vertices, kBlock),
+        [&](const tbb::blocked_range<size_t>& r) { fn(job, r.begin(), r.end(), nullptr); });
     return true;
   }
-  // The box of each block while its positions are still in the cache: the
-  // compiler, which no longer reads them, would have taken it.
+  // The box of each block, taken while its positions are still in the
+  // cache (or in registers): the compiler, which no longer reads them,
+  // would have taken it.
   const BlockBox all = tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, vertices, kBlock), kEmptyBox,
       [&](const tbb::blocked_range<size_t>& r, BlockBox acc) {
-        fn(job, r.begin(), r.end());
-        grow_box(acc, kernel->positions, r.begin(), r.end());
+        fn(job, r.begin(), r.end(), &acc);
         return acc;
       },
       [](BlockBox a, const BlockBox& b) {

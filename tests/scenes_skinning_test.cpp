@@ -715,65 +715,70 @@ TEST(MeshDeformer, AnUnchangedPoseIsNeitherSkinnedNorRefitAgain) {
 // gives bit for bit the arrays, the delta and the bounds of the compiler's
 // copy, and falls back to the copy when the mesh has another edit pending.
 TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
-  for (const char* name : {"skinned-grid", "arena"}) {
-    SCOPED_TRACE(name);
-    auto make = [&] {
-      return std::string(name) == "arena" ? make_builtin_scene("arena")
-                                          : make_skinned_grid_scene(60);
-    };
-    Scene a = make(), b = make();
-    uint32_t rig = 0;  // a deforming mesh
-    while (rig + 1 < a.meshes().size() && a.meshes()[rig].name.rfind("rig.", 0) != 0)
-      ++rig;
-    auto anim_a = make_scene_animator(a), anim_b = make_scene_animator(b);
-    KernelScene ka, kb;
-    SceneCompiler ca, cb;
-    const RenderSettings settings;
-    size_t written = 0;
-    for (int f = 0; f < 6; ++f) {
-      const double t = 0.1 + 0.23 * f;
-      if (f == 3) {  // an edit before the pose: the copy path
-        for (Scene* s : {&a, &b})
-          s->edit_mesh_vertices(rig, 5, 2).positions[5].x += 0.25f;
-      }
-      anim_a->pose(t, a);
-      anim_b->pose_into(t, b, &kb);
-      for (uint32_t m = 0; m < b.meshes().size() && f > 0; ++m) {
-        if (m < kb.vertices_written.size() && kb.vertices_written[m] != 0 &&
-            kb.vertices_written[m] == b.mesh_vertex_version(m)) {
-          ++written;
-          EXPECT_FALSE(f == 3 && m == rig) << "the mesh had an edit pending";
+  const DeformIsaChoice saved = deform_isa;
+  for (const bool avx2 : {false, true})
+    for (const char* name : {"skinned-grid", "arena"}) {
+      if (avx2 && !host_cpu_has_avx2()) continue;
+      deform_isa.avx2 = avx2;
+      SCOPED_TRACE(std::string(name) + (avx2 ? " AVX2" : " baseline"));
+      auto make = [&] {
+        return std::string(name) == "arena" ? make_builtin_scene("arena")
+                                            : make_skinned_grid_scene(60);
+      };
+      Scene a = make(), b = make();
+      uint32_t rig = 0;  // a deforming mesh
+      while (rig + 1 < a.meshes().size() && a.meshes()[rig].name.rfind("rig.", 0) != 0)
+        ++rig;
+      auto anim_a = make_scene_animator(a), anim_b = make_scene_animator(b);
+      KernelScene ka, kb;
+      SceneCompiler ca, cb;
+      const RenderSettings settings;
+      size_t written = 0;
+      for (int f = 0; f < 6; ++f) {
+        const double t = 0.1 + 0.23 * f;
+        if (f == 3) {  // an edit before the pose: the copy path
+          for (Scene* s : {&a, &b})
+            s->edit_mesh_vertices(rig, 5, 2).positions[5].x += 0.25f;
         }
+        anim_a->pose(t, a);
+        anim_b->pose_into(t, b, &kb);
+        for (uint32_t m = 0; m < b.meshes().size() && f > 0; ++m) {
+          if (m < kb.vertices_written.size() && kb.vertices_written[m] != 0 &&
+              kb.vertices_written[m] == b.mesh_vertex_version(m)) {
+            ++written;
+            EXPECT_FALSE(f == 3 && m == rig) << "the mesh had an edit pending";
+          }
+        }
+        const SceneDelta da = ca.compile(a, settings, ka), db = cb.compile(b, settings, kb);
+        auto same_bytes = [](const auto& x, const auto& y) {
+          // (memcmp of an empty vector's null data() is undefined.)
+          return x.size() == y.size() &&
+                 (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
+        };
+        EXPECT_TRUE(same_bytes(ka.positions, kb.positions)) << f;
+        EXPECT_TRUE(same_bytes(ka.normals, kb.normals)) << f;
+        EXPECT_TRUE(same_bytes(ka.tangents, kb.tangents)) << f;
+        EXPECT_TRUE(same_bytes(ka.uv0, kb.uv0)) << f;
+        auto same_change = [](const ArrayChange& x, const ArrayChange& y) {
+          std::vector<uint32_t> rx, ry;
+          x.for_each_range([&](uint32_t b0, uint32_t e0) { rx.insert(rx.end(), {b0, e0}); });
+          y.for_each_range([&](uint32_t b0, uint32_t e0) { ry.insert(ry.end(), {b0, e0}); });
+          return rx == ry && x.reallocated == y.reallocated;
+        };
+        EXPECT_TRUE(same_change(da.positions, db.positions)) << f;
+        EXPECT_TRUE(same_change(da.normals, db.normals)) << f;
+        EXPECT_TRUE(same_change(da.tangents, db.tangents)) << f;
+        EXPECT_EQ(da.meshes_refit, db.meshes_refit) << f;
+        EXPECT_EQ(da.bytes(ka), db.bytes(kb)) << f;
+        const SceneBounds ba = a.bounds(), bb = b.bounds();
+        EXPECT_EQ(std::memcmp(&ba.lo, &bb.lo, sizeof(ba.lo)), 0) << f;
+        EXPECT_EQ(std::memcmp(&ba.hi, &bb.hi, sizeof(ba.hi)), 0) << f;
+        for (uint32_t m = 0; m < a.meshes().size(); ++m)
+          EXPECT_EQ(a.meshes()[m].positions, b.meshes()[m].positions) << m;
       }
-      const SceneDelta da = ca.compile(a, settings, ka), db = cb.compile(b, settings, kb);
-      auto same_bytes = [](const auto& x, const auto& y) {
-        // (memcmp of an empty vector's null data() is undefined.)
-        return x.size() == y.size() &&
-               (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
-      };
-      EXPECT_TRUE(same_bytes(ka.positions, kb.positions)) << f;
-      EXPECT_TRUE(same_bytes(ka.normals, kb.normals)) << f;
-      EXPECT_TRUE(same_bytes(ka.tangents, kb.tangents)) << f;
-      EXPECT_TRUE(same_bytes(ka.uv0, kb.uv0)) << f;
-      auto same_change = [](const ArrayChange& x, const ArrayChange& y) {
-        std::vector<uint32_t> rx, ry;
-        x.for_each_range([&](uint32_t b0, uint32_t e0) { rx.insert(rx.end(), {b0, e0}); });
-        y.for_each_range([&](uint32_t b0, uint32_t e0) { ry.insert(ry.end(), {b0, e0}); });
-        return rx == ry && x.reallocated == y.reallocated;
-      };
-      EXPECT_TRUE(same_change(da.positions, db.positions)) << f;
-      EXPECT_TRUE(same_change(da.normals, db.normals)) << f;
-      EXPECT_TRUE(same_change(da.tangents, db.tangents)) << f;
-      EXPECT_EQ(da.meshes_refit, db.meshes_refit) << f;
-      EXPECT_EQ(da.bytes(ka), db.bytes(kb)) << f;
-      const SceneBounds ba = a.bounds(), bb = b.bounds();
-      EXPECT_EQ(std::memcmp(&ba.lo, &bb.lo, sizeof(ba.lo)), 0) << f;
-      EXPECT_EQ(std::memcmp(&ba.hi, &bb.hi, sizeof(ba.hi)), 0) << f;
-      for (uint32_t m = 0; m < a.meshes().size(); ++m)
-        EXPECT_EQ(a.meshes()[m].positions, b.meshes()[m].positions) << m;
+      EXPECT_GT(written, 0u) << "the direct path was never taken";
     }
-    EXPECT_GT(written, 0u) << "the direct path was never taken";
-  }
+  deform_isa = saved;
 }
 
 }  // namespace
