@@ -158,25 +158,63 @@ const std::vector<WalkerPath>& arena_walker_paths() {
   return paths;
 }
 
+namespace {
+
+// The number of each grid point (i, j): its rank in Morton (Z) order, so
+// that points near each other on the sheet are near each other in memory.
+// Row by row, a triangle's vertices lay a row (12 KB of positions) apart,
+// so the refit's gathers over a BVH leaf touched a page a row; exporters
+// number a real mesh's vertices by a cache-friendly walk of its triangles,
+// which keeps neighbours close as this does.
+std::vector<uint32_t> grid_vertex_numbers(uint32_t resolution) {
+  const auto spread = [](uint32_t x) {  // bit b of x (< 2^16) to bit 2b
+    uint64_t r = 0;
+    for (int b = 0; b < 16; ++b)
+      r |= uint64_t((x >> b) & 1u) << (2 * b);
+    return r;
+  };
+  // The Morton code above the point's row-major index, sorted as one
+  // integer (a grid has fewer than 2^32 points, so i, j < 2^16).
+  const size_t n = size_t(resolution) * resolution;
+  std::vector<uint64_t> keys(n);
+  for (uint32_t j = 0; j < resolution; ++j) {
+    for (uint32_t i = 0; i < resolution; ++i) {
+      const size_t p = size_t(j) * resolution + i;
+      keys[p] = (spread(i) | spread(j) << 1) << 32 | p;
+    }
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<uint32_t> number(n);
+  for (size_t rank = 0; rank < n; ++rank)
+    number[keys[rank] & 0xffffffffu] = uint32_t(rank);
+  return number;
+}
+
+}  // namespace
+
 ProceduralRig make_skinned_grid_rig(uint32_t resolution, uint32_t material) {
   resolution = std::max(resolution, 2u);
   ProceduralRig rig;
   Mesh& m = rig.mesh;
   m.name = "rig.skinned-grid";
   const size_t n = size_t(resolution) * resolution;
+  // number[j * resolution + i]: the vertex of grid point (i, j).
+  const std::vector<uint32_t> number = grid_vertex_numbers(resolution);
   m.positions.resize(n);
   m.normals.assign(n, glm::vec3(0.0f, 1.0f, 0.0f));
   for (uint32_t j = 0; j < resolution; ++j) {
     for (uint32_t i = 0; i < resolution; ++i) {
-      m.positions[size_t(j) * resolution + i] = {-5.0f + 10.0f * float(i) / float(resolution - 1),
-                                                 0.0f,
-                                                 -5.0f + 10.0f * float(j) / float(resolution - 1)};
+      m.positions[number[size_t(j) * resolution + i]] = {
+          -5.0f + 10.0f * float(i) / float(resolution - 1), 0.0f,
+          -5.0f + 10.0f * float(j) / float(resolution - 1)};
     }
   }
   m.triangles.reserve(size_t(resolution - 1) * (resolution - 1) * 2);
   for (uint32_t j = 0; j + 1 < resolution; ++j) {
     for (uint32_t i = 0; i + 1 < resolution; ++i) {
-      const uint32_t a = j * resolution + i, b = a + 1, c = a + resolution, e = c + 1;
+      const uint32_t p = j * resolution + i;
+      const uint32_t a = number[p], b = number[p + 1], c = number[p + resolution],
+                     e = number[p + resolution + 1];
       m.triangles.push_back({a, c, b});  // counter-clockwise seen from +y
       m.triangles.push_back({b, c, e});
     }
@@ -199,7 +237,7 @@ ProceduralRig make_skinned_grid_rig(uint32_t resolution, uint32_t material) {
     const float b[4] = {(1 - f) * (1 - f) * (1 - f) / 6.0f, (3 * f * f * f - 6 * f * f + 4) / 6.0f,
                         (-3 * f * f * f + 3 * f * f + 3 * f + 1) / 6.0f, f * f * f / 6.0f};
     for (uint32_t j = 0; j < resolution; ++j) {
-      const size_t v = size_t(j) * resolution + i;
+      const size_t v = number[size_t(j) * resolution + i];
       for (int s = 0; s < 4; ++s) {
         d.joints[4 * v + size_t(s)] = uint16_t(std::clamp(k - 1 + s, 0, int(kGridJoints) - 1));
         d.weights[4 * v + size_t(s)] = b[s];
