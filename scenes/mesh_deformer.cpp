@@ -1,6 +1,6 @@
 #include "scenes/mesh_deformer.h"
 
-#include "core/util/host_isa.h"
+#include "core/kernel/host_isa.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/running_box.h"
 

@@ -20,8 +20,8 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "core/kernel/host_isa.h"
 #include "core/util/errors.h"
-#include "core/util/host_isa.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/gltf_animation.h"

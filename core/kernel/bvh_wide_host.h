@@ -12,7 +12,7 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#include "core/util/host_isa.h"
+#include "core/kernel/host_isa.h"
 
 namespace tandem {
 

@@ -1,3 +1,4 @@
+// Host-only (outside nvcc), beside the host traversal that first needed it.
 // The host's instruction sets beyond the x86-64 baseline the build targets:
 // hot loops compiled a second time for AVX2 (without FMA: a contraction
 // would change a product's rounding, and both copies must give the same
