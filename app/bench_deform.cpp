@@ -96,7 +96,7 @@ const char* config_name(DeformConfig c) {
 size_t deformed_vertices(const Scene& scene) {
   size_t n = 0;
   for (uint32_t m : scene.dirty_meshes()) {
-    if (scene.mesh_dirty()[m] & kDirtyVertices) n += scene.meshes()[m].positions.size();
+    if (scene.mesh_dirty()[m] & kDirtyVertices) n += scene.mesh_vertex_count(m);
   }
   return n;
 }

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 
 #if defined(__SSE__)
 #include <xmmintrin.h>
@@ -173,25 +174,34 @@ struct Job {
   const JointMatrix* rows;  // the same palette as given (rows); null: not skinned
   const std::vector<ActiveTarget>& active;
   bool morph_p, morph_n, morph_t;
-  Mesh& out;
+  // The Scene mesh's arrays; null: not written (only the kernel's). Normals
+  // and tangents are null too when the mesh has none.
+  glm::vec3* out_positions = nullptr;
+  glm::vec3* out_normals = nullptr;
+  glm::vec4* out_tangents = nullptr;
   // The same vertices in a KernelScene's arrays (the mesh's first vertex),
-  // written from the same registers; null: only `out`.
+  // written from the same registers; null: only the Scene's.
   Vec3* kernel_positions = nullptr;
   Vec3* kernel_normals = nullptr;
   Vec4* kernel_tangents = nullptr;
 };
 
 inline void put_position(const Job& job, size_t v, const glm::vec3& p) {
-  job.out.positions[v] = p;
+  if (job.out_positions != nullptr) job.out_positions[v] = p;
   if (job.kernel_positions != nullptr) job.kernel_positions[v] = {p.x, p.y, p.z};
 }
 inline void put_normal(const Job& job, size_t v, const glm::vec3& n) {
-  job.out.normals[v] = n;
+  if (job.out_normals != nullptr) job.out_normals[v] = n;
   if (job.kernel_normals != nullptr) job.kernel_normals[v] = {n.x, n.y, n.z};
 }
 inline void put_tangent(const Job& job, size_t v, const glm::vec4& t) {
-  job.out.tangents[v] = t;
+  if (job.out_tangents != nullptr) job.out_tangents[v] = t;
   if (job.kernel_tangents != nullptr) job.kernel_tangents[v] = {t.x, t.y, t.z, t.w};
+}
+// Where a skinned normal waits, not yet normalised, for normalise_block():
+// the first of the two copies that is written.
+inline float* unnormalised_normal(const Job& job, size_t v) {
+  return job.out_normals != nullptr ? &job.out_normals[v].x : &job.kernel_normals[v].x;
 }
 
 // One block of vertices; the template flags take every per-mesh decision
@@ -247,7 +257,9 @@ void deform_block(const Job& job, size_t begin, size_t end, BlockBox* box) {
       if (kMorph) {
         put_normal(job, v, normalised_or_kept(sn, normalised_or_kept(n, n)));
       } else {
-        job.out.normals[v] = store3(sn);  // normalised below, four at a time
+        const glm::vec3 raw = store3(sn);  // normalised below, four at a time
+        float* slot = unnormalised_normal(job, v);
+        slot[0] = raw.x, slot[1] = raw.y, slot[2] = raw.z;
       }
     }
     if (kTangents) {
@@ -259,21 +271,24 @@ void deform_block(const Job& job, size_t begin, size_t end, BlockBox* box) {
   if (box != nullptr) grow_box(*box, job.kernel_positions, begin, end);
 }
 
-// normalised_or_kept() of the skinned normals a block left in out.normals,
+// normalised_or_kept() of the skinned normals a block left unnormalised,
 // the unmorphed base normal kept where one collapsed. Four at a time: one
 // vertex at a time, the chain of dot product, reciprocal square root and
 // Newton step was half the skinning time, each vertex waiting for its own.
 // Bit for bit the one-at-a-time result: the packed estimate and the same
 // operations in the same order, lane by lane.
 void normalise_block(const Job& job, size_t begin, size_t end) {
-  glm::vec3* out = job.out.normals.data();
   const glm::vec3* base = job.d.base_normals.data();
+  auto raw = [&](size_t v) {
+    const float* n = unnormalised_normal(job, v);
+    return glm::vec3(n[0], n[1], n[2]);
+  };
   size_t v = begin;
 #if defined(__SSE__)
   for (; v + 4 <= end; v += 4) {
     alignas(16) float len2[4], inv[4];
     for (int k = 0; k < 4; ++k)
-      len2[k] = dot3(load3(out[v + k]), load3(out[v + k]));
+      len2[k] = dot3(load3(raw(v + k)), load3(raw(v + k)));
     const __m128 x = _mm_load_ps(len2);
     const __m128 r = _mm_rsqrt_ps(x);
     const __m128 nr =
@@ -282,13 +297,13 @@ void normalise_block(const Job& job, size_t begin, size_t end) {
     _mm_store_ps(inv, nr);
     for (int k = 0; k < 4; ++k) {
       put_normal(job, v + k,
-                 len2[k] > 1e-30f && len2[k] < 1e30f ? store3(load3(out[v + k]) * splat(inv[k]))
+                 len2[k] > 1e-30f && len2[k] < 1e30f ? store3(load3(raw(v + k)) * splat(inv[k]))
                                                      : base[v + k]);
     }
   }
 #endif
   for (; v < end; ++v)
-    put_normal(job, v, normalised_or_kept(load3(out[v]), base[v]));
+    put_normal(job, v, normalised_or_kept(load3(raw(v)), base[v]));
 }
 
 #if TANDEM_HOST_AVX2
@@ -411,7 +426,7 @@ TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const 
     const Soa8 sp{_mm256_add_ps(combine8(c[0].x, p.x, c[1].x, p.y, c[2].x, p.z), c[3].x),
                   _mm256_add_ps(combine8(c[0].y, p.x, c[1].y, p.y, c[2].y, p.z), c[3].y),
                   _mm256_add_ps(combine8(c[0].z, p.x, c[1].z, p.y, c[2].z, p.z), c[3].z)};
-    store_soa8(&job.out.positions[v].x, sp);
+    if (job.out_positions != nullptr) store_soa8(&job.out_positions[v].x, sp);
     if (job.kernel_positions != nullptr) store_soa8(&job.kernel_positions[v].x, sp);
     if (box != nullptr) {
       lo = {_mm256_min_ps(sp.x, lo.x), _mm256_min_ps(sp.y, lo.y), _mm256_min_ps(sp.z, lo.z)};
@@ -440,7 +455,7 @@ TANDEM_TARGET_AVX2 __attribute__((flatten)) void skin4_normals_block_avx2(const 
     const Soa8 un{_mm256_blendv_ps(n.x, _mm256_mul_ps(sn.x, inv), ok),
                   _mm256_blendv_ps(n.y, _mm256_mul_ps(sn.y, inv), ok),
                   _mm256_blendv_ps(n.z, _mm256_mul_ps(sn.z, inv), ok)};
-    store_soa8(&job.out.normals[v].x, un);
+    if (job.out_normals != nullptr) store_soa8(&job.out_normals[v].x, un);
     if (job.kernel_normals != nullptr) store_soa8(&job.kernel_normals[v].x, un);
   }
   if (box != nullptr) {
@@ -503,15 +518,24 @@ struct KernelTarget {
   Vec4* tangents = nullptr;
 };
 
-// deform_mesh(), also writing the vertices into `kernel` (when not null)
-// and then returning their box in `box`; false when nothing was written
-// or a position is not finite.
+// deform_mesh() into `out` (when not null) and into `kernel` (when not
+// null: then also returning their box in `box`); false when nothing was
+// written or a position is not finite. With both, the attributes written
+// are those `out` has.
 bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
-                 Mesh& out, const KernelTarget* kernel, SceneBounds* box) {
+                 Mesh* out, const KernelTarget* kernel, SceneBounds* box) {
   const size_t vertices = d.vertex_count();
-  if (out.positions.size() != vertices) return false;  // not the mesh it was made for
-  const bool normals = !d.base_normals.empty() && out.normals.size() == vertices;
-  const bool tangents = !d.base_tangents.empty() && out.tangents.size() == vertices;
+  bool normals = false, tangents = false;
+  if (out != nullptr) {
+    if (out->positions.size() != vertices) return false;  // not the mesh it was made for
+    normals = !d.base_normals.empty() && out->normals.size() == vertices;
+    tangents = !d.base_tangents.empty() && out->tangents.size() == vertices;
+  } else if (kernel != nullptr) {
+    normals = kernel->normals != nullptr;
+    tangents = kernel->tangents != nullptr;
+  } else {
+    return false;
+  }
   // Only targets with a non-zero weight cost anything per vertex.
   std::vector<ActiveTarget> active;
   if (morph_weights != nullptr) {
@@ -534,8 +558,12 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
           active,
           !d.position_deltas.empty(),
           normals && !d.normal_deltas.empty(),
-          tangents && !d.tangent_deltas.empty(),
-          out};
+          tangents && !d.tangent_deltas.empty()};
+  if (out != nullptr) {
+    job.out_positions = out->positions.data();
+    job.out_normals = normals ? out->normals.data() : nullptr;
+    job.out_tangents = tangents ? out->tangents.data() : nullptr;
+  }
   if (kernel != nullptr) {
     job.kernel_positions = kernel->positions;
     job.kernel_normals = normals ? kernel->normals : nullptr;
@@ -573,56 +601,83 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
   return true;
 }
 
-// The mesh's place in `ks`, when ks holds it as compiled from `mesh` with
-// every array the deformation writes.
-bool kernel_target(KernelScene& ks, const MeshDeformation& d, const Mesh& mesh, KernelTarget* out) {
+// The mesh's place in `ks`, when ks holds it as compiled with every array
+// the deformation writes (the mesh's flags there say which it has: the
+// Scene's arrays are not looked at, their copy may be deferred).
+bool kernel_target(KernelScene& ks, const MeshDeformation& d, size_t scene_vertices,
+                   KernelTarget* out) {
   if (d.mesh >= ks.meshes.size() || ks.vertices_written.size() != ks.meshes.size()) return false;
   const KMesh& km = ks.meshes[d.mesh];
   const size_t n = d.vertex_count(), first = km.vertex_offset;
-  if (km.vertex_count != n || mesh.positions.size() != n || first + n > ks.positions.size())
-    return false;
+  if (km.vertex_count != n || scene_vertices != n || first + n > ks.positions.size()) return false;
   out->positions = ks.positions.data() + first;
-  if (!d.base_normals.empty() && mesh.normals.size() == n) {
+  if (!d.base_normals.empty() && (km.flags & kMeshHasNormals)) {
     if (first + n > ks.normals.size()) return false;
     out->normals = ks.normals.data() + first;
   }
-  if (!d.base_tangents.empty() && mesh.tangents.size() == n) {
+  if (!d.base_tangents.empty() && (km.flags & kMeshHasTangents)) {
     if (first + n > ks.tangents.size()) return false;
     out->tangents = ks.tangents.data() + first;
   }
   return true;
 }
 
+// The Scene's copy of a pose written only into the kernel arrays: the same
+// deformation again, run when something reads the Scene mesh (most frames
+// nothing does). It holds the deformation, so the animator may go first.
+struct DeferredPose {
+  std::shared_ptr<const MeshDeformation> d;
+  std::vector<JointMatrix> palette;  // empty: not skinned
+  std::vector<float> morph_weights;  // empty: none given
+  void operator()(Mesh& out) const {
+    deform_mesh(*d, palette.empty() ? nullptr : palette.data(),
+                morph_weights.empty() ? nullptr : morph_weights.data(), out);
+  }
+};
+
+// Writes the pose into the Scene mesh (marked edited; the compiler copies
+// it), or, with `shared` and `kernel`, where the kernel arrays hold the mesh
+// as compiled and no other edit of its vertices is pending, into the
+// kernel arrays alone: their box goes to the scene's bounds cache,
+// KernelScene::vertices_written is set, and the Scene's copy is left to a
+// DeferredPose (Scene::defer_mesh_vertices()).
+void write_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
+                const JointMatrix* palette, const float* morph_weights, Scene& scene,
+                KernelScene* kernel) {
+  if (d.mesh >= scene.mesh_count()) return;
+  const bool clean = !(scene.mesh_dirty()[d.mesh] & kDirtyVertices);
+  KernelTarget target;
+  SceneBounds box;
+  if (shared == nullptr || kernel == nullptr || !clean ||
+      !kernel_target(*kernel, d, scene.mesh_vertex_count(d.mesh), &target) ||
+      !deform_into(d, palette, morph_weights, nullptr, &target, &box)) {
+    // (Also where a position came out not finite: the compiler's copy then
+    // decides, as for any edit, what the kernel arrays get.)
+    deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
+    return;
+  }
+  DeferredPose pose{*shared, {}, {}};
+  if (d.skinned() && palette != nullptr) pose.palette.assign(palette, palette + d.palette_size);
+  if (morph_weights != nullptr) pose.morph_weights.assign(morph_weights, morph_weights + d.targets);
+  scene.defer_mesh_vertices(d.mesh, std::move(pose));
+  scene.note_mesh_vertex_bounds(d.mesh, box);
+  kernel->vertices_written[d.mesh] = scene.mesh_vertex_version(d.mesh);
+}
+
 }  // namespace
 
 void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
                  Mesh& out) {
-  deform_into(d, palette, morph_weights, out, nullptr, nullptr);
+  deform_into(d, palette, morph_weights, &out, nullptr, nullptr);
 }
 
-void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, KernelScene* kernel) {
-  if (d.mesh >= scene.meshes().size()) return;
-  // Straight into the kernel arrays only when they hold everything else of
-  // the mesh already: no edit of its vertices since the last compile.
-  const bool clean = !(scene.mesh_dirty()[d.mesh] & kDirtyVertices);
-  Mesh& mesh = scene.edit_mesh_vertices(d.mesh);
-  KernelTarget target;
-  if (kernel == nullptr || !clean || !kernel_target(*kernel, d, mesh, &target)) {
-    deform_mesh(d, palette, morph_weights, mesh);
-    return;
-  }
-  SceneBounds box;
-  if (deform_into(d, palette, morph_weights, mesh, &target, &box)) {
-    scene.note_mesh_vertex_bounds(d.mesh, box);
-    kernel->vertices_written[d.mesh] = scene.mesh_vertex_version(d.mesh);
-  }
-}
+namespace {
 
-bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, DeformedPose& last,
-                       KernelScene* kernel) {
-  if (d.mesh >= scene.meshes().size()) return false;
+// The DeformedPose check around write_pose().
+bool write_new_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
+                    const JointMatrix* palette, const float* morph_weights, Scene& scene,
+                    DeformedPose& last, KernelScene* kernel) {
+  if (d.mesh >= scene.mesh_count()) return false;
   const size_t joints = d.skinned() && palette != nullptr ? d.palette_size : 0;
   const size_t targets = morph_weights != nullptr ? d.targets : 0;
   const bool same_pose =
@@ -633,11 +688,25 @@ bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
       (targets == 0 ||
        std::memcmp(last.morph_weights.data(), morph_weights, targets * sizeof(float)) == 0);
   if (same_pose) return false;
-  deform_scene_mesh(d, palette, morph_weights, scene, kernel);
+  write_pose(d, shared, palette, morph_weights, scene, kernel);
   last.palette.assign(palette, palette + joints);
   last.morph_weights.assign(morph_weights, morph_weights + targets);
   last.vertex_version = scene.mesh_vertex_version(d.mesh);
   return true;
+}
+
+}  // namespace
+
+bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last) {
+  return write_new_pose(d, nullptr, palette, morph_weights, scene, last, nullptr);
+}
+
+bool deform_scene_mesh(const std::shared_ptr<const MeshDeformation>& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last,
+                       KernelScene* kernel) {
+  if (d == nullptr) return false;
+  return write_new_pose(*d, &d, palette, morph_weights, scene, last, kernel);
 }
 
 }  // namespace tandem

@@ -1,7 +1,9 @@
 // CPU mesh deformation: morph targets, then linear blend skinning (the
 // order glTF prescribes), evaluated every frame into the Scene's vertex
 // arrays through Scene::edit_mesh_vertices, so the compiler sees a
-// kDirtyVertices mesh and the BVH refits it (topology never changes).
+// kDirtyVertices mesh and the BVH refits it (topology never changes); or,
+// in a frame loop, straight into the compiled arrays, the Scene's copy
+// deferred until something reads it.
 //
 // A MeshDeformation holds what one deforming Scene mesh needs: its base
 // (bind-pose, unmorphed) vertices, per-vertex joint influences and the
@@ -19,6 +21,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -80,21 +83,6 @@ extern DeformIsaChoice deform_isa;
 void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
                  Mesh& out);
 
-// The same through Scene::edit_mesh_vertices(d.mesh), so the mesh is marked
-// kDirtyVertices.
-//
-// With `kernel` (the KernelScene the last SceneCompiler::compile() of this
-// scene wrote), the deformed vertices are also written straight into its
-// arrays from the same registers, their box handed to the scene's bounds
-// cache and KernelScene::vertices_written set, so the next compile marks
-// the ranges in the delta without copying the mesh (bit for bit the arrays
-// and the delta a copy would give). Only when the mesh has no vertex edit
-// pending and `kernel` holds it as compiled; otherwise as without it. The
-// caller must not let anything read `kernel` meanwhile (a frame still
-// rendering from it).
-void deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, KernelScene* kernel = nullptr);
-
 // What deform_scene_mesh() last wrote into its Scene mesh. A pose equal to
 // it (a paused or held clip, a rig at rest, the viewer redrawing one time)
 // is then neither skinned again nor, the mesh staying clean, refit.
@@ -103,11 +91,29 @@ struct DeformedPose {
   std::vector<float> morph_weights;  // empty: no weights given
   uint64_t vertex_version = 0;       // Scene::mesh_vertex_version() after the write; 0: none
 };
-// deform_scene_mesh() unless the mesh still holds (its vertex version is
-// last's) the same pose (bit for bit the same palette and weights); then it
-// is left alone, not marked dirty. Returns whether it deformed; updates last.
+
+// deform_mesh() into the Scene mesh d.mesh through Scene::edit_mesh_vertices,
+// so the mesh is marked kDirtyVertices and the compiler copies it, unless
+// the mesh still holds (its vertex version is last's) the same pose (bit
+// for bit the same palette and weights); then it is left alone, not marked
+// dirty. Returns whether it deformed; updates last.
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last);
+
+// The same, and with `kernel` (the KernelScene the last
+// SceneCompiler::compile() of this scene wrote) the deformed vertices go
+// straight into its arrays instead: their box is handed to the scene's
+// bounds cache and KernelScene::vertices_written set, so the next compile
+// marks the ranges in the delta without copying the mesh (bit for bit the
+// arrays and the delta a copy would give). The Scene mesh's own copy is
+// then not written but deferred (Scene::defer_mesh_vertices()): the same
+// deformation, kept alive by `d`, runs again when something reads the
+// Scene's vertices, which in a frame loop nothing does. Only when the mesh
+// has no vertex edit pending and `kernel` holds it as compiled; otherwise
+// as without it. The caller must not let anything read `kernel`
+// meanwhile (a frame still rendering from it).
+bool deform_scene_mesh(const std::shared_ptr<const MeshDeformation>& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene, DeformedPose& last,
-                       KernelScene* kernel = nullptr);
+                       KernelScene* kernel);
 
 }  // namespace tandem

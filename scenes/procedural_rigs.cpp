@@ -297,20 +297,22 @@ ProceduralRigPlayer::ProceduralRigPlayer(const Scene& scene) {
   for (uint32_t i = 0; i < scene.meshes().size(); ++i) {
     const Mesh& mesh = scene.meshes()[i];
     Rig rig;
+    MeshDeformation deformation;
     if (mesh.name == "rig.skinned-grid") {
       const uint32_t r = uint32_t(std::lround(std::sqrt(double(mesh.positions.size()))));
-      rig.deformation = make_skinned_grid_rig(r, 0).deformation;
+      deformation = make_skinned_grid_rig(r, 0).deformation;
     } else if (mesh.name.rfind(walker, 0) == 0) {
       const size_t index = std::strtoul(mesh.name.c_str() + walker.size(), nullptr, 10);
       if (index >= paths.size()) continue;
       rig.walker = int(index);
-      rig.deformation = make_walker_rig(0).deformation;
+      deformation = make_walker_rig(0).deformation;
     } else {
       continue;
     }
     // A mesh that only shares the name is left alone.
-    if (rig.deformation.vertex_count() != mesh.positions.size()) continue;
-    rig.deformation.mesh = i;
+    if (deformation.vertex_count() != mesh.positions.size()) continue;
+    deformation.mesh = i;
+    rig.deformation = std::make_shared<const MeshDeformation>(std::move(deformation));
     rigs_.push_back(std::move(rig));
   }
 }
@@ -318,7 +320,7 @@ ProceduralRigPlayer::ProceduralRigPlayer(const Scene& scene) {
 size_t ProceduralRigPlayer::vertex_count() const {
   size_t n = 0;
   for (const Rig& r : rigs_)
-    n += r.deformation.vertex_count();
+    n += r.deformation->vertex_count();
   return n;
 }
 

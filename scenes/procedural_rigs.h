@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -61,7 +62,8 @@ class ProceduralRigPlayer {
 
  private:
   struct Rig {
-    MeshDeformation deformation;
+    // Shared with the Scene copies' deferred writers (deform_scene_mesh()).
+    std::shared_ptr<const MeshDeformation> deformation;
     int walker = -1;            // index into arena_walker_paths(), -1: the grid
     mutable DeformedPose last;  // an unchanged pose is not deformed again
   };

@@ -742,11 +742,14 @@ TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
         }
         anim_a->pose(t, a);
         anim_b->pose_into(t, b, &kb);
-        for (uint32_t m = 0; m < b.meshes().size() && f > 0; ++m) {
+        for (uint32_t m = 0; m < b.mesh_count() && f > 0; ++m) {
           if (m < kb.vertices_written.size() && kb.vertices_written[m] != 0 &&
               kb.vertices_written[m] == b.mesh_vertex_version(m)) {
             ++written;
             EXPECT_FALSE(f == 3 && m == rig) << "the mesh had an edit pending";
+            // The Scene's copy is left to its deferred writer, run when
+            // b.meshes() is read below.
+            EXPECT_TRUE(b.mesh_vertices_deferred(m)) << m;
           }
         }
         const SceneDelta da = ca.compile(a, settings, ka), db = cb.compile(b, settings, kb);
@@ -779,6 +782,23 @@ TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
       EXPECT_GT(written, 0u) << "the direct path was never taken";
     }
   deform_isa = saved;
+}
+
+// The Scene's deferred copy of a pose written into the kernel arrays holds
+// what it needs: read after the animator that posed it is gone, it is the
+// pose, bit for bit that of a scene posed without the kernel arrays.
+TEST(MeshDeformer, TheDeferredSceneCopyOutlivesItsAnimator) {
+  Scene a = make_skinned_grid_scene(50), b = make_skinned_grid_scene(50);
+  KernelScene kb;
+  SceneCompiler cb;
+  cb.compile(b, RenderSettings{}, kb);
+  make_scene_animator(a)->pose(0.7, a);
+  make_scene_animator(b)->pose_into(0.7, b, &kb);
+  ASSERT_TRUE(b.mesh_vertices_deferred(0));
+  EXPECT_EQ(a.meshes()[0].positions, b.meshes()[0].positions);
+  EXPECT_EQ(a.meshes()[0].normals, b.meshes()[0].normals);
+  EXPECT_NE(b.meshes()[0].positions, make_skinned_grid_scene(50).meshes()[0].positions)
+      << "not the bind pose";
 }
 
 }  // namespace

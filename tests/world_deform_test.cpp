@@ -217,3 +217,82 @@ TEST(SceneDeform, ArrayChangeKeepsRangesApartAndMergesTheClosest) {
 
 }  // namespace
 }  // namespace tandem
+
+namespace tandem {
+namespace {
+
+// Scene::defer_mesh_vertices(): the mesh reads as written the moment it is
+// deferred, whoever reads it (meshes(), an edit, bounds(), the compiler, a
+// copy of the scene), and the writer runs once, only when something does.
+TEST(SceneDeform, DeferredVerticesAreWrittenOnceBeforeAnythingReadsThem) {
+  Scene scene = grid_scene(false);
+  SceneCompiler compiler;
+  KernelScene ks;
+  const RenderSettings settings;
+  compiler.compile(scene, settings, ks);
+  scene.bounds();  // the cache knows every vertex of the grid is used
+  Mesh expected = scene.meshes()[0];
+  deform_wave_grid(expected, kGrid, 0.4f);
+  int runs = 0;
+  auto writer = [&runs](float t) {
+    return [&runs, t](Mesh& m) {
+      ++runs;
+      deform_wave_grid(m, kGrid, t);
+    };
+  };
+
+  const uint64_t version = scene.mesh_vertex_version(0);
+  scene.defer_mesh_vertices(0, writer(0.9f));
+  scene.defer_mesh_vertices(0, writer(0.4f));  // replaces the first
+  EXPECT_TRUE(scene.mesh_vertices_deferred(0));
+  EXPECT_NE(scene.mesh_vertex_version(0), version);
+  EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
+  EXPECT_EQ(scene.mesh_dirty_vertices(0).end, scene.mesh_vertex_count(0));
+  EXPECT_EQ(scene.mesh_count(), 2u);
+  EXPECT_EQ(runs, 0) << "nothing read the vertices yet";
+
+  // A copy holds the deferred vertices too, written on its own.
+  Scene copy = scene;
+  // The compiler reads them (nothing wrote them into `ks`).
+  compiler.compile(scene, settings, ks);
+  EXPECT_EQ(runs, 1);
+  EXPECT_FALSE(scene.mesh_vertices_deferred(0));
+  EXPECT_TRUE(same_bytes(scene.meshes()[0].positions, expected.positions));
+  EXPECT_TRUE(same_bytes(scene.meshes()[0].normals, expected.normals));
+  const KMesh& km = ks.meshes[0];
+  EXPECT_EQ(std::memcmp(&ks.positions[km.vertex_offset + 7], &expected.positions[7], sizeof(Vec3)),
+            0);
+  EXPECT_EQ(runs, 1) << "written once";
+  EXPECT_TRUE(copy.mesh_vertices_deferred(0));
+  EXPECT_TRUE(same_bytes(copy.meshes()[0].positions, expected.positions));
+  EXPECT_EQ(runs, 2);
+
+  // An edit of a few vertices starts from the deferred ones.
+  scene.defer_mesh_vertices(0, writer(0.4f));
+  scene.edit_mesh_vertices(0, 3, 1).positions[3].y += 1.0f;
+  EXPECT_EQ(runs, 3);
+  EXPECT_EQ(scene.meshes()[0].positions[3].y, expected.positions[3].y + 1.0f);
+  EXPECT_EQ(scene.meshes()[0].positions[4], expected.positions[4]);
+  scene.defer_mesh_vertices(0, writer(0.4f));
+  EXPECT_EQ(scene.edit_mesh_vertices(0).positions[3], expected.positions[3]);  // the whole mesh
+  EXPECT_EQ(runs, 4);
+
+  // bounds() takes a box it was given and reads nothing; without one it
+  // reads the deferred vertices.
+  scene.defer_mesh_vertices(0, writer(0.4f));
+  SceneBounds box;
+  box.extend(glm::vec3(-50.0f));
+  box.extend(glm::vec3(50.0f));
+  scene.note_mesh_vertex_bounds(0, box);
+  EXPECT_EQ(scene.bounds().hi.x, 50.0f);
+  EXPECT_EQ(runs, 4);
+  EXPECT_TRUE(scene.mesh_vertices_deferred(0));
+  scene.defer_mesh_vertices(0, writer(0.4f));
+  const SceneBounds b = scene.bounds();
+  EXPECT_EQ(runs, 5);
+  EXPECT_LT(b.hi.x, 50.0f);
+  EXPECT_FALSE(scene.mesh_vertices_deferred(0));
+}
+
+}  // namespace
+}  // namespace tandem

@@ -167,20 +167,23 @@ void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& de
   std::sort(dirty.begin(), dirty.end());
   for (uint32_t i : dirty) {
     if (!(scene.mesh_dirty()[i] & kDirtyVertices)) continue;
-    const Mesh& mesh = scene.meshes()[i];
     const KMesh& km = out.meshes[i];
     // Only the edited vertices (Scene::edit_mesh_vertices with a range),
     // never past what the mesh was compiled with.
     const Scene::VertexRange r = scene.mesh_dirty_vertices(i);
-    const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(mesh.positions.size())});
+    const size_t count = scene.mesh_vertex_count(i);
+    const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(count)});
     if (end <= r.begin) continue;
-    const bool whole = r.begin == 0 && end == mesh.positions.size();
+    const bool whole = r.begin == 0 && end == count;
     // A deformer wrote this version of the vertices into `out` itself (and
-    // gave the bounds cache their box): only the delta is left to do.
+    // gave the bounds cache their box): only the delta is left to do, and
+    // the Scene's copy, which it may have left to a deferred writer, is
+    // not read.
     const bool written = whole && i < out.vertices_written.size() && out.vertices_written[i] != 0 &&
                          out.vertices_written[i] == scene.mesh_vertex_version(i);
     SceneBounds box;
-    if (!written && write_mesh_vertices(mesh, i, out, r.begin, end, whole ? &box : nullptr))
+    if (!written &&
+        write_mesh_vertices(scene.meshes()[i], i, out, r.begin, end, whole ? &box : nullptr))
       scene.note_mesh_vertex_bounds(i, box);
     const uint32_t b = km.vertex_offset + r.begin, e = km.vertex_offset + end;
     delta.positions.mark(b, e);

@@ -51,6 +51,7 @@ uint32_t Scene::add_mesh(Mesh m) {
   mesh_vertex_ranges_.push_back({0, uint32_t(meshes_.back().positions.size())});
   mesh_vertex_versions_.push_back(next_vertex_version());
   mesh_deforms_.push_back(0);
+  deferred_writers_.emplace_back();
   return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
@@ -111,6 +112,7 @@ void Scene::mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end) {
 
 Mesh& Scene::edit_mesh_vertices(uint32_t mesh) {
   Mesh& m = meshes_.at(mesh);
+  write_deferred_vertices(mesh);  // the caller may read what it does not write
   mark_vertices(mesh, 0, uint32_t(m.positions.size()));
   return m;
 }
@@ -123,8 +125,33 @@ Mesh& Scene::edit_mesh_vertices(uint32_t mesh, uint32_t first_vertex, uint32_t c
                             std::to_string(mesh) + " (\"" + m.name + "\"), which has " +
                             std::to_string(m.positions.size()));
   }
+  write_deferred_vertices(mesh);
   if (count > 0) mark_vertices(mesh, first_vertex, first_vertex + count);
   return m;
+}
+
+void Scene::defer_mesh_vertices(uint32_t mesh, MeshVertexWriter writer) {
+  const Mesh& m = meshes_.at(mesh);
+  MeshVertexWriter& slot = deferred_writers_[mesh];
+  if (slot == nullptr && writer != nullptr) ++deferred_count_;
+  if (slot != nullptr && writer == nullptr) --deferred_count_;
+  slot = std::move(writer);
+  mark_vertices(mesh, 0, uint32_t(m.positions.size()));
+}
+
+void Scene::write_deferred_vertices(uint32_t mesh) const {
+  if (mesh >= deferred_writers_.size() || deferred_writers_[mesh] == nullptr) return;
+  // Out of the slot first: a writer that throws is not run again on
+  // half-written vertices.
+  const MeshVertexWriter writer = std::move(deferred_writers_[mesh]);
+  deferred_writers_[mesh] = nullptr;
+  --deferred_count_;
+  writer(meshes_[mesh]);
+}
+
+void Scene::write_deferred_vertices() const {
+  for (uint32_t m = 0; m < deferred_writers_.size() && deferred_count_ != 0; ++m)
+    write_deferred_vertices(m);
 }
 
 Scene::VertexRange Scene::mesh_dirty_vertices(uint32_t mesh) const {
@@ -158,6 +185,11 @@ size_t Scene::triangle_count_instanced() const {
 }
 
 SceneBounds Scene::bounds() const {
+  // A deferred mesh whose box the cache was not given is read.
+  for (uint32_t m = 0; m < deferred_writers_.size() && deferred_count_ != 0; ++m) {
+    if (deferred_writers_[m] != nullptr && bounds_cache_.reads_vertices(m))
+      write_deferred_vertices(m);
+  }
   return bounds_cache_.bounds(meshes_, instances_);
 }
 

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -174,10 +175,34 @@ class Scene {
   // BLAS (kDirtyTopology).
   void set_mesh_deforms(uint32_t mesh, bool deforms = true);
 
+  // A write of all of a mesh's vertices that its writer can repeat exactly
+  // (a deformation of fixed base vertices at a given pose). A deformer that
+  // wrote the new vertices straight into the compiled arrays (KernelScene)
+  // hands the Scene this instead of writing the Scene's copy too: a million
+  // skinned vertices a frame that nothing but a reader on demand looks at.
+  using MeshVertexWriter = std::function<void(Mesh&)>;
+  // Marks the whole of the mesh's vertices edited, as edit_mesh_vertices(mesh)
+  // does, and leaves writing them to `writer`, run before anything reads or
+  // edits the mesh's vertices through this Scene (meshes(),
+  // edit_mesh_vertices(), bounds() where its cache has no box of them), once.
+  // The mesh then reads as if written now. A later defer replaces a writer
+  // not yet run. The vertex count must stay as it is.
+  void defer_mesh_vertices(uint32_t mesh, MeshVertexWriter writer);
+  bool mesh_vertices_deferred(uint32_t mesh) const {
+    return mesh < deferred_writers_.size() && deferred_writers_[mesh] != nullptr;
+  }
+
   // --- reading -------------------------------------------------------------
   const std::vector<Texture>& textures() const { return textures_; }
   const std::vector<Material>& materials() const { return materials_; }
-  const std::vector<Mesh>& meshes() const { return meshes_; }
+  // Runs the deferred vertex writers first (defer_mesh_vertices()).
+  const std::vector<Mesh>& meshes() const {
+    if (deferred_count_ != 0) write_deferred_vertices();
+    return meshes_;
+  }
+  // What needs no vertex data: these never run a deferred writer.
+  size_t mesh_count() const { return meshes_.size(); }
+  size_t mesh_vertex_count(uint32_t mesh) const { return meshes_.at(mesh).positions.size(); }
   const std::vector<Instance>& instances() const { return instances_; }
   const std::vector<Light>& lights() const { return lights_; }
   const Camera& camera() const { return camera_; }
@@ -240,7 +265,9 @@ class Scene {
  private:
   std::vector<Texture> textures_;
   std::vector<Material> materials_;
-  std::vector<Mesh> meshes_;
+  // Mutable for the deferred writers only: they bring into memory what the
+  // mesh already holds as far as any reader can tell.
+  mutable std::vector<Mesh> meshes_;
   std::vector<Instance> instances_;
   std::vector<Light> lights_;
   Camera camera_;
@@ -261,6 +288,11 @@ class Scene {
   std::vector<uint64_t> mesh_vertex_versions_;
   std::vector<uint8_t> mesh_deforms_;
   void mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end);
+  // Per mesh, its deferred writer (null: none); how many are not null.
+  mutable std::vector<MeshVertexWriter> deferred_writers_;
+  mutable uint32_t deferred_count_ = 0;
+  void write_deferred_vertices() const;
+  void write_deferred_vertices(uint32_t mesh) const;
   mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;
   bool environment_dirty_ = true;

@@ -53,6 +53,12 @@ class SceneBoundsCache {
   // is used by a triangle (so the box is the triangles' box). Forgotten at
   // the mesh's next change.
   void mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices);
+  // Whether the next bounds() reads the mesh's vertices (it is stale and
+  // has no box from mesh_vertex_bounds() that it can take).
+  bool reads_vertices(uint32_t mesh) const {
+    return mesh < mesh_stale_.size() && mesh_stale_[mesh] &&
+           !(given_[mesh] && vertex_use_[mesh] == kAllUsed);
+  }
 
   // Brings the stale entries up to date and returns the union.
   SceneBounds bounds(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);

@@ -8,8 +8,8 @@
 namespace tandem {
 
 bool SceneCompiler::needs_full_build(const Scene& scene) const {
-  const size_t counts[5] = {scene.textures().size(), scene.materials().size(),
-                            scene.meshes().size(), scene.instances().size(), scene.lights().size()};
+  const size_t counts[5] = {scene.textures().size(), scene.materials().size(), scene.mesh_count(),
+                            scene.instances().size(), scene.lights().size()};
   if (!compiled_once_ || !std::equal(counts, counts + 5, counts_)) return true;
   // New texels move every later texture's offset.
   if (!scene.dirty_textures().empty()) return true;
@@ -84,8 +84,8 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
   }
   last_settings_ = settings;
   compiled_once_ = true;
-  const size_t counts[5] = {scene.textures().size(), scene.materials().size(),
-                            scene.meshes().size(), scene.instances().size(), scene.lights().size()};
+  const size_t counts[5] = {scene.textures().size(), scene.materials().size(), scene.mesh_count(),
+                            scene.instances().size(), scene.lights().size()};
   std::copy(counts, counts + 5, counts_);
   scene.clear_dirty();
   return delta;
