@@ -558,7 +558,13 @@ TEST(MeshDeformer, NormalsNormalisedFourAtATimeEqualTheOneAtATimePath) {
     d.base_normals.push_back(glm::normalize(glm::vec3(std::cos(a), 1.0f, std::sin(3.0f * a))));
     if (v % 7 == 3) d.base_positions.back() = glm::vec3(-0.0f, 0.0f, -0.0f);
     const float w0 = float(v % 5) / 8.0f, w1 = float(v % 3) / 8.0f;
-    d.joints.insert(d.joints.end(), {0, 1, 2, 3});
+    // Mostly runs of eight vertices with the same joints (the AVX2 loop
+    // blends those from broadcasts), with stretches and single vertices
+    // where each has its own order (blended from gathered rows).
+    const bool own = (v / 8) % 3 == 1 || v % 61 == 0;
+    const uint16_t r = own ? uint16_t(v % 4) : 0;
+    d.joints.insert(d.joints.end(), {uint16_t(r % 4), uint16_t((1 + r) % 4), uint16_t((2 + r) % 4),
+                                     uint16_t((3 + r) % 4)});
     if (v % 11 == 5) {
       d.weights.insert(d.weights.end(), {0.0f, 0.0f, 0.0f, 1.0f});  // the mirror alone
     } else {

@@ -235,7 +235,7 @@ MeshId Renderer::add_mesh(const MeshData& mesh, MaterialId material) {
 }
 
 void Renderer::set_mesh_vertices(MeshId id, const MeshData& vertices) {
-  const uint32_t i = checked(id, impl_->scene.meshes().size(), "set_mesh_vertices", "mesh");
+  const uint32_t i = checked(id, impl_->scene.mesh_count(), "set_mesh_vertices", "mesh");
   // Check everything on a copy first: a failed call changes nothing.
   Mesh updated = impl_->scene.meshes()[i];
   api_detail::overwrite_vertices(vertices, updated, "set_mesh_vertices");
@@ -246,7 +246,7 @@ void Renderer::set_mesh_vertices(MeshId id, const MeshData& vertices) {
 }
 
 InstanceId Renderer::add_instance(MeshId mesh, const Transform& transform) {
-  const uint32_t m = checked(mesh, impl_->scene.meshes().size(), "add_instance", "mesh");
+  const uint32_t m = checked(mesh, impl_->scene.mesh_count(), "add_instance", "mesh");
   Instance inst;
   inst.mesh = m;
   inst.transform = api_detail::to_matrix(transform, "add_instance");
@@ -305,7 +305,7 @@ uint32_t Renderer::material_count() const {
   return uint32_t(impl_->scene.materials().size());
 }
 uint32_t Renderer::mesh_count() const {
-  return uint32_t(impl_->scene.meshes().size());
+  return uint32_t(impl_->scene.mesh_count());
 }
 uint32_t Renderer::instance_count() const {
   return uint32_t(impl_->scene.instances().size());
