@@ -410,9 +410,9 @@ TANDEM_AVX2_INLINE void blend_gathered8(const MeshDeformation& d, const JointMat
   }
 }
 // Whether eight vertices (their 4 x 8 joint indices at `joints`) have the
-// same four joints in the same order: neighbours on a skin mostly do (a
-// thigh, a forearm, a stretch of the generated grid), as vertices numbered
-// by a walk of the surface are neighbours.
+// same four joints in the same order: almost every group of the generated
+// grid; a real skin's only where its file numbers neighbouring vertices
+// together and lists their joints alike (RiggedFigure: none).
 TANDEM_AVX2_INLINE bool same_joints8(const uint16_t* joints) {
   int64_t first;
   std::memcpy(&first, joints, sizeof first);

@@ -195,7 +195,8 @@ class Scene {
   // --- reading -------------------------------------------------------------
   const std::vector<Texture>& textures() const { return textures_; }
   const std::vector<Material>& materials() const { return materials_; }
-  // Runs the deferred vertex writers first (defer_mesh_vertices()).
+  // Runs the deferred vertex writers first (defer_mesh_vertices()), so
+  // even this const reader must not run concurrently with another call.
   const std::vector<Mesh>& meshes() const {
     if (deferred_count_ != 0) write_deferred_vertices();
     return meshes_;
