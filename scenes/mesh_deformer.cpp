@@ -687,11 +687,11 @@ struct DeferredPose {
 // as compiled and no other edit of its vertices is pending, into the
 // kernel arrays alone: their box goes to the scene's bounds cache,
 // KernelScene::vertices_written is set, and the Scene's copy is left to a
-// DeferredPose (Scene::defer_mesh_vertices()).
+// DeferredPose (Scene::defer_mesh_vertices()). d.mesh is a Scene mesh
+// (write_new_pose() checked).
 void write_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
                 const JointMatrix* palette, const float* morph_weights, Scene& scene,
                 KernelScene* kernel) {
-  if (d.mesh >= scene.mesh_count()) return;
   const bool clean = !(scene.mesh_dirty()[d.mesh] & kDirtyVertices);
   KernelTarget target;
   SceneBounds box;
@@ -710,15 +710,6 @@ void write_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeform
   scene.note_mesh_vertex_bounds(d.mesh, box);
   kernel->vertices_written[d.mesh] = scene.mesh_vertex_version(d.mesh);
 }
-
-}  // namespace
-
-void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
-                 Mesh& out) {
-  deform_into(d, palette, morph_weights, &out, nullptr, nullptr);
-}
-
-namespace {
 
 // The DeformedPose check around write_pose().
 bool write_new_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
@@ -743,6 +734,11 @@ bool write_new_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDe
 }
 
 }  // namespace
+
+void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
+                 Mesh& out) {
+  deform_into(d, palette, morph_weights, &out, nullptr, nullptr);
+}
 
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene, DeformedPose& last) {

@@ -215,12 +215,6 @@ TEST(SceneDeform, ArrayChangeKeepsRangesApartAndMergesTheClosest) {
   EXPECT_EQ(a.bytes(ks), 20u * sizeof(Vec3));
 }
 
-}  // namespace
-}  // namespace tandem
-
-namespace tandem {
-namespace {
-
 // Scene::defer_mesh_vertices(): the mesh reads as written the moment it is
 // deferred, whoever reads it (meshes(), an edit, bounds(), the compiler, a
 // copy of the scene), and the writer runs once, only when something does.

@@ -185,10 +185,13 @@ size_t Scene::triangle_count_instanced() const {
 }
 
 SceneBounds Scene::bounds() const {
-  // A deferred mesh whose box the cache was not given is read.
-  for (uint32_t m = 0; m < deferred_writers_.size() && deferred_count_ != 0; ++m) {
-    if (deferred_writers_[m] != nullptr && bounds_cache_.reads_vertices(m))
-      write_deferred_vertices(m);
+  // A deferred mesh whose box the cache was not given is read. Only the
+  // cache's changed meshes can be (a deferred mesh was marked changed), so
+  // the walk stays O(edits) like the cache's own.
+  if (deferred_count_ != 0) {
+    for (uint32_t m : bounds_cache_.stale_meshes()) {
+      if (bounds_cache_.reads_vertices(m)) write_deferred_vertices(m);
+    }
   }
   return bounds_cache_.bounds(meshes_, instances_);
 }

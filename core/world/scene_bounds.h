@@ -55,6 +55,8 @@ class SceneBoundsCache {
   void mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices);
   // Whether the next bounds() reads the mesh's vertices (it is stale and
   // has no box from mesh_vertex_bounds() that it can take).
+  // The meshes changed since the last bounds(), each once: what it may read.
+  const std::vector<uint32_t>& stale_meshes() const { return stale_meshes_; }
   bool reads_vertices(uint32_t mesh) const {
     return mesh < mesh_stale_.size() && mesh_stale_[mesh] &&
            !(given_[mesh] && vertex_use_[mesh] == kAllUsed);
