@@ -4,8 +4,10 @@
 // lookup.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <vector>
 
 #include "core/kernel/integrator.h"
 #include "core/kernel/lights.h"
@@ -235,6 +237,128 @@ TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
     ASSERT_EQ(p.radiance.y, want.y);
     ASSERT_EQ(p.radiance.z, want.z);
     ASSERT_FALSE(path_alive(p));
+  }
+}
+
+// ---------------------------------------------------------------------------
+// The sampling tables' shortcuts: each must give the bits of what it
+// replaced.
+
+// Searches `cdf` (n + 1 entries) with and without its guide table at random
+// u, at every entry and one float either side of it, and at every bucket
+// edge k / n and one float either side of that.
+void expect_guided_search_agrees(const std::vector<float>& cdf, TestRng& rng) {
+  const uint32_t n = uint32_t(cdf.size() - 1);
+  std::vector<uint32_t> guide(n + 1);
+  for (uint32_t k = 0; k < n; ++k)
+    guide[k] = find_interval(cdf.data(), n, float(k) / float(n));
+  guide[n] = n - 1;
+  std::vector<float> us;
+  for (int i = 0; i < 20000; ++i)
+    us.push_back(rng.next());
+  const auto add_with_neighbours = [&](float u) {
+    us.push_back(u);
+    us.push_back(std::nextafter(u, 0.0f));
+    us.push_back(std::nextafter(u, 1.0f));
+  };
+  for (float c : cdf)
+    add_with_neighbours(c);
+  for (uint32_t k = 0; k <= n; ++k)
+    add_with_neighbours(float(k) / float(n));
+  us.push_back(0.99999994f);
+  us.push_back(std::nanf(""));
+  for (float u : us) {
+    ASSERT_EQ(find_interval_guided(cdf.data(), guide.data(), n, u), find_interval(cdf.data(), n, u))
+        << "u = " << u;
+  }
+}
+
+TEST(KernelEnvironment, GuidedSearchFindsTheIntervalOfTheFullSearch) {
+  TestRng rng(77);
+  const uint32_t n = 97;
+  // Steps of very different widths and runs of equal entries
+  // (zero-probability intervals).
+  std::vector<float> steps = {0.0f};
+  for (uint32_t i = 1; i < n; ++i) {
+    const float r = rng.next();
+    steps.push_back(steps.back() + (r < 0.2f ? 0.0f : (r < 0.9f ? 1e-3f * r : 0.2f * r)));
+  }
+  for (float& c : steps)
+    c /= steps.back() + 0.01f;
+  steps.push_back(1.0f);
+  expect_guided_search_agrees(steps, rng);
+  // Every third entry on a bucket edge k / 300, with the floats either side
+  // of it before and after: there u * n rounds up to k from below k / n
+  // (seven of these edges), which the bracket's check must catch.
+  const uint32_t m = 300;
+  std::vector<float> edges = {0.0f};
+  for (uint32_t k = 1; k < m / 3; ++k) {
+    const float edge = float(k) / float(m);
+    edges.insert(edges.end(), {std::nextafter(edge, 0.0f), edge, std::nextafter(edge, 1.0f)});
+  }
+  edges.insert(edges.end(), {0.6f, 0.8f, 1.0f});
+  ASSERT_EQ(edges.size(), m + 1);
+  expect_guided_search_agrees(edges, rng);
+}
+
+TEST(KernelEnvironment, TablesGiveThePdfAndRadianceOfTheDirectFormulas) {
+  // env_pdf reads the per-texel pdf table, env_sample also the guide
+  // tables, and env_radiance_at wraps columns without a division: all must
+  // give the bits of the formulas they replaced (written out here).
+  const KernelScene ks = make_environment_scene(0.7f);
+  const KernelData kd = ks.view();
+  const KEnvironment& env = kd.constants.environment;
+  const auto direct_pdf_uv = [&](uint32_t x, uint32_t y) {
+    return env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  };
+  const auto direct_radiance = [&](Vec2 uv) {
+    const float x = uv.x * float(env.width) - 0.5f, y = uv.y * float(env.height) - 0.5f;
+    const float x0f = floorf(x), y0f = floorf(y);
+    const float tx = x - x0f, ty = y - y0f;
+    const int w = int(env.width), h = int(env.height);
+    int x0 = int(x0f) % w;
+    if (x0 < 0) x0 += w;
+    const int x1 = (x0 + 1) % w;
+    const int y0 = int(clamp_f(y0f, 0.0f, float(h - 1))),
+              y1 = int(clamp_f(y0f + 1.0f, 0.0f, float(h - 1)));
+    return (env_texel(kd, uint32_t(x0), uint32_t(y0)) * ((1 - tx) * (1 - ty)) +
+            env_texel(kd, uint32_t(x1), uint32_t(y0)) * (tx * (1 - ty)) +
+            env_texel(kd, uint32_t(x0), uint32_t(y1)) * ((1 - tx) * ty) +
+            env_texel(kd, uint32_t(x1), uint32_t(y1)) * (tx * ty)) *
+           env.color;
+  };
+  for (uint32_t y = 0; y < env.height; ++y) {
+    for (uint32_t x = 0; x < env.width; ++x)
+      ASSERT_EQ(kd.env_texel_pdf[y * env.width + x], direct_pdf_uv(x, y)) << x << ", " << y;
+  }
+  // Guide tables whose every entry is n - 1 bracket [n - 1, n], which
+  // holds the answer or fails its check and widens to [0, n]: the plain
+  // binary search.
+  const std::vector<uint32_t> last_row(ks.env_marginal_guide.size(), env.height - 1);
+  const std::vector<uint32_t> last_column(ks.env_conditional_guide.size(), env.width - 1);
+  KernelData unguided = kd;
+  unguided.env_marginal_guide = last_row.data();
+  unguided.env_conditional_guide = last_column.data();
+  TestRng rng(41);
+  for (int i = 0; i < 5000; ++i) {
+    const float u1 = rng.next(), u2 = rng.next();
+    const EnvSample got = env_sample(kd, u1, u2), want = env_sample(unguided, u1, u2);
+    ASSERT_EQ(std::memcmp(&got, &want, sizeof(EnvSample)), 0) << u1 << ", " << u2;
+    const Vec3 d = sample_uniform_sphere(u1, u2);
+    const Vec2 uv = env_map_uv(kd, d);
+    const uint32_t px = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
+    const uint32_t py = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
+    const float sin_theta = sqrtf((d.x * d.x + d.z * d.z) / (d.x * d.x + d.y * d.y + d.z * d.z));
+    ASSERT_EQ(env_pdf(kd, d), direct_pdf_uv(px, py) / (2.0f * kPi * kPi * sin_theta));
+    // Coordinates in and around [0, 1]: the wrap's compare path and its
+    // division fallback.
+    const Vec2 wide = make_vec2(3.0f * rng.next() - 1.0f, rng.next());
+    for (const Vec2 q : {uv, wide, make_vec2(0.0f, uv.y), make_vec2(1.0f, uv.y)}) {
+      const Vec3 got_le = env_radiance_at(kd, q), want_le = direct_radiance(q);
+      ASSERT_EQ(got_le.x, want_le.x);
+      ASSERT_EQ(got_le.y, want_le.y);
+      ASSERT_EQ(got_le.z, want_le.z);
+    }
   }
 }
 

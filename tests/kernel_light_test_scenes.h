@@ -29,7 +29,7 @@ inline KernelScene make_environment_scene(float rotation) {
   env.width = kEnvWidth;
   env.height = kEnvHeight;
   set_environment_rotation(env, rotation);
-  env.map_integral = build_environment_cdfs(ks.view(), ks.env_marginal_cdf, ks.env_conditional_cdf);
+  build_environment_tables(ks);
   return ks;
 }
 

@@ -40,6 +40,16 @@ TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
 }
 
+// Density over the map's unit square of sampling texel (x, y):
+// env_texel_weight normalised. The scene compiler stores it per texel
+// (env_texel_pdf) so that the kernels read one float instead of a texel, a
+// luminance and a sine; computed here, by one function, so the table holds
+// the bits the kernels used to compute.
+TANDEM_HD float env_texel_pdf_uv(const KernelData& kd, uint32_t x, uint32_t y) {
+  const KEnvironment& env = kd.constants.environment;
+  return env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+}
+
 // The map coordinates of direction dir ((0, 0) without a map, where the
 // _at functions below do not read them): two atan2f, a square root and a
 // sincos, so a caller that needs both the radiance and the pdf of one
@@ -61,9 +71,16 @@ TANDEM_HD Vec3 env_radiance_at(const KernelData& kd, Vec2 uv) {
   const float x0f = floorf(x), y0f = floorf(y);
   const float tx = x - x0f, ty = y - y0f;
   const int w = int(env.width), h = int(env.height);
-  int x0 = int(x0f) % w;
-  if (x0 < 0) x0 += w;
-  const int x1 = (x0 + 1) % w;
+  // uv from env_map_uv puts x0f in [-1, w - 1]: there a compare gives the
+  // remainder (an integer division was a tenth of a missed ray's shading).
+  int x0 = int(x0f);
+  if (x0 == -1) {
+    x0 = w - 1;
+  } else if (x0 < 0 || x0 >= w) {
+    x0 %= w;
+    if (x0 < 0) x0 += w;
+  }
+  const int x1 = x0 + 1 == w ? 0 : x0 + 1;
   const int y0 = int(clamp_f(y0f, 0.0f, float(h - 1))),
             y1 = int(clamp_f(y0f + 1.0f, 0.0f, float(h - 1)));
   const Vec3 c = env_texel(kd, uint32_t(x0), uint32_t(y0)) * ((1 - tx) * (1 - ty)) +
@@ -77,9 +94,11 @@ TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
   return env_radiance_at(kd, env_map_uv(kd, dir));
 }
 
-// Index i with cdf[i] <= u < cdf[i + 1] in an array of n + 1 entries.
-TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
-  uint32_t lo = 0, hi = n;
+// Binary search for u between cdf[lo] and cdf[hi] (a non-decreasing array
+// of n + 1 entries; lo < hi <= n, cdf[lo] <= u unless lo is 0, cdf[hi] > u
+// unless hi is n). For a non-decreasing array exactly one index i meets
+// both bounds, so every bracket that holds it gives the same i.
+TANDEM_HD uint32_t find_interval_between(const float* cdf, uint32_t lo, uint32_t hi, float u) {
   while (hi - lo > 1) {
     const uint32_t mid = (lo + hi) / 2;
     if (cdf[mid] <= u)
@@ -88,6 +107,29 @@ TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
       hi = mid;
   }
   return lo;
+}
+
+// Index i with cdf[i] <= u < cdf[i + 1] in an array of n + 1 entries.
+TANDEM_HD uint32_t find_interval(const float* cdf, uint32_t n, float u) {
+  return find_interval_between(cdf, 0, n, u);
+}
+
+// find_interval's index, from a bracket read in a guide table of n + 1
+// entries (guide[k] = find_interval(cdf, n, k / n), guide[n] = n - 1): one
+// or two search steps where find_interval takes log2(n), each a load the
+// next depends on (a third of sampling the environment). The upper bound
+// always holds: k = floor(u * n) < k + 1 means u < (k + 1) / n exactly
+// (rounding is monotone), so u is at most the float nearest (k + 1) / n,
+// where guide[k + 1] was searched. The lower one is checked: u * n can
+// round up to k from below k / n; then the bracket starts at 0.
+TANDEM_HD uint32_t find_interval_guided(const float* cdf, const uint32_t* guide, uint32_t n,
+                                        float u) {
+  const float s = u * float(n);
+  const uint32_t k = s > 0.0f ? (s < float(n) ? uint32_t(s) : n - 1) : 0u;  // NaN: 0
+  uint32_t lo = guide[k];
+  const uint32_t hi = guide[k + 1] + 1;
+  if (lo > 0 && !(cdf[lo] <= u)) lo = 0;
+  return find_interval_between(cdf, lo, hi, u);
 }
 
 // Solid-angle pdf of env_sample returning dir, whose map coordinates are
@@ -105,9 +147,7 @@ TANDEM_HD float env_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv) {
   const float sin_theta =
       sqrtf((dir.x * dir.x + dir.z * dir.z) / (dir.x * dir.x + dir.y * dir.y + dir.z * dir.z));
   if (!(sin_theta > 0.0f) || !(env.map_integral > 0.0f)) return 0.0f;
-  const float pdf_uv =
-      env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
-  return pdf_uv / (2.0f * kPi * kPi * sin_theta);
+  return kd.env_texel_pdf[y * env.width + x] / (2.0f * kPi * kPi * sin_theta);
 }
 
 // Solid-angle pdf of env_sample returning dir.
@@ -130,9 +170,11 @@ TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
     s.pdf = kInv4Pi;
     return s;
   }
-  const uint32_t y = find_interval(kd.env_marginal_cdf, env.height, u1);
+  const uint32_t y =
+      find_interval_guided(kd.env_marginal_cdf, kd.env_marginal_guide, env.height, u1);
   const float* row = kd.env_conditional_cdf + y * (env.width + 1);
-  const uint32_t x = find_interval(row, env.width, u2);
+  const uint32_t* row_guide = kd.env_conditional_guide + y * (env.width + 1);
+  const uint32_t x = find_interval_guided(row, row_guide, env.width, u2);
   // Continuous position inside the chosen texel (reuse the leftover of u).
   const float my0 = kd.env_marginal_cdf[y], my1 = kd.env_marginal_cdf[y + 1];
   const float mx0 = row[x], mx1 = row[x + 1];
@@ -142,8 +184,7 @@ TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
   const float v = (float(y) + saturate(dy)) / float(env.height);
   s.dir = rotate_y_cs(equirect_to_direction(u, v), env.rotation_cos, env.rotation_sin);
   const float sin_theta = sin_pi(v);
-  const float pdf_uv =
-      env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
+  const float pdf_uv = kd.env_texel_pdf[y * env.width + x];
   s.pdf = sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
   // At the sampled (u, v) itself, not at the coordinates of s.dir turned
   // back (a rotation, two arctangents and a square root to land within

@@ -29,10 +29,13 @@ namespace tandem {
   X(KTexture, textures)                                                                 \
   X(uint32_t, texels) /* RGBA8 texels of all textures */                                \
   X(KLight, lights)                                                                     \
-  X(KAliasEntry, light_alias)   /* distribution over lights, by power */                \
-  X(Vec4, env_texels)           /* equirectangular environment, linear RGB */           \
-  X(float, env_marginal_cdf)    /* height + 1 entries */                                \
-  X(float, env_conditional_cdf) /* height * (width + 1) entries */
+  X(KAliasEntry, light_alias)        /* distribution over lights, by power */           \
+  X(Vec4, env_texels)                /* equirectangular environment, linear RGB */      \
+  X(float, env_marginal_cdf)         /* height + 1 entries */                           \
+  X(float, env_conditional_cdf)      /* height * (width + 1) entries */                 \
+  X(uint32_t, env_marginal_guide)    /* height + 1 entries: see find_interval_guided */ \
+  X(uint32_t, env_conditional_guide) /* height * (width + 1) entries */                 \
+  X(float, env_texel_pdf)            /* width * height: env_texel_pdf_uv per texel */
 
 #define TANDEM_BVH_ARRAYS(X)                                                                      \
   X(KBlasRoot, blas_roots)      /* one per mesh */                                                \

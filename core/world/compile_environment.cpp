@@ -16,6 +16,9 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
   out.env_texels.clear();
   out.env_marginal_cdf.clear();
   out.env_conditional_cdf.clear();
+  out.env_marginal_guide.clear();
+  out.env_conditional_guide.clear();
+  out.env_texel_pdf.clear();
   if (!e.texels.empty() && e.width > 0 && e.height > 0) {
     k.has_map = 1;
     k.width = e.width;
@@ -23,11 +26,11 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
     out.env_texels.resize(e.texels.size());
     for (size_t i = 0; i < e.texels.size(); ++i)
       out.env_texels[i] = make_vec4(to_vec3(e.texels[i]), 0.0f);
-    k.map_integral =
-        build_environment_cdfs(out.view(), out.env_marginal_cdf, out.env_conditional_cdf);
+    build_environment_tables(out);
   }
   delta.env_texels.reallocated = delta.env_marginal_cdf.reallocated =
-      delta.env_conditional_cdf.reallocated = true;
+      delta.env_conditional_cdf.reallocated = delta.env_marginal_guide.reallocated =
+          delta.env_conditional_guide.reallocated = delta.env_texel_pdf.reallocated = true;
   delta.constants = true;
 }
 

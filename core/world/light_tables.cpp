@@ -48,15 +48,28 @@ std::vector<KAliasEntry> build_alias_table(const std::vector<double>& weights) {
   return table;
 }
 
-float build_environment_cdfs(const KernelData& kd, std::vector<float>& marginal,
-                             std::vector<float>& conditional) {
-  const uint32_t w = kd.constants.environment.width, h = kd.constants.environment.height;
-  conditional.assign(size_t(h) * (w + 1), 0.0f);
-  marginal.assign(h + 1, 0.0f);
+namespace {
+
+// guide[k] = find_interval(cdf, n, k / n) for k < n and guide[n] = n - 1:
+// the brackets find_interval_guided starts from.
+void build_guide(const float* cdf, uint32_t n, uint32_t* guide) {
+  for (uint32_t k = 0; k < n; ++k)
+    guide[k] = find_interval(cdf, n, float(k) / float(n));
+  guide[n] = n - 1;
+}
+
+}  // namespace
+
+void build_environment_tables(KernelScene& ks) {
+  KEnvironment& env = ks.constants.environment;
+  const uint32_t w = env.width, h = env.height;
+  ks.env_conditional_cdf.assign(size_t(h) * (w + 1), 0.0f);
+  ks.env_marginal_cdf.assign(h + 1, 0.0f);
+  const KernelData kd = ks.view();
   std::vector<double> row_sums(h, 0.0);
   double total = 0.0;
   for (uint32_t y = 0; y < h; ++y) {
-    float* row = conditional.data() + size_t(y) * (w + 1);
+    float* row = ks.env_conditional_cdf.data() + size_t(y) * (w + 1);
     double acc = 0.0;
     for (uint32_t x = 0; x < w; ++x) {
       acc += double(env_texel_weight(kd, x, y));
@@ -71,10 +84,27 @@ float build_environment_cdfs(const KernelData& kd, std::vector<float>& marginal,
   double acc = 0.0;
   for (uint32_t y = 0; y < h; ++y) {
     acc += row_sums[y];
-    marginal[y + 1] = total > 0.0 ? float(acc / total) : float(y + 1) / float(h);
+    ks.env_marginal_cdf[y + 1] = total > 0.0 ? float(acc / total) : float(y + 1) / float(h);
   }
-  marginal[h] = 1.0f;
-  return float(total);
+  ks.env_marginal_cdf[h] = 1.0f;
+  env.map_integral = float(total);
+
+  ks.env_marginal_guide.assign(h + 1, 0u);
+  ks.env_conditional_guide.assign(size_t(h) * (w + 1), 0u);
+  if (w > 0 && h > 0) {
+    build_guide(ks.env_marginal_cdf.data(), h, ks.env_marginal_guide.data());
+    for (uint32_t y = 0; y < h; ++y) {
+      build_guide(ks.env_conditional_cdf.data() + size_t(y) * (w + 1), w,
+                  ks.env_conditional_guide.data() + size_t(y) * (w + 1));
+    }
+  }
+  // After map_integral: the per-texel pdf divides by it.
+  ks.env_texel_pdf.resize(size_t(w) * h);
+  const KernelData with_integral = ks.view();
+  for (uint32_t y = 0; y < h; ++y) {
+    for (uint32_t x = 0; x < w; ++x)
+      ks.env_texel_pdf[size_t(y) * w + x] = env_texel_pdf_uv(with_integral, x, y);
+  }
 }
 
 }  // namespace tandem

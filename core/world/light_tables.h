@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/kernel/kernel_data.h"
+#include "core/world/kernel_scene.h"
 
 namespace tandem {
 
@@ -13,10 +14,10 @@ namespace tandem {
 // pdf = w_i / sum so the kernel can evaluate the pmf of a known index.
 std::vector<KAliasEntry> build_alias_table(const std::vector<double>& weights);
 
-// Fills marginal (height + 1) and conditional (height * (width + 1)) CDFs
-// for the environment currently in `kd` (env_texels and constants must be
-// set) and returns the sum of texel weights (KEnvironment::map_integral).
-float build_environment_cdfs(const KernelData& kd, std::vector<float>& marginal,
-                             std::vector<float>& conditional);
+// Fills the environment's sampling tables in `ks` from its env_texels and
+// environment constants (width, height; has_map set): the marginal and
+// conditional CDFs, their guide tables and the per-texel pdf, and sets
+// map_integral to the sum of texel weights.
+void build_environment_tables(KernelScene& ks);
 
 }  // namespace tandem
