@@ -3,10 +3,16 @@
 // the light data stays consistent with the instances.
 #include <gtest/gtest.h>
 
+#include <cinttypes>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/util/huge_pages.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 
@@ -157,6 +163,66 @@ TEST(SceneCompiler, EmissiveTexturesCarryTheirMeanLuminance) {
   EXPECT_NEAR(c.ks.materials[0].emission_luminance_scale, base_mean, 1e-5 * base_mean);
   EXPECT_NEAR(c.ks.materials[t.lamp_material].emission_luminance_scale, glow_mean,
               1e-5 * glow_mean);
+}
+
+// The VmFlags line of the mapping in /proc/self/smaps that holds `address`
+// ("" where there is none or no smaps to read).
+std::string mapping_flags(const void* address) {
+  std::ifstream smaps("/proc/self/smaps");
+  const uintptr_t a = reinterpret_cast<uintptr_t>(address);
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    uintptr_t begin = 0, end = 0;
+    if (std::sscanf(line.c_str(), "%" SCNxPTR "-%" SCNxPTR " ", &begin, &end) == 2 &&
+        line.find(':') > line.find(' ')) {
+      inside = a >= begin && a < end;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      return line;
+    }
+  }
+  return "";
+}
+
+TEST(HugePages, AdviceCoversTheWholeHugePagesInsideTheRange) {
+  const size_t huge = kHugePageBytes;
+  std::vector<char> buffer(5 * huge);
+  const uintptr_t base = reinterpret_cast<uintptr_t>(buffer.data());
+  const uintptr_t first = (base + huge - 1) & ~uintptr_t(huge - 1);
+  // From an aligned start: two whole pages of 2.5; a range inside one page: none.
+  const void* start = reinterpret_cast<const void*>(first);
+  if (advise_huge_pages(start, huge * 2 + huge / 2) == 0) {
+    GTEST_SKIP() << "this system does not take transparent huge page advice";
+  }
+  EXPECT_EQ(advise_huge_pages(start, huge * 2 + huge / 2), 2 * huge);
+  EXPECT_EQ(advise_huge_pages(reinterpret_cast<const void*>(first + 4096), huge), 0u);
+  // From 4 KiB past a boundary: the range's first whole page starts at the next.
+  EXPECT_EQ(advise_huge_pages(reinterpret_cast<const void*>(first + 4096), 2 * huge), huge);
+  EXPECT_EQ(advise_huge_pages(nullptr, 4 * huge), 0u);
+}
+
+// Texture lookups land at random all over the texel array: the compiler
+// reserves it whole and advises huge pages before writing it, so a lookup
+// does not miss the TLB on every row (docs/performance/cpu_path_tracing.md,
+// round 13). Read back from the mapping's flags ("hg": huge page advice).
+TEST(SceneCompiler, TexelsLieInMemoryAdvisedForHugePages) {
+  std::vector<char> probe(3 * kHugePageBytes);
+  if (advise_huge_pages(probe.data(), probe.size()) == 0 || mapping_flags(probe.data()).empty()) {
+    GTEST_SKIP() << "no transparent huge page advice or no /proc/self/smaps here";
+  }
+  TwoQuads t = make_two_quads();
+  Texture tex;
+  tex.width = 1024;
+  tex.height = 1536;  // 6 MiB of texels: at least two whole huge pages
+  tex.rgba8.assign(size_t(tex.width) * tex.height, 0xff808080u);
+  t.scene.edit_material(0).base_color_texture.texture = int32_t(t.scene.add_texture(tex));
+  Compiled c;
+  c.compile(t.scene);
+  ASSERT_EQ(c.ks.texels.size(), tex.rgba8.size());
+  const uintptr_t base = reinterpret_cast<uintptr_t>(c.ks.texels.data());
+  const uintptr_t inside = (base + kHugePageBytes - 1) & ~uintptr_t(kHugePageBytes - 1);
+  const std::string flags = mapping_flags(reinterpret_cast<const void*>(inside));
+  EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // moves every later texel offset).
 #include "core/kernel/lights.h"
 #include "core/kernel/texture.h"
+#include "core/util/huge_pages.h"
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
 
@@ -35,6 +36,14 @@ void SceneCompiler::compile_textures(const Scene& scene, KernelScene& out) {
   texture_slots_.clear();
   texture_texel_offset_.assign(scene.textures().size(), 0);
   texture_mean_luminance_.assign(scene.textures().size(), -1.0f);
+  size_t texel_count = 0;
+  for (const Texture& t : scene.textures())
+    texel_count += t.rgba8.size();
+  // Reserved and advised before the first write, so that the pages are
+  // huge from the start (texture lookups land at random all over the
+  // array).
+  out.texels.reserve(texel_count);
+  advise_huge_pages(out.texels.data(), texel_count * sizeof(uint32_t));
   for (size_t i = 0; i < scene.textures().size(); ++i) {
     const Texture& t = scene.textures()[i];
     texture_texel_offset_[i] = uint32_t(out.texels.size());
