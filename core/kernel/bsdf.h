@@ -92,8 +92,8 @@ TANDEM_HD bool bsdf_near_specular(const BsdfParams& p, const BsdfLobeProbabiliti
 
 // The base's three lobes (f and their share of the mixture pdf), without
 // the layers.
-TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
-                                  Vec3 wi) {
+TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabilities& prob,
+                                  const Vec3& wo, const Vec3& wi) {
   BsdfEval out = {make_vec3(0.0f), 0.0f};
   if (wo.z <= 0.0f || wi.z == 0.0f) return out;
   const float dielectric = 1.0f - p.metallic;
@@ -155,8 +155,8 @@ TANDEM_HD BsdfEval bsdf_eval_base(const BsdfParams& p, const BsdfLobeProbabiliti
 
 // bsdf_eval with the lobe probabilities for this wo already computed (the
 // integrator evaluates and samples the same wo, so it computes them once).
-TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
-                                   Vec3 wi) {
+TANDEM_HD BsdfEval bsdf_eval_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob,
+                                   const Vec3& wo, const Vec3& wi) {
   BsdfEval out = bsdf_eval_base(p, prob, wo, wi);
   if (!bsdf_has_layers(p) || wo.z <= 0.0f || wi.z == 0.0f) return out;
   add_layers(p, prob, wo, wi, &out);
@@ -170,8 +170,9 @@ TANDEM_HD BsdfEval bsdf_eval(const BsdfParams& p, Vec3 wo, Vec3 wi) {
 // Picks a lobe with u_lobe and samples it with (u1, u2). Returns false when
 // the sample carries no energy (below the horizon, total internal
 // reflection in the transmission lobe, or a black material).
-TANDEM_HD bool bsdf_sample_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo,
-                                 float u_lobe, float u1, float u2, BsdfSample* out) {
+TANDEM_HD bool bsdf_sample_lobes(const BsdfParams& p, const BsdfLobeProbabilities& prob,
+                                 const Vec3& wo, float u_lobe, float u1, float u2,
+                                 BsdfSample* out) {
   if (wo.z <= 0.0f) return false;
   Vec3 wi;
   // The layers' lobes come first: without them both bounds are 0 and the

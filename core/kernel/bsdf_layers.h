@@ -80,8 +80,8 @@ TANDEM_HD LayerWeights layer_lobe_weights(const BsdfParams& p, float cos_o) {
 
 // Dims the base's value (already in *out) by the layers and adds the layers'
 // lobes. wo.z > 0, wi.z != 0.
-TANDEM_HD void add_layers(const BsdfParams& p, const BsdfLobeProbabilities& prob, Vec3 wo, Vec3 wi,
-                          BsdfEval* out) {
+TANDEM_HD void add_layers(const BsdfParams& p, const BsdfLobeProbabilities& prob, const Vec3& wo,
+                          const Vec3& wi, BsdfEval* out) {
   const float cos_i = fabsf(wi.z);
   const float t_coat = coat_transmittance(p, wo.z, cos_i);
   float t_sheen = 1.0f;

@@ -170,13 +170,18 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
   const Vec3 ng_raw = cross(e1, e2) * inst.handedness;
   const float ng_len = length(ng_raw);
   sp.area_world = 0.5f * ng_len;
-  sp.geometric_normal = ng_len > 0.0f ? ng_raw * (1.0f / ng_len) : make_vec3(0.0f, 0.0f, 1.0f);
-  sp.front_normal = sp.geometric_normal;
+  // Both fields from the value, not one copied from the other: g++ copies
+  // a Vec3 field as an 8-byte and a 4-byte load, and the 8-byte one cannot
+  // take its value from the two 4-byte stores just made (a store-forwarding
+  // stall, a tenth of this function's time on the Cornell box).
+  const Vec3 ng = ng_len > 0.0f ? ng_raw * (1.0f / ng_len) : make_vec3(0.0f, 0.0f, 1.0f);
+  sp.geometric_normal = ng;
+  sp.front_normal = ng;
   sp.material = tv.tri.material;
 
   interpolate_uvs(kd, mesh, tv.tri, u, v, sp.uv);
 
-  Vec3 ns = sp.geometric_normal;
+  Vec3 ns = ng;
   if (mesh.flags & kMeshHasNormals) {
     const Vec3 n_obj = kd.normals[base + tv.tri.v0] * w + kd.normals[base + tv.tri.v1] * u +
                        kd.normals[base + tv.tri.v2] * v;

@@ -91,7 +91,7 @@ TANDEM_HD void setup_layers(const KernelData& kd, const KMaterial& m, const Vec2
 
 // Evaluates textures and orients the shading frame towards wo. Returns
 // false when the surface cannot scatter towards wo at all.
-TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, Vec3 wo,
+TANDEM_HD bool setup_shading(const KernelData& kd, const SurfacePoint& sp, const Vec3& wo,
                              ShadingSetup* s) {
   const KMaterial& m = kd.materials[sp.material];
   const Vec4 base = material_base_color(kd, m, sp.uv);

@@ -165,8 +165,8 @@ TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& 
 // where only punctual and directional lights are sampled; an emissive
 // triangle or the environment picked there gives no sample (the BSDF sample
 // that reaches it carries its full weight instead).
-TANDEM_HD bool sample_light(const KernelData& kd, Vec3 ref, float u_select, float u1, float u2,
-                            LightSample* out, bool delta_only = false) {
+TANDEM_HD bool sample_light(const KernelData& kd, const Vec3& ref, float u_select, float u1,
+                            float u2, LightSample* out, bool delta_only = false) {
   if (kd.lights_count == 0) return false;
   float pmf;
   const uint32_t index = alias_sample(kd.light_alias, kd.light_alias_count, u_select, &pmf);

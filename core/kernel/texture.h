@@ -59,7 +59,7 @@ TANDEM_HD Vec4 fetch_texel(const KernelData& kd, const KTexture& tex, int x, int
 
 // Bilinear lookup at uv (OpenGL convention: texel centres at (i + 0.5) / n,
 // v = 0 at the first row of the image as glTF specifies).
-TANDEM_HD Vec4 sample_texture(const KernelData& kd, uint32_t texture, Vec2 uv) {
+TANDEM_HD Vec4 sample_texture(const KernelData& kd, uint32_t texture, const Vec2& uv) {
   const KTexture tex = kd.textures[texture];
   const int w = int(tex.width), h = int(tex.height);
   // Keep coordinates in a range where float->int is exact and cannot overflow.
