@@ -1,6 +1,7 @@
 // SceneCompiler's incremental updates: each kind of edit touches only the
 // kernel arrays it has to (what the CUDA backend uploads every frame), and
-// the light data stays consistent with the instances.
+// the light data stays consistent with the instances. Also where the
+// texels lie in memory (huge pages, core/util/huge_pages.h).
 #include <gtest/gtest.h>
 
 #include <cinttypes>
