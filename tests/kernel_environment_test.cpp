@@ -250,9 +250,7 @@ TEST(KernelEnvironment, MissShadesWithOneMapLookupAndTheSameBits) {
 void expect_guided_search_agrees(const std::vector<float>& cdf, TestRng& rng) {
   const uint32_t n = uint32_t(cdf.size() - 1);
   std::vector<uint32_t> guide(n + 1);
-  for (uint32_t k = 0; k < n; ++k)
-    guide[k] = find_interval(cdf.data(), n, float(k) / float(n));
-  guide[n] = n - 1;
+  build_cdf_guide(cdf.data(), n, guide.data());
   std::vector<float> us;
   for (int i = 0; i < 20000; ++i)
     us.push_back(rng.next());

@@ -48,17 +48,11 @@ std::vector<KAliasEntry> build_alias_table(const std::vector<double>& weights) {
   return table;
 }
 
-namespace {
-
-// guide[k] = find_interval(cdf, n, k / n) for k < n and guide[n] = n - 1:
-// the brackets find_interval_guided starts from.
-void build_guide(const float* cdf, uint32_t n, uint32_t* guide) {
+void build_cdf_guide(const float* cdf, uint32_t n, uint32_t* guide) {
   for (uint32_t k = 0; k < n; ++k)
     guide[k] = find_interval(cdf, n, float(k) / float(n));
   guide[n] = n - 1;
 }
-
-}  // namespace
 
 void build_environment_tables(KernelScene& ks) {
   KEnvironment& env = ks.constants.environment;
@@ -92,10 +86,10 @@ void build_environment_tables(KernelScene& ks) {
   ks.env_marginal_guide.assign(h + 1, 0u);
   ks.env_conditional_guide.assign(size_t(h) * (w + 1), 0u);
   if (w > 0 && h > 0) {
-    build_guide(ks.env_marginal_cdf.data(), h, ks.env_marginal_guide.data());
+    build_cdf_guide(ks.env_marginal_cdf.data(), h, ks.env_marginal_guide.data());
     for (uint32_t y = 0; y < h; ++y) {
-      build_guide(ks.env_conditional_cdf.data() + size_t(y) * (w + 1), w,
-                  ks.env_conditional_guide.data() + size_t(y) * (w + 1));
+      build_cdf_guide(ks.env_conditional_cdf.data() + size_t(y) * (w + 1), w,
+                      ks.env_conditional_guide.data() + size_t(y) * (w + 1));
     }
   }
   // After map_integral: the per-texel pdf divides by it.
