@@ -231,6 +231,52 @@ BenchRays make_bench_rays(const KernelData& kd, const CpuBackend& embree, uint32
   return set;
 }
 
+namespace {
+
+// A kernel Tracer that answers through Embree and appends each query to a
+// BenchRays. The caller sets `camera_next` before each path: a path's first
+// closest-hit query is its camera ray.
+struct RecordingTracer {
+  EmbreeTracer inner;
+  BenchRays* out;
+  mutable bool camera_next = true;
+
+  void record(const Ray& ray, uint32_t alpha_key, BenchRayKind kind) const {
+    out->rays.push_back(ray);
+    out->kind.push_back(kind);
+    out->alpha_key.push_back(alpha_key);
+  }
+  Hit intersect(const Ray& ray, uint32_t alpha_key) const {
+    record(ray, alpha_key, camera_next ? BenchRayKind::kPrimary : BenchRayKind::kDiffuse);
+    camera_next = false;
+    return inner.intersect(ray, alpha_key);
+  }
+  bool occluded(const Ray& ray, uint32_t alpha_key) const {
+    record(ray, alpha_key, BenchRayKind::kShadow);
+    return inner.occluded(ray, alpha_key);
+  }
+};
+
+}  // namespace
+
+BenchRays record_path_rays(const KernelData& kd, const CpuBackend& embree) {
+  const uint32_t width = kd.constants.camera.width, height = kd.constants.camera.height;
+  const uint64_t pixels = uint64_t(width) * height;
+  const uint32_t row_step = uint32_t((pixels + kMaxRecordedPaths - 1) / kMaxRecordedPaths);
+  BenchRays set;
+  const RecordingTracer tracer{embree.embree_tracer(), &set};
+  PixelRngCache cache;
+  uint32_t rays = 0;
+  for (uint32_t y = 0; y < height; y += row_step) {
+    for (uint32_t x = 0; x < width; ++x) {
+      pixel_rng_cache_reset(&cache, y * width + x, kd.constants.integrator.seed);
+      tracer.camera_next = true;
+      render_pixel_sample_cached(kd, tracer, x, y, 0, &cache, &rays);
+    }
+  }
+  return set;
+}
+
 std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set) {
   std::array<std::vector<Ray>, 3> by_kind;
   for (size_t i = 0; i < set.rays.size(); ++i)

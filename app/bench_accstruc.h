@@ -22,9 +22,22 @@ enum class BenchRayKind : uint8_t { kPrimary, kDiffuse, kShadow };
 struct BenchRays {
   std::vector<Ray> rays;
   std::vector<BenchRayKind> kind;
+  std::vector<uint32_t> alpha_key;  // one per ray, or empty: every key 0
 };
 BenchRays make_bench_rays(const KernelData& kd, const CpuBackend& embree, uint32_t width,
                           uint32_t height);
+
+// The rays the path tracer itself casts, in the order it casts them and
+// with the alpha key it gives each: for one sample per pixel, the camera ray
+// (kPrimary), then at each bounce the light sample's shadow ray (kShadow)
+// and the scattered ray (kDiffuse, whatever the lobe). This is the peer's
+// ray mix that `make_bench_rays` only approximates: deeper bounces, and as
+// many bounce and shadow rays per camera ray as the paths really have.
+// Traced through the CPU backend's Embree tracer on one thread, pixel by
+// pixel in raster order; images of more than kMaxRecordedPaths pixels are
+// recorded on every k-th row only, to bound the memory.
+constexpr uint64_t kMaxRecordedPaths = 512 * 512;
+BenchRays record_path_rays(const KernelData& kd, const CpuBackend& embree);
 
 // The rays of `set` grouped by kind, indexed by BenchRayKind.
 std::array<std::vector<Ray>, 3> rays_by_kind(const BenchRays& set);

@@ -1,8 +1,9 @@
 // `tandem bench`: throughput of the path tracer measured against a peer in
 // the same run. The peer for the CPU backend is a plain Embree ray-casting
-// loop (rtcIntersect1 / rtcOccluded1 with no shading) over rays of the same
-// kinds the path tracer casts, so the ratio shows what shading and sampling
-// cost on top of Embree itself. With --accstruc it also measures Tandem's own
+// loop (rtcIntersect1 / rtcOccluded1 with no shading) over the rays the path
+// tracer casts (recorded from one sample per pixel) and over the first
+// bounce's ray mix, so the ratio shows what shading and sampling cost on top
+// of Embree itself. With --accstruc it also measures Tandem's own
 // BVH against Embree (app/bench_accstruc.h) and path traces on the host
 // backend. With --gpu it measures the CUDA backend on the device instead
 // (app/bench_gpu.h). Every mode can write its figures as JSON (--json).
@@ -90,10 +91,11 @@ double embree_loop_mrays(const CpuBackend& backend, const BenchRays& set, int re
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.rays.size(), 1024),
                       [&](const tbb::blocked_range<size_t>& range) {
                         for (size_t i = range.begin(); i != range.end(); ++i) {
+                          const uint32_t key = set.alpha_key.empty() ? 0 : set.alpha_key[i];
                           if (set.kind[i] == BenchRayKind::kShadow) {
-                            tracer.occluded(set.rays[i], 0);
+                            tracer.occluded(set.rays[i], key);
                           } else {
-                            tracer.intersect(set.rays[i], 0);
+                            tracer.intersect(set.rays[i], key);
                           }
                         }
                       });
@@ -206,8 +208,19 @@ int run_bench(const std::vector<std::string>& argv) {
     write_json_report(json_path, report);
     return 0;
   }
+  // Two peers: the first bounce's ray mix (make_bench_rays, the figure
+  // earlier rounds were measured against) and the path tracer's own rays
+  // replayed (record_path_rays): the same mix of camera, bounce and shadow
+  // rays the path tracing below casts, so their ratio is what shading and
+  // sampling cost on top of exactly those rays.
   embree_loop_mrays(backend, rays, 1);  // warm-up
   const double raw = embree_loop_mrays(backend, rays, 3);
+  const BenchRays path_rays = record_path_rays(kd, backend);
+  embree_loop_mrays(backend, path_rays, 1);
+  const double raw_path = embree_loop_mrays(backend, path_rays, 3);
+  uint64_t path_ray_kinds[3] = {0, 0, 0};
+  for (BenchRayKind k : path_rays.kind)
+    ++path_ray_kinds[size_t(k)];
 
   OfflineRenderOptions options;
   options.spp = spp;
@@ -216,21 +229,36 @@ int run_bench(const std::vector<std::string>& argv) {
   const double pt_mrays = double(result.stats.rays) / result.seconds * 1e-6;
   std::printf("plain embree loop:      %8.2f Mrays/s (%zu rays: camera, diffuse, shadow)\n", raw,
               rays.rays.size());
+  std::printf(
+      "plain loop, path rays:  %8.2f Mrays/s (%zu rays of 1 spp: %llu camera, %llu bounce, %llu "
+      "shadow)\n",
+      raw_path, path_rays.rays.size(), static_cast<unsigned long long>(path_ray_kinds[0]),
+      static_cast<unsigned long long>(path_ray_kinds[1]),
+      static_cast<unsigned long long>(path_ray_kinds[2]));
   std::printf("path tracing (cpu):     %8.2f Mrays/s, %.3f M samples/s, %.2f s\n", pt_mrays,
               double(result.stats.samples) / result.seconds * 1e-6, result.seconds);
-  std::printf("ratio path/plain:       %8.2f\n", pt_mrays / raw);
+  std::printf("ratio path/plain:       %8.2f (first-bounce rays), %.2f (the path's own rays)\n",
+              pt_mrays / raw, pt_mrays / raw_path);
   JsonValue report = bench_report("path", workers);
   set_render_facts(report, spec, settings.width, settings.height, spp, settings.max_depth);
   report.set("triangles", uint64_t(scene.triangle_count_instanced()));
   report.set("embree_build_seconds", build_s);
   report.set("bench_rays", uint64_t(rays.rays.size()));
   report.set("plain_embree_mrays_per_second", raw);
+  report.set("plain_embree_path_rays", JsonValue::object()
+                                           .set("rays", uint64_t(path_rays.rays.size()))
+                                           .set("camera", path_ray_kinds[0])
+                                           .set("bounce", path_ray_kinds[1])
+                                           .set("shadow", path_ray_kinds[2])
+                                           .set("mrays_per_second", raw_path));
   report.set("path_tracing_cpu",
              JsonValue::object()
                  .set("mrays_per_second", pt_mrays)
                  .set("samples_per_second", double(result.stats.samples) / result.seconds)
+                 .set("rays", result.stats.rays)
                  .set("seconds", result.seconds));
   report.set("ratio_path_over_plain", pt_mrays / raw);
+  report.set("ratio_path_over_plain_path_rays", pt_mrays / raw_path);
 
   if (args.has("accstruc")) {
     report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));

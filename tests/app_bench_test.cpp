@@ -73,7 +73,21 @@ TEST_F(BenchJson, DefaultModeWithAccstrucAndHetero) {
        "path_tracing_cpu", "ratio_path_over_plain", "accstruc", "path_tracing_host", "hetero"},
       "path");
   EXPECT_GT(n["plain_embree_mrays_per_second"].number, 0.0);
-  expect_keys(n["path_tracing_cpu"], {"mrays_per_second", "samples_per_second", "seconds"}, "cpu");
+  expect_keys(n["path_tracing_cpu"], {"mrays_per_second", "samples_per_second", "rays", "seconds"},
+              "cpu");
+  // The second peer replays the path tracer's own rays of one sample per
+  // pixel: at --spp 1 exactly as many as the path tracing run cast, one
+  // camera ray per pixel, and every bounce and shadow ray besides.
+  const Node& replay = n["plain_embree_path_rays"];
+  expect_keys(replay, {"rays", "camera", "bounce", "shadow", "mrays_per_second"}, "path rays");
+  EXPECT_EQ(replay["rays"].number, n["path_tracing_cpu"]["rays"].number);
+  EXPECT_EQ(replay["camera"].number, 16.0 * 12.0);
+  EXPECT_GT(replay["bounce"].number, 0.0);
+  EXPECT_GT(replay["shadow"].number, 0.0);
+  EXPECT_EQ(replay["camera"].number + replay["bounce"].number + replay["shadow"].number,
+            replay["rays"].number);
+  EXPECT_GT(replay["mrays_per_second"].number, 0.0);
+  EXPECT_TRUE(n.has("ratio_path_over_plain_path_rays"));
   expect_keys(n["accstruc"], {"blas_build", "sah_cost", "traversal"}, "accstruc");
   const Node& kinds = n["accstruc"]["traversal"][0]["kinds"];
   ASSERT_EQ(kinds.items.size(), 3u);
