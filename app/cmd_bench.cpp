@@ -44,7 +44,11 @@ namespace {
 const std::vector<OptionSpec>& bench_options() {
   static const std::vector<OptionSpec> specs = compose_options({
       image_size_options("512", "512"),
-      {{"spp", true, "samples per pixel of the path-tracing run", "N", "16"}},
+      {{"spp", true, "samples per pixel of the path-tracing run", "N", "16"},
+       {"repeat", true,
+        "measure the plain loops and the path tracing this many times, interleaved, and report "
+        "each one's median (the machine's noise moves single runs by a fifth)",
+        "N", "1"}},
       path_depth_options("8"),
       thread_options(),
       scene_options(),
@@ -103,6 +107,14 @@ double embree_loop_mrays(const CpuBackend& backend, const BenchRays& set, int re
   return double(set.rays.size()) * repeats / seconds_since(start) * 1e-6;
 }
 
+// The median of a non-empty list (the mean of the middle two for an even
+// count).
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
@@ -146,6 +158,9 @@ int run_bench(const std::vector<std::string>& argv) {
         "bench --gpu path traces with 1 spp and max depth 4; --spp and --max-depth "
         "do not apply");
   }
+  if (gpu && args.has("repeat")) {
+    throw UsageError("bench --gpu times its own frames (--gpu-frames); --repeat does not apply");
+  }
   if (!gpu && args.has("gpu-frames")) throw UsageError("--gpu-frames needs --gpu");
   std::vector<BackendKind> kernel_users;  // the backends --kernel would apply to
   if (auto list = args.value("hetero")) kernel_users = parse_backend_list(*list);
@@ -160,6 +175,7 @@ int run_bench(const std::vector<std::string>& argv) {
   settings.height = args.get_u32("height", 1, 16384);
   settings.max_depth = args.get_u32("max-depth", 0, 1024);
   const uint32_t spp = args.get_u32("spp", 1, 1u << 16);
+  const uint32_t repeat = args.get_u32("repeat", 1, 1, 1000);
   [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 1, 100000);
   const SceneRequest scene_request = parse_scene_request(args, spec);
   const std::optional<std::string> json_path = args.value("json");
@@ -213,22 +229,32 @@ int run_bench(const std::vector<std::string>& argv) {
   // replayed (record_path_rays): the same mix of camera, bounce and shadow
   // rays the path tracing below casts, so their ratio is what shading and
   // sampling cost on top of exactly those rays.
-  embree_loop_mrays(backend, rays, 1);  // warm-up
-  const double raw = embree_loop_mrays(backend, rays, 3);
   const BenchRays path_rays = record_path_rays(kd, backend);
-  embree_loop_mrays(backend, path_rays, 1);
-  const double raw_path = embree_loop_mrays(backend, path_rays, 3);
   uint64_t path_ray_kinds[3] = {0, 0, 0};
   for (BenchRayKind k : path_rays.kind)
     ++path_ray_kinds[size_t(k)];
-
+  embree_loop_mrays(backend, rays, 1);  // warm-up
+  embree_loop_mrays(backend, path_rays, 1);
   OfflineRenderOptions options;
   options.spp = spp;
-  const OfflineRenderResult result =
-      render_offline(backend, settings.width, settings.height, options);
-  const double pt_mrays = double(result.stats.rays) / result.seconds * 1e-6;
-  std::printf("plain embree loop:      %8.2f Mrays/s (%zu rays: camera, diffuse, shadow)\n", raw,
-              rays.rays.size());
+  // Each run measures the three one after the other, so that a slow
+  // minute of a shared machine slows all three of that run.
+  std::vector<double> raw_runs, raw_path_runs, pt_runs, samples_runs, seconds_runs;
+  uint64_t pt_rays = 0;
+  for (uint32_t r = 0; r < repeat; ++r) {
+    raw_runs.push_back(embree_loop_mrays(backend, rays, 3));
+    raw_path_runs.push_back(embree_loop_mrays(backend, path_rays, 3));
+    const OfflineRenderResult result =
+        render_offline(backend, settings.width, settings.height, options);
+    pt_runs.push_back(double(result.stats.rays) / result.seconds * 1e-6);
+    samples_runs.push_back(double(result.stats.samples) / result.seconds);
+    seconds_runs.push_back(result.seconds);
+    pt_rays = result.stats.rays;
+  }
+  const double raw = median(raw_runs), raw_path = median(raw_path_runs), pt_mrays = median(pt_runs);
+  const char* of_runs = repeat > 1 ? " (medians)" : "";
+  std::printf("plain embree loop:      %8.2f Mrays/s (%zu rays: camera, diffuse, shadow)%s\n", raw,
+              rays.rays.size(), of_runs);
   std::printf(
       "plain loop, path rays:  %8.2f Mrays/s (%zu rays of 1 spp: %llu camera, %llu bounce, %llu "
       "shadow)\n",
@@ -236,9 +262,22 @@ int run_bench(const std::vector<std::string>& argv) {
       static_cast<unsigned long long>(path_ray_kinds[1]),
       static_cast<unsigned long long>(path_ray_kinds[2]));
   std::printf("path tracing (cpu):     %8.2f Mrays/s, %.3f M samples/s, %.2f s\n", pt_mrays,
-              double(result.stats.samples) / result.seconds * 1e-6, result.seconds);
+              median(samples_runs) * 1e-6, median(seconds_runs));
   std::printf("ratio path/plain:       %8.2f (first-bounce rays), %.2f (the path's own rays)\n",
               pt_mrays / raw, pt_mrays / raw_path);
+  if (repeat > 1) {
+    auto range = [](const std::vector<double>& v) {
+      const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+      return std::make_pair(*lo, *hi);
+    };
+    const auto [raw_lo, raw_hi] = range(raw_runs);
+    const auto [path_lo, path_hi] = range(raw_path_runs);
+    const auto [pt_lo, pt_hi] = range(pt_runs);
+    std::printf(
+        "%u interleaved runs, Mrays/s min-max: plain %.2f-%.2f, path rays %.2f-%.2f, path "
+        "tracing %.2f-%.2f\n",
+        repeat, raw_lo, raw_hi, path_lo, path_hi, pt_lo, pt_hi);
+  }
   JsonValue report = bench_report("path", workers);
   set_render_facts(report, spec, settings.width, settings.height, spp, settings.max_depth);
   report.set("triangles", uint64_t(scene.triangle_count_instanced()));
@@ -251,14 +290,24 @@ int run_bench(const std::vector<std::string>& argv) {
                                            .set("bounce", path_ray_kinds[1])
                                            .set("shadow", path_ray_kinds[2])
                                            .set("mrays_per_second", raw_path));
-  report.set("path_tracing_cpu",
-             JsonValue::object()
-                 .set("mrays_per_second", pt_mrays)
-                 .set("samples_per_second", double(result.stats.samples) / result.seconds)
-                 .set("rays", result.stats.rays)
-                 .set("seconds", result.seconds));
+  report.set("path_tracing_cpu", JsonValue::object()
+                                     .set("mrays_per_second", pt_mrays)
+                                     .set("samples_per_second", median(samples_runs))
+                                     .set("rays", pt_rays)
+                                     .set("seconds", median(seconds_runs)));
   report.set("ratio_path_over_plain", pt_mrays / raw);
   report.set("ratio_path_over_plain_path_rays", pt_mrays / raw_path);
+  report.set("repeat", repeat);
+  auto runs_json = [](const std::vector<double>& v) {
+    JsonValue a = JsonValue::array();
+    for (double x : v)
+      a.push(x);
+    return a;
+  };
+  report.set("runs_mrays_per_second", JsonValue::object()
+                                          .set("plain_embree", runs_json(raw_runs))
+                                          .set("plain_embree_path_rays", runs_json(raw_path_runs))
+                                          .set("path_tracing_cpu", runs_json(pt_runs)));
 
   if (args.has("accstruc")) {
     report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));

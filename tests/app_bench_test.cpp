@@ -5,9 +5,11 @@
 // configuration: these tests check the plumbing, not the figures.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "backends/backend_factory.h"
 #include "tests/app_run_tandem.h"
@@ -107,6 +109,35 @@ TEST_F(BenchJson, DefaultModeWithAccstrucAndHetero) {
   EXPECT_NE(r.output.find(printed), std::string::npos) << printed << "\n" << r.output;
 }
 
+// --repeat N: the three measurements N times, interleaved; the reported
+// figures are the medians of the runs, which the report lists too.
+TEST_F(BenchJson, RepeatReportsTheMediansOfItsRuns) {
+  const fs::path out = file("repeat.json");
+  const RunResult r = run_tandem(
+      "bench --width 16 --height 12 --spp 1 --max-depth 2 --threads 1 --repeat 3 --json " +
+      shell_quote(out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("3 interleaved runs"), std::string::npos) << r.output;
+  const Node n = read_json(out);
+  EXPECT_EQ(n["repeat"].number, 3.0);
+  const Node& runs = n["runs_mrays_per_second"];
+  auto median_of = [](const Node& list) {
+    std::vector<double> v;
+    for (const Node& x : list.items)
+      v.push_back(x.number);
+    std::sort(v.begin(), v.end());
+    return v.size() == 3 ? v[1] : -1.0;
+  };
+  for (const char* key : {"plain_embree", "plain_embree_path_rays", "path_tracing_cpu"})
+    ASSERT_EQ(runs[key].items.size(), 3u) << key;
+  EXPECT_EQ(n["plain_embree_mrays_per_second"].number, median_of(runs["plain_embree"]));
+  EXPECT_EQ(n["plain_embree_path_rays"]["mrays_per_second"].number,
+            median_of(runs["plain_embree_path_rays"]));
+  EXPECT_EQ(n["path_tracing_cpu"]["mrays_per_second"].number, median_of(runs["path_tracing_cpu"]));
+  EXPECT_EQ(n["ratio_path_over_plain_path_rays"].number,
+            median_of(runs["path_tracing_cpu"]) / median_of(runs["plain_embree_path_rays"]));
+}
+
 TEST_F(BenchJson, FrameLoopMode) {
   const fs::path out = file("frames.json");
   const RunResult r = run_tandem(
@@ -203,6 +234,8 @@ TEST(KernelOption, RefusedWhereItDoesNotApply) {
       {"bench --gpu --kernel quantum", "unknown kernel"},
       {"bench --gpu --accstruc", "cannot be combined"},
       {"bench --gpu --spp 4", "do not apply"},
+      {"bench --gpu --repeat 3", "--repeat does not apply"},
+      {"bench --repeat 0", "--repeat"},
       {"bench --gpu-frames 3", "needs --gpu"},
       {"bench --gpu --width 0", "--width"},
       {"bench --gpu --gpu-frames 0", "--gpu-frames"},
