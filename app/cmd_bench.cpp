@@ -47,7 +47,7 @@ const std::vector<OptionSpec>& bench_options() {
       {{"spp", true, "samples per pixel of the path-tracing run", "N", "16"},
        {"repeat", true,
         "measure the plain loops and the path tracing this many times, interleaved, and report "
-        "each one's median (the machine's noise moves single runs by a fifth)",
+        "each one's median (single runs on a busy machine can differ by a fifth)",
         "N", "1"}},
       path_depth_options("8"),
       thread_options(),
