@@ -252,9 +252,9 @@ int run_bench(const std::vector<std::string>& argv) {
     pt_rays = result.stats.rays;
   }
   const double raw = median(raw_runs), raw_path = median(raw_path_runs), pt_mrays = median(pt_runs);
-  const char* of_runs = repeat > 1 ? " (medians)" : "";
-  std::printf("plain embree loop:      %8.2f Mrays/s (%zu rays: camera, diffuse, shadow)%s\n", raw,
-              rays.rays.size(), of_runs);
+  if (repeat > 1) std::printf("medians of %u interleaved runs:\n", repeat);
+  std::printf("plain embree loop:      %8.2f Mrays/s (%zu rays: camera, diffuse, shadow)\n", raw,
+              rays.rays.size());
   std::printf(
       "plain loop, path rays:  %8.2f Mrays/s (%zu rays of 1 spp: %llu camera, %llu bounce, %llu "
       "shadow)\n",
@@ -274,8 +274,8 @@ int run_bench(const std::vector<std::string>& argv) {
     const auto [path_lo, path_hi] = range(raw_path_runs);
     const auto [pt_lo, pt_hi] = range(pt_runs);
     std::printf(
-        "%u interleaved runs, Mrays/s min-max: plain %.2f-%.2f, path rays %.2f-%.2f, path "
-        "tracing %.2f-%.2f\n",
+        "min-max of the %u runs, Mrays/s: plain %.2f-%.2f, path rays %.2f-%.2f, path tracing "
+        "%.2f-%.2f\n",
         repeat, raw_lo, raw_hi, path_lo, path_hi, pt_lo, pt_hi);
   }
   JsonValue report = bench_report("path", workers);

@@ -117,7 +117,7 @@ TEST_F(BenchJson, RepeatReportsTheMediansOfItsRuns) {
       "bench --width 16 --height 12 --spp 1 --max-depth 2 --threads 1 --repeat 3 --json " +
       shell_quote(out.string()));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("3 interleaved runs"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("medians of 3 interleaved runs"), std::string::npos) << r.output;
   const Node n = read_json(out);
   EXPECT_EQ(n["repeat"].number, 3.0);
   const Node& runs = n["runs_mrays_per_second"];
