@@ -58,12 +58,6 @@ double cpu_ms_now() {
   return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
-
 // Which structures a frame keeps for its backends, as CoreTracer does:
 //   host          the CPU backend on Tandem's BVH: AccelStructure with only
 //                 the layout in use refit (kd.bvh.layout), nothing uploaded;

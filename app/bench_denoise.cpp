@@ -74,19 +74,6 @@ double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
-
-JsonValue json_list(const std::vector<double>& v) {
-  JsonValue a = JsonValue::array();
-  for (double d : v)
-    a.push(d);
-  return a;
-}
-
 // Half-resolution copies of four images in a 2x2 grid (so the PNG is the
 // frame's size), tone mapped: row-major in the order given.
 void write_grid(const std::filesystem::path& path, const std::vector<const ImageRGB*>& imgs) {
@@ -274,8 +261,8 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
                   .set("filter_ms", filter_ms)
                   .set("feature_ms", feature_ms)
                   .set("render_1spp_ms", render_ms)
-                  .set("filter_ms_samples", json_list(filter_samples))
-                  .set("render_1spp_ms_samples", json_list(render_samples))
+                  .set("filter_ms_samples", json_number_list(filter_samples))
+                  .set("render_1spp_ms_samples", json_number_list(render_samples))
                   .set("filter_over_render_1spp", filter_ms / render_ms)
                   .set("reference_spp", ref_spp));
     if (images) {

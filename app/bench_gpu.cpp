@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "accstruc/accel_structure.h"
+#include "app/bench_report.h"
 #include "backends/cuda/cuda_backend.h"
 #include "core/render/film.h"
 #include "core/render/tiles.h"
@@ -54,13 +55,6 @@ double gpu_mrays(CudaBackend& cuda, const std::vector<Ray>& rays, bool any_hit) 
     if (hits.size() != rays.size()) throw std::logic_error("trace_rays returned a short answer");
   }
   return double(rays.size()) / best * 1e-6;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 GpuFrameFigures time_frames(CudaBackend& cuda, const GpuBenchConfig& c) {

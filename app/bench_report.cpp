@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,19 @@
 namespace tandem {
 
 namespace fs = std::filesystem;
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+JsonValue json_number_list(const std::vector<double>& v) {
+  JsonValue a = JsonValue::array();
+  for (double d : v)
+    a.push(d);
+  return a;
+}
 
 void check_json_output_path(const std::string& path) {
   const std::string what = "--json " + path + ": ";

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "app/json_writer.h"
 
@@ -23,6 +24,13 @@ JsonValue bench_report(const std::string& mode, int threads);
 // "height", "spp", "max_depth".
 void set_render_facts(JsonValue& report, const std::string& scene, uint32_t width, uint32_t height,
                       uint32_t spp, uint32_t max_depth);
+
+// The median of timings or rates (the mean of the middle two for an even
+// count; 0 for none): what the modes that repeat a measurement report.
+double median(std::vector<double> v);
+
+// The values as a JSON array: the individual runs beside their median.
+JsonValue json_number_list(const std::vector<double>& v);
 
 // Writes report.dump() to `path` atomically; no-op without a path.
 void write_json_report(const std::optional<std::string>& path, const JsonValue& report);

@@ -40,12 +40,6 @@ const std::vector<OptionSpec>& scene_update_options() {
 
 using Clock = std::chrono::steady_clock;
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
-
 struct UpdateCase {
   const char* name;
   std::function<void(Scene&, uint32_t repeat)> edit;

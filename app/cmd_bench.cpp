@@ -107,14 +107,6 @@ double embree_loop_mrays(const CpuBackend& backend, const BenchRays& set, int re
   return double(set.rays.size()) * repeats / seconds_since(start) * 1e-6;
 }
 
-// The median of a non-empty list (the mean of the middle two for an even
-// count).
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 }  // namespace
 
 int run_bench(const std::vector<std::string>& argv) {
@@ -298,16 +290,11 @@ int run_bench(const std::vector<std::string>& argv) {
   report.set("ratio_path_over_plain", pt_mrays / raw);
   report.set("ratio_path_over_plain_path_rays", pt_mrays / raw_path);
   report.set("repeat", repeat);
-  auto runs_json = [](const std::vector<double>& v) {
-    JsonValue a = JsonValue::array();
-    for (double x : v)
-      a.push(x);
-    return a;
-  };
-  report.set("runs_mrays_per_second", JsonValue::object()
-                                          .set("plain_embree", runs_json(raw_runs))
-                                          .set("plain_embree_path_rays", runs_json(raw_path_runs))
-                                          .set("path_tracing_cpu", runs_json(pt_runs)));
+  report.set("runs_mrays_per_second",
+             JsonValue::object()
+                 .set("plain_embree", json_number_list(raw_runs))
+                 .set("plain_embree_path_rays", json_number_list(raw_path_runs))
+                 .set("path_tracing_cpu", json_number_list(pt_runs)));
 
   if (args.has("accstruc")) {
     report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));

@@ -1,6 +1,7 @@
 // The benchmarks' reports without running a benchmark: the JSON writer read
-// back by an independent parser, the output-path checks, and the table and
-// JSON of `bench --gpu` from made-up figures (no GPU needed).
+// back by an independent parser, the output-path checks, the median of
+// repeated runs, and the table and JSON of `bench --gpu` from made-up
+// figures (no GPU needed).
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
@@ -137,6 +138,20 @@ GpuBenchFigures fake_gpu_figures() {
               {"wavefront", "binary", 14.0, 148.0e6, 620.0},
               {"wavefront", "wide", 11.0, 188.0e6, 790.0}};
   return f;
+}
+
+// The one median every repeating bench mode reports: the middle value, the
+// mean of the middle two, 0 for no runs; and its runs as a JSON list.
+TEST(BenchReport, MedianAndRunList) {
+  EXPECT_EQ(median({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_EQ(median({4.0, 1.0, 3.0, 2.0}), 2.5);
+  EXPECT_EQ(median({7.0}), 7.0);
+  EXPECT_EQ(median({}), 0.0);
+  const Node n = json_test::parse(json_number_list({1.5, -2.0, 3.0}).dump());
+  ASSERT_EQ(n.items.size(), 3u);
+  EXPECT_EQ(n[0].number, 1.5);
+  EXPECT_EQ(n[1].number, -2.0);
+  EXPECT_EQ(n[2].number, 3.0);
 }
 
 TEST(GpuBenchReport, TableShowsEveryFigure) {
