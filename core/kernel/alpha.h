@@ -8,6 +8,7 @@
 #include "core/kernel/rng.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Decides whether a candidate hit on an alpha-tested triangle is opaque.
 // MASK: alpha >= cutoff. BLEND: stochastic transparency, opaque with
@@ -31,4 +32,5 @@ TANDEM_HD bool alpha_test_opaque(const KernelData& kd, uint32_t instance, uint32
   return r < alpha;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -38,6 +38,7 @@
 #include "core/kernel/bsdf_layers.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 TANDEM_HD BsdfLobeProbabilities bsdf_lobe_probabilities(const BsdfParams& p, Vec3 wo) {
   const float f_dielectric = p.specular > 0.0f ? fresnel_dielectric(wo.z, p.eta) : 0.0f;
@@ -213,4 +214,5 @@ TANDEM_HD bool bsdf_sample(const BsdfParams& p, Vec3 wo, float u_lobe, float u1,
   return bsdf_sample_lobes(p, bsdf_lobe_probabilities(p, wo), wo, u_lobe, u1, u2, out);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -33,6 +33,7 @@
 #include "core/kernel/sheen_albedo.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 constexpr float kCoatF0 = 0.04f;  // ior 1.5, fixed by the extension
 constexpr float kCoatFresnelBound = 1.05f;
@@ -112,4 +113,5 @@ TANDEM_HD void add_layers(const BsdfParams& p, const BsdfLobeProbabilities& prob
   }
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -6,6 +6,7 @@
 #include "core/kernel/sampling.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct BsdfParams {
   Vec3 base_color;
@@ -55,4 +56,5 @@ struct BsdfLobeProbabilities {
 // the weights of those samples moderate.
 constexpr float kMinLobeFresnelWeight = 0.1f;
 
+TANDEM_KERNEL_END
 }  // namespace tandem

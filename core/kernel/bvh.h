@@ -16,6 +16,7 @@
 #include "core/kernel/math.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 enum KBvhLayout : uint32_t { kBvhLayoutBinary = 0, kBvhLayoutWide = 1 };
 
@@ -140,4 +141,5 @@ TANDEM_HD float wide_node_scale(const KWideBvhNode& n, int axis) {
   return uint_as_float(uint32_t(n.exponent[axis]) << 23);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -12,33 +12,35 @@
 //     fallback for edge functions that round to zero.
 #pragma once
 
+#include "core/kernel/gpu_intrinsics.h"
 #include "core/kernel/math.h"
 #include "core/kernel/types.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Products that nvcc must not contract into FMAs: the edge functions of two
 // triangles sharing an edge are exact negations of each other only when both
 // products are rounded separately, which is what makes the test watertight.
 TANDEM_HD float mul_rn(float a, float b) {
-#if defined(__CUDA_ARCH__)
-  return __fmul_rn(a, b);
+#if TANDEM_GPU_CODE
+  return gpu_mul_rn(a, b);
 #else
   return a * b;
 #endif
 }
 
 TANDEM_HD uint32_t count_trailing_zeros(uint32_t x) {
-#if defined(__CUDA_ARCH__)
-  return uint32_t(__ffs(int(x)) - 1);
+#if TANDEM_GPU_CODE
+  return gpu_find_first_set(x) - 1u;
 #else
   return uint32_t(__builtin_ctz(x));
 #endif
 }
 
 TANDEM_HD uint32_t popcount(uint32_t x) {
-#if defined(__CUDA_ARCH__)
-  return uint32_t(__popc(x));
+#if TANDEM_GPU_CODE
+  return gpu_popcount(x);
 #else
   return uint32_t(__builtin_popcount(x));
 #endif
@@ -171,4 +173,5 @@ TANDEM_HD bool intersect_triangle_watertight(const ShearRay& r, Vec3 p0, Vec3 p1
   return true;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

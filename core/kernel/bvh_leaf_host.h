@@ -23,12 +23,15 @@
 //   - the alpha test and the hit record are TwoLevelTrace::record_hit's.
 #pragma once
 
+#include "core/kernel/defines.h"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #include <xmmintrin.h>
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 #if defined(__SSE2__)
 
@@ -174,4 +177,5 @@ inline int host_test_records4(TwoLevelTrace<kCount>& tr, const HostShear4& s,
 
 #endif  // __SSE2__
 
+TANDEM_KERNEL_END
 }  // namespace tandem

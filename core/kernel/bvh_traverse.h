@@ -16,6 +16,7 @@
 #include "core/kernel/bvh_intersect.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Most entries a binary leaf can have (the builder caps leaves at 16).
 constexpr uint32_t kBvhMaxLeafEntries = 16;
@@ -42,12 +43,12 @@ struct BvhCounters {
 template <class T>
 TANDEM_HD T load_readonly_16(const T* p) {
   static_assert(sizeof(T) % 16 == 0 && alignof(T) >= 16, "16-byte pieces");
-#if defined(__CUDA_ARCH__)
-  uint4 words[sizeof(T) / 16];
-  const uint4* src = reinterpret_cast<const uint4*>(p);
-#pragma unroll
+#if TANDEM_GPU_CODE
+  GpuWord4 words[sizeof(T) / 16];
+  const GpuWord4* src = reinterpret_cast<const GpuWord4*>(p);
+  TANDEM_GPU_UNROLL
   for (uint32_t i = 0; i < sizeof(T) / 16; ++i)
-    words[i] = __ldg(src + i);
+    words[i] = gpu_load_readonly(src + i);
   T out;
   memcpy(&out, words, sizeof(T));
   return out;
@@ -57,28 +58,65 @@ TANDEM_HD T load_readonly_16(const T* p) {
 }
 
 TANDEM_HD uint32_t load_readonly(const uint32_t* p) {
-#if defined(__CUDA_ARCH__)
-  return __ldg(p);
+#if TANDEM_GPU_CODE
+  return gpu_load_readonly(p);
 #else
   return *p;
 #endif
 }
 
 TANDEM_HD Vec3 load_readonly(const Vec3* p) {
-#if defined(__CUDA_ARCH__)
+#if TANDEM_GPU_CODE
   const float* f = reinterpret_cast<const float*>(p);
-  return make_vec3(__ldg(f), __ldg(f + 1), __ldg(f + 2));
+  return make_vec3(gpu_load_readonly(f), gpu_load_readonly(f + 1), gpu_load_readonly(f + 2));
 #else
   return *p;
 #endif
 }
 
 TANDEM_HD KTriangle load_readonly(const KTriangle* p) {
-#if defined(__CUDA_ARCH__)
-  const uint4 w = __ldg(reinterpret_cast<const uint4*>(p));
+#if TANDEM_GPU_CODE
+  const GpuWord4 w = gpu_load_readonly(reinterpret_cast<const GpuWord4*>(p));
   return KTriangle{w.x, w.y, w.z, w.w};
 #else
   return *p;
+#endif
+}
+
+// A binary node in two loads: its children's boxes, and their links (the
+// node's last 16 bytes).
+struct KBvhNodeBoxes {
+  Vec4 c0_xy, c1_xy, c01_z;
+};
+struct KBvhNodeLinks {
+  uint32_t child[2];
+  uint32_t count[2];
+};
+static_assert(offsetof(KBvhNode, child) == sizeof(KBvhNodeBoxes) && sizeof(KBvhNodeLinks) == 16 &&
+                  sizeof(KBvhNode) == 64,
+              "a node is its boxes, then its links");
+
+TANDEM_HD KBvhNodeBoxes load_node_boxes(const KBvhNode* p) {
+#if TANDEM_GPU_CODE
+  const GpuWord4* words = reinterpret_cast<const GpuWord4*>(p);
+  KBvhNodeBoxes out;
+  const GpuWord4 w0 = gpu_load_readonly(words), w1 = gpu_load_readonly(words + 1),
+                 w2 = gpu_load_readonly(words + 2);
+  memcpy(&out.c0_xy, &w0, 16);
+  memcpy(&out.c1_xy, &w1, 16);
+  memcpy(&out.c01_z, &w2, 16);
+  return out;
+#else
+  return KBvhNodeBoxes{p->c0_xy, p->c1_xy, p->c01_z};
+#endif
+}
+
+TANDEM_HD KBvhNodeLinks load_node_links(const KBvhNode* p) {
+#if TANDEM_GPU_CODE
+  const GpuWord4 w = gpu_load_readonly(reinterpret_cast<const GpuWord4*>(p) + 3);
+  return KBvhNodeLinks{{w.x, w.y}, {w.z, w.w}};
+#else
+  return KBvhNodeLinks{{p->child[0], p->child[1]}, {p->count[0], p->count[1]}};
 #endif
 }
 
@@ -88,7 +126,7 @@ TANDEM_HD KTriangle load_readonly(const KTriangle* p) {
 // whole leaf first lets those chains overlap. A no-op on the device, whose
 // latency hiding is other warps.
 TANDEM_HD void prefetch_readonly(const void* p) {
-#if !defined(__CUDA_ARCH__)
+#if !TANDEM_GPU_CODE
   __builtin_prefetch(p, 0, 3);
 #else
   (void)p;
@@ -250,7 +288,7 @@ struct TwoLevelTrace {
   // of bvh_prim_indices.
   TANDEM_HD void prefetch_leaf_triangles(uint32_t first, uint32_t count,
                                          const uint32_t* record) const {
-#if !defined(__CUDA_ARCH__)
+#if !TANDEM_GPU_CODE
     const bool indexed = (record[kRecordBlasFlags] & kBlasNoLeafRecords) != 0u;
     const char* begin = indexed ? reinterpret_cast<const char*>(kd->bvh_prim_indices + first)
                                 : reinterpret_cast<const char*>(kd->bvh_leaf_triangles + first);
@@ -308,17 +346,20 @@ struct TwoLevelTrace {
   }
 };
 
+TANDEM_KERNEL_END
 }  // namespace tandem
 
 // The host's own loops: the binary layout's (same hits, fewer node visits)
 // and the wide layout's in distance order (same closest t, fewer node
-// visits and triangle tests), wherever the compiler is not nvcc.
-#if !defined(__CUDACC__)
+// visits and triangle tests), wherever the compiler is not nvcc and the
+// GPU's code is not being emulated.
+#if !defined(__CUDACC__) && !TANDEM_GPU_CODE
 #define TANDEM_BVH_HOST_TRAVERSAL 1
 #include "core/kernel/bvh_traverse_host.h"
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Binary layout. In a BLAS, leaf triangles are tested as soon as their node
 // is; in the TLAS a hit leaf's instance range goes on the stack (two entries:
@@ -335,7 +376,10 @@ TANDEM_HD bool trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNode*
   uint32_t blas_sp = kBvhInTlas;
   uint32_t node_index = root;
   for (;;) {
-    const KBvhNode n = load_readonly_16(nodes + node_index);
+    // The boxes, then the links once the boxes are tested: loaded as one
+    // 64-byte node, the node went through a copy in the GPU's local memory
+    // (ptxas: 96 B more stack in every traversal kernel).
+    const KBvhNodeBoxes boxes = load_node_boxes(nodes + node_index);
     const bool in_blas = blas_sp != kBvhInTlas;
     if constexpr (kCount) {
       tr.counters->nodes += 1;
@@ -343,10 +387,13 @@ TANDEM_HD bool trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNode*
       if (in_blas) tr.counters->blas_nodes += 1;
     }
     float t0, t1;
-    bool hit0 = intersect_box(tr.box, make_vec3(n.c0_xy.x, n.c0_xy.z, n.c01_z.x),
-                              make_vec3(n.c0_xy.y, n.c0_xy.w, n.c01_z.y), tr.tmin, tr.tmax, &t0);
-    bool hit1 = intersect_box(tr.box, make_vec3(n.c1_xy.x, n.c1_xy.z, n.c01_z.z),
-                              make_vec3(n.c1_xy.y, n.c1_xy.w, n.c01_z.w), tr.tmin, tr.tmax, &t1);
+    bool hit0 = intersect_box(tr.box, make_vec3(boxes.c0_xy.x, boxes.c0_xy.z, boxes.c01_z.x),
+                              make_vec3(boxes.c0_xy.y, boxes.c0_xy.w, boxes.c01_z.y), tr.tmin,
+                              tr.tmax, &t0);
+    bool hit1 = intersect_box(tr.box, make_vec3(boxes.c1_xy.x, boxes.c1_xy.z, boxes.c01_z.z),
+                              make_vec3(boxes.c1_xy.y, boxes.c1_xy.w, boxes.c01_z.w), tr.tmin,
+                              tr.tmax, &t1);
+    const KBvhNodeLinks n = load_node_links(nodes + node_index);
     bool leaf0 = hit0 && (n.child[0] & kBvhLeafFlag) != 0u;
     bool leaf1 = hit1 && (n.child[1] & kBvhLeafFlag) != 0u;
     if (in_blas && (leaf0 || leaf1)) {
@@ -619,6 +666,11 @@ struct BvhTracer {
   TANDEM_HD bool occluded(const Ray& ray, uint32_t alpha_key) const {
     return bvh_occluded(*kd, ray, alpha_key, kd->bvh.layout);
   }
+  // Either query (render_pixel_sample_one_trace_site).
+  TANDEM_HD Hit trace(const Ray& ray, uint32_t alpha_key, bool any_hit) const {
+    return bvh_trace(*kd, ray, alpha_key, kd->bvh.layout, any_hit);
+  }
 };
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -29,6 +29,7 @@
 #include "core/kernel/bvh_leaf_host.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // A node waiting on the host stack and the distance its box is entered at.
 struct HostBvhStackEntry {
@@ -276,6 +277,7 @@ inline bool host_trace_two_level_binary(TwoLevelTrace<kCount>& tr, const KBvhNod
   return false;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem
 
 // The wide layout's host loop.

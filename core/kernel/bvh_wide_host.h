@@ -13,6 +13,7 @@
 #include "core/kernel/host_isa.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // ---------------------------------------------------------------------------
 // Wide layout: a loop per level in distance order. The portable loop
@@ -610,4 +611,5 @@ inline bool host_trace_two_level_wide(TwoLevelTrace<kCount>& tr, const KWideBvhN
   return host_trace_two_level_wide_sse(tr, nodes, root);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

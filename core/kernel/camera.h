@@ -7,6 +7,7 @@
 #include "core/kernel/types.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 TANDEM_HD Ray generate_camera_ray(const KCamera& cam, float film_x, float film_y, float lens_u,
                                   float lens_v) {
@@ -38,4 +39,5 @@ TANDEM_HD Ray generate_camera_ray(const KCamera& cam, float film_x, float film_y
   return ray;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -16,6 +16,31 @@
 #define TANDEM_DEVICE_COMPILE 0
 #endif
 
+// TANDEM_GPU_CODE: whether the GPU's own branches of the kernel code are
+// compiled (vector loads through the read-only cache, bit intrinsics, the
+// portable BVH loops, device atomics). They are in nvcc's device pass, and
+// in the simulated device's emulated build (TANDEM_EMULATED_GPU, defined by
+// backends/cuda/emulated_*.cpp before any include), which runs them on the
+// CPU so that CI executes the code a GPU executes (gpu_intrinsics.h).
+#if defined(__CUDA_ARCH__) || defined(TANDEM_EMULATED_GPU)
+#define TANDEM_GPU_CODE 1
+#else
+#define TANDEM_GPU_CODE 0
+#endif
+
+// Every kernel header opens namespace tandem and then TANDEM_KERNEL_BEGIN.
+// In an emulated build that is an inline namespace of its own: the emulated
+// copy of each kernel function has the GPU branches, the host's copy does
+// not, and in one program the two must not be taken for the same function
+// (the linker would keep one of them for both). Elsewhere it is nothing.
+#if defined(TANDEM_EMULATED_GPU)
+#define TANDEM_KERNEL_BEGIN inline namespace emulated_gpu {
+#define TANDEM_KERNEL_END }
+#else
+#define TANDEM_KERNEL_BEGIN
+#define TANDEM_KERNEL_END
+#endif
+
 // For the small vector, random-number and sampling helpers that every
 // shading point calls many times: nvcc inlines all TANDEM_HD functions, g++
 // at -O3 left these as calls (a tenth of a CPU path-tracing sample went to
@@ -47,6 +72,7 @@
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 constexpr float kPi = 3.14159265358979323846f;
 constexpr float kTwoPi = 6.28318530717958647692f;
@@ -56,28 +82,24 @@ constexpr float kInv4Pi = 0.07957747154594766788f;
 constexpr float kFloatMax = 3.402823466e+38f;
 constexpr uint32_t kInvalidIndex = 0xffffffffu;
 
+// The bits of a float and back. nvcc turns the copies into register moves
+// (no intrinsic needed: the device pass compiles std::memcpy of a scalar to
+// a move), so the GPU runs this very code.
 TANDEM_HD uint32_t float_as_uint(float f) {
-#if TANDEM_DEVICE_COMPILE && defined(__CUDA_ARCH__)
-  return __float_as_uint(f);
-#else
   uint32_t u;
   std::memcpy(&u, &f, sizeof u);
   return u;
-#endif
 }
 
 TANDEM_HD float uint_as_float(uint32_t u) {
-#if TANDEM_DEVICE_COMPILE && defined(__CUDA_ARCH__)
-  return __uint_as_float(u);
-#else
   float f;
   std::memcpy(&f, &u, sizeof f);
   return f;
-#endif
 }
 
 TANDEM_HD bool is_finite(float x) {
   return (float_as_uint(x) & 0x7f800000u) != 0x7f800000u;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

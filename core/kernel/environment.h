@@ -7,6 +7,7 @@
 #include "core/kernel/sampling.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // d turned about +y by the angle whose cosine and sine are c and s.
 TANDEM_HD Vec3 rotate_y_cs(Vec3 d, float c, float s) {
@@ -193,4 +194,5 @@ TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
   return s;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -12,6 +12,7 @@
 #include "core/kernel/defines.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // log2(x) for x > 0 (0 and denormals give a large negative number, which
 // exp2_f turns into 0). x = 2^e * m with m in [sqrt(1/2), sqrt(2)), and
@@ -65,4 +66,5 @@ TANDEM_HD float exp_f(float x) {
   return exp2_f(x * 1.44269504f);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -19,6 +19,7 @@
 #include "core/kernel/integrator.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // One pixel's features. 64 bytes; an array of them is the feature buffer.
 struct PixelFeatures {
@@ -136,4 +137,5 @@ TANDEM_HD PixelFeatures compute_pixel_features(const KernelData& kd, const Trace
   return f;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

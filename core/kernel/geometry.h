@@ -7,6 +7,7 @@
 #include "core/kernel/texture.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct SurfacePoint {
   Vec3 position;
@@ -235,4 +236,5 @@ TANDEM_HD SurfacePoint make_surface_point(const KernelData& kd, const Hit& hit) 
   return sp;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

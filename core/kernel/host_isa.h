@@ -6,6 +6,8 @@
 // in the environment keeps the baseline copies (tests run both).
 #pragma once
 
+#include "core/kernel/defines.h"
+
 #include <cstdlib>
 #include <cstring>
 
@@ -18,6 +20,7 @@
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Whether the AVX2 copies may run: the CPU has AVX2 and TANDEM_HOST_ISA is
 // not "sse2". Read the environment once, at start-up, not per call.
@@ -32,4 +35,5 @@ inline bool host_cpu_has_avx2() {
 #endif
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

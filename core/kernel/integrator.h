@@ -33,6 +33,7 @@
 #include "core/kernel/rng.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Russian roulette's survival probability for a path of this throughput:
 // the square root of its largest component, at most 1. A path whose
@@ -396,6 +397,44 @@ TANDEM_HD Vec3 render_pixel_sample(const KernelData& kd, const Tracer& tracer, u
   return render_path(kd, tracer, p, p.rng, ray_count);
 }
 
+// render_pixel_sample with one call of the tracer per step of the path,
+// which alternates between the path's next ray and its shadow ray (the
+// stages in the wavefront's order): the same radiance and ray count, bit for
+// bit. The GPU's megakernel runs this form: its compiler inlines the
+// traversal once instead of twice (closest hit and occlusion), and at 128
+// registers the two copies spilled where one does not. `tracer.trace(ray,
+// alpha_key, any_hit)` is a closest-hit query, or an occlusion query whose
+// hit is valid when occluded.
+template <class Tracer>
+TANDEM_HD Vec3 render_pixel_sample_one_trace_site(const KernelData& kd, const Tracer& tracer,
+                                                  uint32_t x, uint32_t y, uint32_t sample,
+                                                  uint32_t* ray_count) {
+  PathState p;
+  path_generate(kd, x, y, sample, &p);
+  ShadowRay shadow;
+  bool tracing_shadow = false;
+  for (;;) {
+    const Hit hit =
+        tracer.trace(tracing_shadow ? shadow.ray : p.ray,
+                     tracing_shadow ? shadow.alpha_key : path_alpha_key(p), tracing_shadow);
+    ++p.rays;
+    if (tracing_shadow) {
+      path_shadow_result(shadow, hit_valid(hit), &p);
+      tracing_shadow = false;
+      if (!path_alive(p)) break;
+      continue;
+    }
+    if (!hit_valid(hit)) {
+      path_shade_miss(kd, &p);
+      break;
+    }
+    tracing_shadow = path_shade_hit(kd, hit, &p, &shadow);
+    if (!tracing_shadow && !path_alive(p)) break;
+  }
+  *ray_count += p.rays;
+  return path_finish(kd, p);
+}
+
 // render_pixel_sample with the pixel's cache of sample-independent seeds
 // (pixel_rng_cache_reset once per pixel, then any of its samples): the same
 // radiance, for the CPU tile loop that renders a pixel's samples in a row.
@@ -408,4 +447,5 @@ TANDEM_HD Vec3 render_pixel_sample_cached(const KernelData& kd, const Tracer& tr
   return render_path(kd, tracer, p, CachedPathRng{p.rng, cache}, ray_count);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -10,6 +10,7 @@
 #include "core/kernel/types.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // X(element type, name). Every array has one writer: TANDEM_SCENE_ARRAYS
 // (and KernelConstants) the SceneCompiler (core/world), TANDEM_BVH_ARRAYS
@@ -63,4 +64,5 @@ struct KernelData {
   KBvhConstants bvh;
 };
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -8,6 +8,7 @@
 #include "core/kernel/geometry.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct LightSample {
   Vec3 radiance;  // incident radiance (area/env) or intensity/d^2 (punctual)
@@ -234,4 +235,5 @@ TANDEM_HD bool sample_light(const KernelData& kd, const Vec3& ref, float u_selec
   return true;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -7,6 +7,7 @@
 #include "core/kernel/defines.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct Vec2 {
   float x, y;
@@ -236,4 +237,5 @@ TANDEM_HD_INLINE Vec3 transform_normal(const Mat34& inverse, Vec3 n) {
           inverse.rows[0].z * n.x + inverse.rows[1].z * n.y + inverse.rows[2].z * n.z};
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -7,6 +7,7 @@
 #include "core/kernel/trig.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Smallest GGX alpha we evaluate. Below this, glTF "roughness 0" surfaces are
 // treated as near-perfect mirrors/glass by the same code path (angular blur
@@ -109,4 +110,5 @@ TANDEM_HD bool refract_dir(Vec3 w, Vec3 m, float eta, Vec3* out) {
   return true;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -9,13 +9,15 @@
 // four bytes' images: four loads instead of the shift cascade, with exactly
 // the same bits. The final reversal feeds u32_to_unit_float, whose 24 bits
 // come from three bytes with disjoint images: a sum of three exact floats.
-// The tables are built at compile time from the shift versions; the device
-// has __brev and does not use them.
+// The tables are built at compile time from the shift versions; the GPU
+// has a bit-reversal instruction (__brev) and does not use them.
 #pragma once
 
 #include "core/kernel/defines.h"
+#include "core/kernel/gpu_intrinsics.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Maps 24 random bits to [0, 1): exactly representable, never returns 1.
 TANDEM_HD_INLINE constexpr float u32_to_unit_float(uint32_t x) {
@@ -42,7 +44,7 @@ TANDEM_HD_INLINE constexpr uint32_t pascal_mod2(uint32_t x) {
   return x;
 }
 
-#if !defined(__CUDA_ARCH__)
+#if !TANDEM_GPU_CODE
 // A byte's reversal and the Pascal matrix of it share an entry (low and high
 // word), so that a 2-d draw, which wants both of the same word, reads four
 // entries for the two.
@@ -76,8 +78,8 @@ TANDEM_HD_INLINE uint64_t reverse_and_pascal_by_bytes(uint32_t x) {
 
 // reverse_bits_u32(x).
 TANDEM_HD_INLINE uint32_t reverse_bits_u32(uint32_t x) {
-#if defined(__CUDA_ARCH__)
-  return __brev(x);
+#if TANDEM_GPU_CODE
+  return gpu_reverse_bits(x);
 #else
   return uint32_t(reverse_and_pascal_by_bytes(x));
 #endif
@@ -85,8 +87,8 @@ TANDEM_HD_INLINE uint32_t reverse_bits_u32(uint32_t x) {
 
 // pascal_mod2(reverse_bits_u32(x)).
 TANDEM_HD_INLINE uint32_t pascal_mod2_of_reversed(uint32_t x) {
-#if defined(__CUDA_ARCH__)
-  return pascal_mod2(__brev(x));
+#if TANDEM_GPU_CODE
+  return pascal_mod2(gpu_reverse_bits(x));
 #else
   return uint32_t(reverse_and_pascal_by_bytes(x) >> 32);
 #endif
@@ -94,8 +96,8 @@ TANDEM_HD_INLINE uint32_t pascal_mod2_of_reversed(uint32_t x) {
 
 // Both: *reversed = reverse_bits_u32(x), *pascal = pascal_mod2(*reversed).
 TANDEM_HD_INLINE void reverse_and_pascal(uint32_t x, uint32_t* reversed, uint32_t* pascal) {
-#if defined(__CUDA_ARCH__)
-  *reversed = __brev(x);
+#if TANDEM_GPU_CODE
+  *reversed = gpu_reverse_bits(x);
   *pascal = pascal_mod2(*reversed);
 #else
   const uint64_t both = reverse_and_pascal_by_bytes(x);
@@ -108,8 +110,8 @@ TANDEM_HD_INLINE void reverse_and_pascal(uint32_t x, uint32_t* reversed, uint32_
 // reversal of x's low three bytes; their three images are multiples of
 // 2^-24 below 1 with disjoint bits, so the float sums are exact.
 TANDEM_HD_INLINE float unit_float_of_reversed(uint32_t x) {
-#if defined(__CUDA_ARCH__)
-  return u32_to_unit_float(__brev(x));
+#if TANDEM_GPU_CODE
+  return u32_to_unit_float(gpu_reverse_bits(x));
 #else
   const RngByteTables& t = kRngByteTables;
   return (t.unit_reverse[0][x & 0xffu] + t.unit_reverse[1][(x >> 8) & 0xffu]) +
@@ -117,4 +119,5 @@ TANDEM_HD_INLINE float unit_float_of_reversed(uint32_t x) {
 #endif
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -6,6 +6,7 @@
 #include "core/kernel/trig.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Shirley-Chiu concentric mapping of the unit square to the unit disk.
 TANDEM_HD_INLINE Vec2 sample_disk_concentric(float u1, float u2) {
@@ -87,4 +88,5 @@ TANDEM_HD_INLINE Vec3 equirect_to_direction(float u, float v) {
   return {theta.sin * phi.sin, theta.cos, -theta.sin * phi.cos};
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -11,6 +11,7 @@
 #include "core/kernel/math.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Sheen roughness below this is clamped: the distribution sin^(1/alpha)
 // becomes a spike at the horizon that no sampler or table can resolve, and
@@ -60,4 +61,5 @@ TANDEM_HD float sheen_brdf(Vec3 wo, Vec3 wi, float alpha) {
   return charlie_d(h, alpha) * g2 / (4.0f * wo.z * wi.z);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -11,6 +11,7 @@
 #include "core/kernel/sheen_albedo_table.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Directional albedo of sheen_brdf, integral of f cos over the hemisphere,
 // bilinear in the table of sheen_albedo_table.h. Its nodes are uniform in
@@ -33,4 +34,5 @@ TANDEM_HD float sheen_albedo(float cos_theta, float roughness) {
   return (a + (b - a) * tx) * (1.0f - ty) + (c + (d - c) * tx) * ty;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

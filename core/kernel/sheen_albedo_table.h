@@ -6,6 +6,7 @@
 #pragma once
 
 #include "core/kernel/defines.h"
+#include "core/kernel/gpu_intrinsics.h"
 
 // clang-format off
 #define TANDEM_SHEEN_ALBEDO_VALUES \
@@ -268,25 +269,27 @@
 // clang-format on
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 constexpr int kSheenAlbedoSize = 32;
 
 inline constexpr float kSheenAlbedo[kSheenAlbedoSize * kSheenAlbedoSize] = {
     TANDEM_SHEEN_ALBEDO_VALUES};
 
-#if defined(__CUDACC__)
-// The device copy, in global memory like the sRGB table (neighbouring
-// threads read different entries).
-static __device__ const float kSheenAlbedoDevice[kSheenAlbedoSize * kSheenAlbedoSize] = {
+#if TANDEM_HAS_DEVICE_TABLES
+// The device copy (see TANDEM_DEVICE_TABLE): neighbouring threads read
+// different entries.
+TANDEM_DEVICE_TABLE float kSheenAlbedoDevice[kSheenAlbedoSize * kSheenAlbedoSize] = {
     TANDEM_SHEEN_ALBEDO_VALUES};
 #endif
 
 TANDEM_HD float sheen_albedo_entry(int i) {
-#if defined(__CUDA_ARCH__)
-  return __ldg(&kSheenAlbedoDevice[i]);
+#if TANDEM_GPU_CODE
+  return gpu_load_readonly(&kSheenAlbedoDevice[i]);
 #else
   return kSheenAlbedo[i];
 #endif
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

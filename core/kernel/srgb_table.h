@@ -10,6 +10,7 @@
 #pragma once
 
 #include "core/kernel/defines.h"
+#include "core/kernel/gpu_intrinsics.h"
 
 // clang-format off
 #define TANDEM_SRGB8_TO_LINEAR_VALUES \
@@ -80,25 +81,26 @@
 // clang-format on
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // The host copy: the CPU backends, the scene compiler and the image loader.
 inline constexpr float kSrgb8ToLinear[256] = {TANDEM_SRGB8_TO_LINEAR_VALUES};
 
-#if defined(__CUDACC__)
-// The device copy, in global memory rather than __constant__: neighbouring
-// threads decode different values, which the constant cache would serialise,
-// while read-only global loads go through L1 at full width.
-static __device__ const float kSrgb8ToLinearDevice[256] = {TANDEM_SRGB8_TO_LINEAR_VALUES};
+#if TANDEM_HAS_DEVICE_TABLES
+// The device copy (see TANDEM_DEVICE_TABLE): neighbouring threads decode
+// different values.
+TANDEM_DEVICE_TABLE float kSrgb8ToLinearDevice[256] = {TANDEM_SRGB8_TO_LINEAR_VALUES};
 #endif
 
 // Linear value of the 8-bit sRGB-encoded channel value v (only its low 8 bits
 // count, so callers can pass a shifted packed texel).
 TANDEM_HD float srgb8_to_linear(uint32_t v) {
-#if defined(__CUDA_ARCH__)
-  return __ldg(&kSrgb8ToLinearDevice[v & 0xffu]);
+#if TANDEM_GPU_CODE
+  return gpu_load_readonly(&kSrgb8ToLinearDevice[v & 0xffu]);
 #else
   return kSrgb8ToLinear[v & 0xffu];
 #endif
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -47,6 +47,7 @@
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct SvgfParams {
   uint32_t width, height;
@@ -715,4 +716,5 @@ TANDEM_HD Vec3 svgf_modulate_pixel(const PixelFeatures& f, const Vec4& illuminat
   return xyz(illumination) * svgf_guard_albedo(f.albedo);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -8,6 +8,7 @@
 #include "core/kernel/srgb_table.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // The tone map's encode stays on powf: its result is rounded to 8 bits, so a
 // last-bit difference between glibc's and CUDA's powf moves a byte only for
@@ -91,4 +92,5 @@ TANDEM_HD Vec2 apply_texture_transform(const KTextureRef& ref, Vec2 uv) {
           ref.m[3] * uv.x + ref.m[4] * uv.y + ref.m[5]};
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -10,6 +10,7 @@
 #include "core/kernel/math.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // A tile of a batch; pixel_offset is the sum of pixel counts of the tiles
 // before it, so pixel i of the batch lives in the tile whose range holds i.
@@ -94,4 +95,5 @@ TANDEM_HD void reduce_pixel_samples(const TileBatch& batch, const Vec3* radiance
   pixel_sums[3 * p + 2] = b;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

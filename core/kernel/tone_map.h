@@ -7,6 +7,7 @@
 #include "core/kernel/texture.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Same values and order as ToneMap in core/image/image.h.
 enum KToneMap : uint32_t { kToneMapStandard = 0, kToneMapAces = 1, kToneMapReinhard = 2 };
@@ -32,4 +33,5 @@ TANDEM_HD uint8_t tone_map_channel_srgb8(float v, float scale, uint32_t curve) {
   return uint8_t(lroundf(linear_to_srgb(v) * 255.0f));
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

@@ -17,6 +17,7 @@
 #include "core/kernel/defines.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct SinCos {
   float sin, cos;
@@ -96,4 +97,5 @@ TANDEM_HD_INLINE float atan2_pi(float y, float x) {
   return (float_as_uint(y) >> 31) != 0u ? -at : at;
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

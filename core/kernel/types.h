@@ -9,6 +9,7 @@
 #endif
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 struct Ray {
   Vec3 origin;
@@ -249,4 +250,5 @@ struct KernelConstants {
   // The BVH's roots and layout are in KernelData::bvh (core/kernel/bvh.h).
 };
 
+TANDEM_KERNEL_END
 }  // namespace tandem

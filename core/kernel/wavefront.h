@@ -24,10 +24,12 @@
 // of each item, and so the image, are the same bits.
 #pragma once
 
+#include "core/kernel/gpu_intrinsics.h"
 #include "core/kernel/integrator.h"
 #include "core/kernel/tile_batch.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 enum WavefrontCounter : uint32_t {
   kWaveExtend = 0,    // entries in this round's extend queue
@@ -86,8 +88,8 @@ TANDEM_HD WavefrontArrays wavefront_arrays_in(void* base, uint32_t slots, uint64
 }
 
 TANDEM_HD uint32_t wavefront_add(uint32_t* counter, uint32_t n) {
-#if defined(__CUDA_ARCH__)
-  return atomicAdd(counter, n);
+#if TANDEM_GPU_CODE
+  return gpu_atomic_add(counter, n);
 #else
   return __atomic_fetch_add(counter, n, __ATOMIC_RELAXED);
 #endif
@@ -227,4 +229,5 @@ TANDEM_HD void wavefront_retire_ended(const KernelData& kd, const TileBatch& bat
   wavefront_retire(kd, batch, w, round, w.retire_queue[i], radiance);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

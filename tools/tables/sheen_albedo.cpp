@@ -51,7 +51,9 @@ int main() {
       "// Directional albedo of the white sheen lobe (core/kernel/sheen.h) at\n"
       "// cos_theta = (i / %d)^2 (fastest index) and\n"
       "// roughness = 0.07 + 0.93 (j / %d)^2, as hex floats.\n"
-      "#pragma once\n\n#include \"core/kernel/defines.h\"\n\n// clang-format off\n"
+      "#pragma once\n\n#include \"core/kernel/defines.h\"\n#include "
+      "\"core/kernel/gpu_intrinsics.h\"\n\n"
+      "// clang-format off\n"
       "#define TANDEM_SHEEN_ALBEDO_VALUES \\\n",
       kSize - 1, kSize - 1);
   for (int j = 0; j < kSize; ++j) {
@@ -64,23 +66,23 @@ int main() {
     }
   }
   std::printf(
-      "// clang-format on\n\nnamespace tandem {\n\n"
+      "// clang-format on\n\nnamespace tandem {\nTANDEM_KERNEL_BEGIN\n\n"
       "constexpr int kSheenAlbedoSize = %d;\n\n"
       "inline constexpr float kSheenAlbedo[kSheenAlbedoSize * kSheenAlbedoSize] = {\n"
       "    TANDEM_SHEEN_ALBEDO_VALUES};\n\n"
-      "#if defined(__CUDACC__)\n"
-      "// The device copy, in global memory like the sRGB table (neighbouring\n"
-      "// threads read different entries).\n"
-      "static __device__ const float kSheenAlbedoDevice[kSheenAlbedoSize * kSheenAlbedoSize] = {\n"
+      "#if TANDEM_HAS_DEVICE_TABLES\n"
+      "// The device copy (see TANDEM_DEVICE_TABLE): neighbouring threads read\n"
+      "// different entries.\n"
+      "TANDEM_DEVICE_TABLE float kSheenAlbedoDevice[kSheenAlbedoSize * kSheenAlbedoSize] = {\n"
       "    TANDEM_SHEEN_ALBEDO_VALUES};\n"
       "#endif\n\n"
       "TANDEM_HD float sheen_albedo_entry(int i) {\n"
-      "#if defined(__CUDA_ARCH__)\n"
-      "  return __ldg(&kSheenAlbedoDevice[i]);\n"
+      "#if TANDEM_GPU_CODE\n"
+      "  return gpu_load_readonly(&kSheenAlbedoDevice[i]);\n"
       "#else\n"
       "  return kSheenAlbedo[i];\n"
       "#endif\n"
-      "}\n\n}  // namespace tandem\n",
+      "}\n\nTANDEM_KERNEL_END\n}  // namespace tandem\n",
       kSize);
   return 0;
 }
