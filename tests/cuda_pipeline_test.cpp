@@ -14,6 +14,7 @@
 #include "backends/cuda/commit_plan.h"
 #include "backends/cuda/cuda_backend.h"
 #include "backends/cuda/device_faults.h"
+#include "backends/cuda/device_launch.h"
 #include "backends/cuda/sim_device.h"
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
@@ -79,8 +80,9 @@ TEST(CudaSim, HazardCheckerFindsAnUnorderedReadAndAcceptsAnOrderedOne) {
     void* counter = sim.alloc(sizeof(uint32_t));
     sim.zero(rays, sizeof(Ray), render);
     sim.zero(counter, sizeof(uint32_t), render);
-    sim.trace_rays(static_cast<const KernelData*>(d_kd), static_cast<const Ray*>(rays), nullptr, 1,
-                   false, static_cast<Hit*>(hits), static_cast<uint32_t*>(counter), render);
+    launch_trace_rays(sim, static_cast<const KernelData*>(d_kd), static_cast<const Ray*>(rays),
+                      nullptr, 1, false, static_cast<Hit*>(hits), static_cast<uint32_t*>(counter),
+                      render);
     sim.synchronize(render);
     sim.synchronize(copy);
     const SimDeviceReport r = sim.report();

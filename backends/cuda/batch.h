@@ -14,6 +14,7 @@
 #include "core/kernel/wavefront.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
 // Device-resident film for GPU-only output: per pixel a double RGB sum and
 // a sample count, like the host Film.
@@ -54,4 +55,5 @@ TANDEM_HD void tone_map_film_pixel(const DeviceFilmView& film, uint64_t i, float
     rgb8[3 * i + c] = tone_map_channel_srgb8(mean[c], scale, curve);
 }
 
+TANDEM_KERNEL_END
 }  // namespace tandem

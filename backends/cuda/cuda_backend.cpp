@@ -8,6 +8,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "backends/cuda/device_launch.h"
 #include "backends/cuda/device_scene.h"
 #include "core/kernel/features.h"
 #include "core/kernel/tone_map.h"
@@ -41,6 +42,7 @@ struct CudaBackend::Impl {
   DeviceBuffer tiles, pixel_sums, radiance, ray_count, host_ray_count;
   DeviceBuffer wave;  // the wavefront's arrays (wavefront.h), carved out of one block
   WavefrontArrays wave_arrays{};
+  WavefrontDriver wave_driver;
   DeviceBuffer film_sums, film_samples;
   DeviceFilmView film;
   uint64_t commit_bytes_since_render = 0;
@@ -48,8 +50,11 @@ struct CudaBackend::Impl {
   // slow): the features on the device and their host landing area, and the
   // previous frame's instance transforms on both sides.
   DeviceBuffer features, host_features, prev_transforms, host_prev_transforms;
-  // The film size of the camera of the newest sync(): the set the next
-  // render claims. sync() may run on another thread during a render.
+  // trace_rays()'s buffers, grown before a call claims the scene and kept:
+  // freeing device memory waits for the whole device.
+  DeviceBuffer query_rays, query_keys, query_hits, query_counter, query_staging;
+  // The film size of the camera of the newest sync(), which render_features'
+  // caller sized its output for. sync() may run on another thread.
   std::mutex camera_mutex;
   uint32_t synced_width = 0, synced_height = 0;
 
@@ -65,12 +70,18 @@ struct CudaBackend::Impl {
         ray_count(*dev, DeviceBuffer::kDevice),
         host_ray_count(*dev, DeviceBuffer::kPinned),
         wave(*dev, DeviceBuffer::kDevice),
+        wave_driver(*dev),
         film_sums(*dev, DeviceBuffer::kDevice),
         film_samples(*dev, DeviceBuffer::kDevice),
         features(*dev, DeviceBuffer::kDevice),
         host_features(*dev, DeviceBuffer::kPinned),
         prev_transforms(*dev, DeviceBuffer::kDevice),
-        host_prev_transforms(*dev, DeviceBuffer::kPinned) {
+        host_prev_transforms(*dev, DeviceBuffer::kPinned),
+        query_rays(*dev, DeviceBuffer::kDevice),
+        query_keys(*dev, DeviceBuffer::kDevice),
+        query_hits(*dev, DeviceBuffer::kDevice),
+        query_counter(*dev, DeviceBuffer::kDevice),
+        query_staging(*dev, DeviceBuffer::kPinned) {
     if (limits.max_batch_pixels == 0 || limits.max_items == 0)
       throw std::invalid_argument("cuda backend: launch limits must be positive");
     for (Slot& s : slots) {
@@ -119,7 +130,7 @@ struct CudaBackend::Impl {
 
   // Enough slots for a launch of `items` pixel samples.
   void ensure_wavefront(uint64_t items) {
-    const uint32_t slots = uint32_t(std::min<uint64_t>(items, dev->wavefront_slots()));
+    const uint32_t slots = uint32_t(std::min<uint64_t>(items, wavefront_slots(dev->properties())));
     if (slots <= wave_arrays.slots) return;
     wave_arrays = WavefrontArrays{};  // until the block exists
     uint64_t bytes = 0;
@@ -151,7 +162,8 @@ struct CudaBackend::Impl {
   // Enqueues one batch: tiles up, every sample chunk traced and summed per
   // pixel, then (to_host) the sums copied back or (else) added to the
   // device film. Records slot.done.
-  void enqueue_batch(const KernelData* kd, const RenderPass& pass, Slot& slot, bool to_host) {
+  void enqueue_batch(const DeviceScene::RenderTicket& ticket, const RenderPass& pass, Slot& slot,
+                     bool to_host) {
     const DeviceStream s = stream.get();
     auto* host_tiles = slot.host_tiles.as<DeviceTile>();
     uint32_t offset = 0;
@@ -172,15 +184,21 @@ struct CudaBackend::Impl {
     for (uint32_t done = 0; done < pass.sample_count; done += chunk) {
       batch.sample_begin = pass.sample_begin + done;
       batch.sample_count = std::min(chunk, pass.sample_count - done);
-      dev->trace_samples(kd, batch, variant, wave_arrays, radiance.as<Vec3>(),
-                         ray_count.as<unsigned long long>(), s);
-      dev->reduce_samples(batch, radiance.as<const Vec3>(), pixel_sums.as<double>(), s);
+      if (variant == CudaKernelVariant::kWavefront) {
+        wave_driver.launch(ticket.view, batch, ticket.max_segments, wave_arrays,
+                           radiance.as<Vec3>(), ray_count.as<unsigned long long>(), s);
+      } else {
+        launch_megakernel(*dev, ticket.view, batch, radiance.as<Vec3>(),
+                          ray_count.as<unsigned long long>(), s);
+      }
+      launch_reduce_samples(*dev, batch, radiance.as<const Vec3>(), pixel_sums.as<double>(), s);
     }
     if (to_host) {
       dev->copy_to_host(slot.host_sums.get(), pixel_sums.get(),
                         3 * sizeof(double) * slot.pixel_count, s);
     } else {
-      dev->accumulate_film(batch, pixel_sums.as<const double>(), pass.sample_count, film, s);
+      launch_accumulate_film(*dev, batch, pixel_sums.as<const double>(), pass.sample_count, film,
+                             s);
     }
     dev->record(slot.done.get(), s);
     slot.busy = true;
@@ -204,8 +222,8 @@ struct CudaBackend::Impl {
     slot.holds_tiles = false;
   }
 
-  void render_batches(const KernelData* kd, const RenderPass& pass, TileSource& source,
-                      Film* host_film, BackendStats& stats) {
+  void render_batches(const DeviceScene::RenderTicket& ticket, const RenderPass& pass,
+                      TileSource& source, Film* host_film, BackendStats& stats) {
     const uint32_t width = host_film ? host_film->width() : film.width;
     const uint32_t height = host_film ? host_film->height() : film.height;
     // Two slots: while the device traces batch k, the host pulls batch
@@ -219,7 +237,7 @@ struct CudaBackend::Impl {
         finish_batch(previous, pass, host_film, stats);  // buffers are about to move
         reserve(uint32_t(slot.tiles.size()), slot.pixel_count);
       }
-      enqueue_batch(kd, pass, slot, host_film != nullptr);
+      enqueue_batch(ticket, pass, slot, host_film != nullptr);
       finish_batch(previous, pass, host_film, stats);
     }
     for (Slot& s : slots)
@@ -237,7 +255,7 @@ struct CudaBackend::Impl {
     bool ended = false;
     try {
       dev->zero(ray_count.get(), sizeof(unsigned long long), s);
-      render_batches(ticket.view, pass, source, host_film, stats);
+      render_batches(ticket, pass, source, host_film, stats);
       scene.end_render(ticket, s);
       ended = true;
       dev->copy_to_host(host_ray_count.get(), ray_count.get(), sizeof(unsigned long long), s);
@@ -305,6 +323,7 @@ void CudaBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
 bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
   Impl& m = *impl_;
   if (!m.scene.ready()) throw std::logic_error("cuda backend: render_features() before sync()");
+  // The size the caller sized `out` for: the newest sync()'s camera.
   uint32_t width, height;
   {
     std::lock_guard<std::mutex> lock(m.camera_mutex);
@@ -315,26 +334,40 @@ bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
   if (n == 0) return true;
   DeviceOps& dev = *m.dev;
   const DeviceStream s = m.stream.get();
+  // Buffers first, before the scene is claimed.
   const size_t feature_bytes = n * sizeof(PixelFeatures);
   m.features.reserve(feature_bytes);
   m.host_features.reserve(feature_bytes);
-  // The pass points at host transforms: the kernel reads a device copy.
-  FeaturePass device_pass = pass;
   const size_t prev_bytes =
       pass.prev_object_to_world ? size_t(pass.prev_instance_count) * sizeof(Mat34) : 0;
   if (prev_bytes > 0) {
     m.prev_transforms.reserve(prev_bytes);
     m.host_prev_transforms.reserve(prev_bytes);
-    std::memcpy(m.host_prev_transforms.get(), pass.prev_object_to_world, prev_bytes);
-    dev.copy_to_device(m.prev_transforms.get(), m.host_prev_transforms.get(), prev_bytes, s);
-    device_pass.prev_object_to_world = m.prev_transforms.as<const Mat34>();
-  } else {
-    device_pass.prev_object_to_world = nullptr;
-    device_pass.prev_instance_count = 0;
   }
+  // The kernel's film is the claimed set's camera, which a sync() on
+  // another thread since the size was read would have changed: refused
+  // rather than computed for one size and copied out for another.
   const DeviceScene::RenderTicket ticket = m.scene.begin_render(s);
+  if (ticket.width != width || ticket.height != height) {
+    m.abandon(ticket, false);
+    throw std::logic_error("cuda backend: a sync() with a " + std::to_string(ticket.width) + "x" +
+                           std::to_string(ticket.height) +
+                           " camera ran during render_features() for " + std::to_string(width) +
+                           "x" + std::to_string(height));
+  }
   try {
-    dev.render_features(ticket.view, device_pass, width, height, m.features.as<PixelFeatures>(), s);
+    // The pass points at host transforms: the kernel reads a device copy.
+    FeaturePass device_pass = pass;
+    if (prev_bytes > 0) {
+      std::memcpy(m.host_prev_transforms.get(), pass.prev_object_to_world, prev_bytes);
+      dev.copy_to_device(m.prev_transforms.get(), m.host_prev_transforms.get(), prev_bytes, s);
+      device_pass.prev_object_to_world = m.prev_transforms.as<const Mat34>();
+    } else {
+      device_pass.prev_object_to_world = nullptr;
+      device_pass.prev_instance_count = 0;
+    }
+    launch_features(dev, ticket.view, device_pass, width, height, m.features.as<PixelFeatures>(),
+                    s);
   } catch (...) {
     m.abandon(ticket, false);
     throw;
@@ -397,7 +430,7 @@ ImageRGB CudaBackend::resolve_device_film() {
   DeviceBuffer rgb(*m.dev, DeviceBuffer::kDevice), landing(*m.dev, DeviceBuffer::kPinned);
   rgb.allocate(image.rgb.size() * sizeof(float));
   landing.allocate(image.rgb.size() * sizeof(float));
-  m.dev->resolve_film(f, rgb.as<float>(), m.stream.get());
+  launch_resolve_film(*m.dev, f, rgb.as<float>(), m.stream.get());
   m.dev->copy_to_host(landing.get(), rgb.get(), image.rgb.size() * sizeof(float), m.stream.get());
   m.dev->synchronize(m.stream.get());
   if (!image.rgb.empty())
@@ -412,7 +445,7 @@ std::vector<uint8_t> CudaBackend::tone_map_device_film(float exposure_stops, Ton
   DeviceBuffer rgb8(*m.dev, DeviceBuffer::kDevice), landing(*m.dev, DeviceBuffer::kPinned);
   rgb8.allocate(out.size());
   landing.allocate(out.size());
-  m.dev->tone_map_film(f, std::exp2(exposure_stops), uint32_t(curve), rgb8.as<uint8_t>(),
+  launch_tone_map_film(*m.dev, f, std::exp2(exposure_stops), uint32_t(curve), rgb8.as<uint8_t>(),
                        m.stream.get());
   m.dev->copy_to_host(landing.get(), rgb8.get(), out.size(), m.stream.get());
   m.dev->synchronize(m.stream.get());
@@ -431,29 +464,27 @@ std::vector<Hit> CudaBackend::trace_rays(const std::vector<Ray>& rays,
   if (n == 0) return hits;
   DeviceOps& dev = *m.dev;
   const DeviceStream s = m.stream.get();
-  // Freed whatever happens: a failed test must not leak device memory into
-  // the next one.
-  DeviceBuffer d_rays(dev, DeviceBuffer::kDevice), d_keys(dev, DeviceBuffer::kDevice),
-      d_hits(dev, DeviceBuffer::kDevice), d_counter(dev, DeviceBuffer::kDevice),
-      staging(dev, DeviceBuffer::kPinned);
   const size_t ray_bytes = n * sizeof(Ray), key_bytes = alpha_keys.size() * sizeof(uint32_t),
                hit_bytes = n * sizeof(Hit);
-  d_rays.allocate(ray_bytes);
-  d_hits.allocate(hit_bytes);
-  d_counter.allocate(sizeof(uint32_t));
-  staging.allocate(std::max(ray_bytes + key_bytes, hit_bytes));
-  std::memcpy(staging.get(), rays.data(), ray_bytes);
-  dev.copy_to_device(d_rays.get(), staging.get(), ray_bytes, s);
-  if (!alpha_keys.empty()) {
-    d_keys.allocate(key_bytes);
-    std::memcpy(staging.as<uint8_t>() + ray_bytes, alpha_keys.data(), key_bytes);
-    dev.copy_to_device(d_keys.get(), staging.as<uint8_t>() + ray_bytes, key_bytes, s);
+  // The previous call's work is done (it synchronised), so growing a buffer
+  // here waits for nothing of ours; the buffers are kept for the next call.
+  m.query_rays.reserve(ray_bytes);
+  m.query_hits.reserve(hit_bytes);
+  m.query_counter.reserve(sizeof(uint32_t));
+  m.query_staging.reserve(std::max(ray_bytes + key_bytes, hit_bytes));
+  if (key_bytes) m.query_keys.reserve(key_bytes);
+  std::memcpy(m.query_staging.get(), rays.data(), ray_bytes);
+  dev.copy_to_device(m.query_rays.get(), m.query_staging.get(), ray_bytes, s);
+  if (key_bytes) {
+    std::memcpy(m.query_staging.as<uint8_t>() + ray_bytes, alpha_keys.data(), key_bytes);
+    dev.copy_to_device(m.query_keys.get(), m.query_staging.as<uint8_t>() + ray_bytes, key_bytes, s);
   }
-  dev.zero(d_counter.get(), sizeof(uint32_t), s);
+  dev.zero(m.query_counter.get(), sizeof(uint32_t), s);
   const DeviceScene::RenderTicket ticket = m.scene.begin_render(s);
   try {
-    dev.trace_rays(ticket.view, d_rays.as<const Ray>(), d_keys.as<const uint32_t>(), uint32_t(n),
-                   any_hit, d_hits.as<Hit>(), d_counter.as<uint32_t>(), s);
+    launch_trace_rays(dev, ticket.view, m.query_rays.as<const Ray>(),
+                      key_bytes ? m.query_keys.as<const uint32_t>() : nullptr, uint32_t(n), any_hit,
+                      m.query_hits.as<Hit>(), m.query_counter.as<uint32_t>(), s);
   } catch (...) {
     m.abandon(ticket, false);
     throw;
@@ -461,9 +492,9 @@ std::vector<Hit> CudaBackend::trace_rays(const std::vector<Ray>& rays,
   m.scene.end_render(ticket, s);
   // The rays were read before the hits are written back (stream order), so
   // the staging buffer can take the hits.
-  dev.copy_to_host(staging.get(), d_hits.get(), hit_bytes, s);
+  dev.copy_to_host(m.query_staging.get(), m.query_hits.get(), hit_bytes, s);
   dev.synchronize(s);
-  std::memcpy(hits.data(), staging.get(), hit_bytes);
+  std::memcpy(hits.data(), m.query_staging.get(), hit_bytes);
   return hits;
 }
 

@@ -1,5 +1,5 @@
 // Error checking for every CUDA runtime call of the CUDA device
-// (cuda_device_ops.cpp and the kernel launchers).
+// (cuda_device_ops.cpp, cuda_device.cpp).
 //
 // A CUDA error is not bad user input but a device or driver failure: it is a
 // DeviceError (device_ops.h) whose fault kind says how to recover, so the
@@ -64,6 +64,11 @@ class CudaError : public DeviceError {
 inline void cuda_check(cudaError_t code, const char* call, const char* file, int line) {
   if (code != cudaSuccess) throw CudaError(code, call, file, line);
 }
+
+// cudaSuccess when this build holds a kernel image (SASS or PTX) the
+// current device can run; cudaErrorNoKernelImageForDevice (or similar)
+// otherwise (cuda_device_ops.cpp).
+cudaError_t cuda_probe_kernel_image();
 
 }  // namespace tandem
 

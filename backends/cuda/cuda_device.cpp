@@ -4,8 +4,8 @@
 
 #include <string>
 
+#include "backends/cuda/cuda_check.h"
 #include "backends/cuda/cuda_device_ops.h"
-#include "backends/cuda/cuda_kernels.h"
 
 namespace tandem {
 

@@ -2,8 +2,11 @@
 
 #include <cuda_runtime_api.h>
 
+#include <algorithm>
+#include <stdexcept>
+
 #include "backends/cuda/cuda_check.h"
-#include "backends/cuda/cuda_kernels.h"
+#include "backends/cuda/cuda_kernel_table.h"
 
 namespace tandem {
 
@@ -21,9 +24,7 @@ class CudaDevice final : public DeviceOps {
   CudaDevice() {
     TANDEM_CUDA_CHECK(cudaSetDevice(0));
     TANDEM_CUDA_CHECK(cudaGetDeviceProperties(&props_, 0));
-    TANDEM_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&host_counter_), sizeof(uint32_t)));
   }
-  ~CudaDevice() override { cudaFreeHost(host_counter_); }
   CudaDevice(const CudaDevice&) = delete;
   CudaDevice& operator=(const CudaDevice&) = delete;
 
@@ -86,49 +87,55 @@ class CudaDevice final : public DeviceOps {
     TANDEM_CUDA_CHECK(cudaMemsetAsync(dst, 0, bytes, cu(s)));
   }
 
-  void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* rays,
-                     DeviceStream s) override {
-    if (variant == CudaKernelVariant::kWavefront)
-      launch_wavefront(kd, batch, wave, radiance, rays, host_counter_, cu(s));
-    else
-      launch_megakernel(kd, batch, radiance, rays, cu(s));
+  DeviceProperties properties() const override {
+    return {uint32_t(props_.multiProcessorCount), uint32_t(props_.maxThreadsPerMultiProcessor)};
   }
-  // Four times the threads the GPU holds at once: the queues stay full while
-  // paths end and slots are regenerated.
-  uint32_t wavefront_slots() const override {
-    return uint32_t(4 * props_.multiProcessorCount * props_.maxThreadsPerMultiProcessor);
+  uint32_t resident_blocks(DeviceKernel kernel, uint32_t block_threads) override {
+    int per_sm = 0;
+    TANDEM_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, function(kernel),
+                                                                    int(block_threads), 0));
+    return uint32_t(std::max(per_sm, 1));
   }
-  void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* sums,
-                      DeviceStream s) override {
-    launch_reduce_samples(batch, radiance, sums, cu(s));
-  }
-  void accumulate_film(const TileBatch& batch, const double* sums, uint32_t samples,
-                       const DeviceFilmView& film, DeviceStream s) override {
-    launch_accumulate_film(batch, sums, samples, film, cu(s));
-  }
-  void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream s) override {
-    launch_resolve_film(film, rgb, cu(s));
-  }
-  void tone_map_film(const DeviceFilmView& film, float scale, uint32_t curve, uint8_t* rgb8,
-                     DeviceStream s) override {
-    launch_tone_map_film(film, scale, curve, rgb8, cu(s));
-  }
-  void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* keys, uint32_t n,
-                  bool any_hit, Hit* hits, uint32_t* counter, DeviceStream s) override {
-    launch_trace_rays(kd, rays, keys, n, any_hit, hits, counter, nullptr, nullptr, nullptr, cu(s));
-  }
-  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
-                       uint32_t height, PixelFeatures* out, DeviceStream s) override {
-    launch_features(kd, pass, width, height, out, cu(s));
+  void launch(DeviceKernel kernel, const LaunchDims& d, const void* args, size_t args_bytes,
+              DeviceStream s) override {
+    const CudaKernelTable::Kernel& k = cuda_kernels().kernels[uint32_t(kernel)];
+    if (args_bytes != k.args_bytes)
+      throw std::logic_error(std::string("launch of ") + device_kernel_name(kernel) +
+                             " with arguments of the wrong size");
+    // The kernel's one parameter is its Args struct, copied at the launch.
+    void* params[] = {const_cast<void*>(args)};
+    TANDEM_CUDA_CHECK(cudaLaunchKernel(function(kernel), dim3(d.grid.x, d.grid.y, d.grid.z),
+                                       dim3(d.block.x, d.block.y, d.block.z), params, 0, cu(s)));
   }
 
  private:
+  static const void* function(DeviceKernel kernel) {
+    return cuda_kernels().kernels[uint32_t(kernel)].function;
+  }
+
   cudaDeviceProp props_{};
-  uint32_t* host_counter_ = nullptr;  // pinned: the wavefront's queue counter
 };
 
 }  // namespace
+
+const CudaKernelTable& cuda_kernels() {
+  static const CudaKernelTable table = [] {
+    CudaKernelTable t;
+    register_cuda_kernels_megakernel(t);
+    register_cuda_kernels_ray_query(t);
+    register_cuda_kernels_wavefront(t);
+    register_cuda_kernels_film(t);
+    register_cuda_kernels_svgf(t);
+    return t;
+  }();
+  return table;
+}
+
+cudaError_t cuda_probe_kernel_image() {
+  cudaFuncAttributes attributes;
+  return cudaFuncGetAttributes(
+      &attributes, cuda_kernels().kernels[uint32_t(DeviceKernel::kResolveFilm)].function);
+}
 
 std::shared_ptr<DeviceOps> make_cuda_device(std::string* reason) {
   if (!cuda_query_device(reason)) return nullptr;

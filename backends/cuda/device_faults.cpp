@@ -110,41 +110,14 @@ class FaultInjectingDevice final : public DeviceOps {
     on_op("zero");
     inner_->zero(dst, bytes, s);
   }
-  void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* rays,
-                     DeviceStream s) override {
-    on_launch("trace_samples");
-    inner_->trace_samples(kd, batch, variant, wave, radiance, rays, s);
+  DeviceProperties properties() const override { return inner_->properties(); }
+  uint32_t resident_blocks(DeviceKernel kernel, uint32_t block_threads) override {
+    return inner_->resident_blocks(kernel, block_threads);
   }
-  uint32_t wavefront_slots() const override { return inner_->wavefront_slots(); }
-  void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* sums,
-                      DeviceStream s) override {
-    on_launch("reduce_samples");
-    inner_->reduce_samples(batch, radiance, sums, s);
-  }
-  void accumulate_film(const TileBatch& batch, const double* sums, uint32_t samples,
-                       const DeviceFilmView& film, DeviceStream s) override {
-    on_launch("accumulate_film");
-    inner_->accumulate_film(batch, sums, samples, film, s);
-  }
-  void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream s) override {
-    on_launch("resolve_film");
-    inner_->resolve_film(film, rgb, s);
-  }
-  void tone_map_film(const DeviceFilmView& film, float scale, uint32_t curve, uint8_t* rgb8,
-                     DeviceStream s) override {
-    on_launch("tone_map_film");
-    inner_->tone_map_film(film, scale, curve, rgb8, s);
-  }
-  void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* keys, uint32_t n,
-                  bool any_hit, Hit* hits, uint32_t* counter, DeviceStream s) override {
-    on_launch("trace_rays");
-    inner_->trace_rays(kd, rays, keys, n, any_hit, hits, counter, s);
-  }
-  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
-                       uint32_t height, PixelFeatures* out, DeviceStream s) override {
-    on_launch("render_features");
-    inner_->render_features(kd, pass, width, height, out, s);
+  void launch(DeviceKernel kernel, const LaunchDims& dims, const void* args, size_t args_bytes,
+              DeviceStream s) override {
+    on_launch(device_kernel_name(kernel));
+    inner_->launch(kernel, dims, args, args_bytes, s);
   }
 
  private:

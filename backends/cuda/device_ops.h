@@ -1,9 +1,12 @@
 // The operations the CUDA backend asks of a device, behind one small
-// interface. On a GPU they are CUDA runtime calls and kernel launches
-// (cuda_device_ops.cpp); in CI, without a GPU, a simulated device
-// (sim_device.h) runs them on the CPU with delays, and records every access
-// so that tests can assert the backend's ordering (no copy into a buffer a
-// kernel is reading, no kernel reading a buffer whose copy has not landed).
+// interface: memory, streams, events, copies and kernel launches by name.
+// On a GPU they are CUDA runtime calls (cuda_device_ops.cpp); in CI, without
+// a GPU, a simulated device (sim_device.h) runs them on the CPU with delays,
+// records every access so that tests can assert the backend's ordering (no
+// copy into a buffer a kernel is reading, no kernel reading a buffer whose
+// copy has not landed), and runs the very kernel bodies of the .cu files on
+// an emulated grid. What the kernels are launched with, and in which order,
+// is host code written once over this interface (device_launch.h).
 // A decorator (device_faults.h) makes the n-th operation of a kind fail, on
 // either device. No CUDA headers here: the backend's logic compiles in every
 // build.
@@ -16,14 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "backends/cuda/batch.h"
-#include "backends/kernel_variant.h"
-#include "core/kernel/kernel_data.h"
+#include "backends/cuda/device_kernel_ids.h"
 
 namespace tandem {
-
-struct FeaturePass;    // core/kernel/features.h
-struct PixelFeatures;  // core/kernel/features.h
 
 // What went wrong on a device, as far as the caller's recovery cares.
 enum class DeviceFault : uint8_t {
@@ -46,6 +44,13 @@ class DeviceError : public std::runtime_error {
 
  private:
   DeviceFault fault_;
+};
+
+// What the launch geometry depends on: the device's multiprocessors and
+// how many threads each holds at once.
+struct DeviceProperties {
+  uint32_t multiprocessors = 1;
+  uint32_t max_threads_per_multiprocessor = 2048;
 };
 
 struct DeviceStreamHandle;
@@ -93,31 +98,17 @@ class DeviceOps {
   virtual void copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream stream) = 0;
   virtual void zero(void* dst, size_t bytes, DeviceStream stream) = 0;
 
-  // Kernels (cuda_kernels.h says what each computes).
-  // `wave`: the wavefront variant's arrays (wavefront.h), in device memory,
-  // with at least min(batch.items(), wavefront_slots()) slots.
-  virtual void trace_samples(const KernelData* kd, const TileBatch& batch,
-                             CudaKernelVariant variant, const WavefrontArrays& wave, Vec3* radiance,
-                             unsigned long long* ray_count, DeviceStream stream) = 0;
-  // Paths the wavefront keeps in flight: enough to fill the device.
-  virtual uint32_t wavefront_slots() const = 0;
-  virtual void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
-                              DeviceStream stream) = 0;
-  virtual void accumulate_film(const TileBatch& batch, const double* pixel_sums,
-                               uint32_t sample_count, const DeviceFilmView& film,
-                               DeviceStream stream) = 0;
-  virtual void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream stream) = 0;
-  virtual void tone_map_film(const DeviceFilmView& film, float exposure_scale, uint32_t curve,
-                             uint8_t* rgb8, DeviceStream stream) = 0;
-  // `work_counter` must be zero on entry (persistent threads share it).
-  virtual void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys,
-                          uint32_t n, bool any_hit, Hit* hits, uint32_t* work_counter,
-                          DeviceStream stream) = 0;
-  // The denoiser's feature pass (core/kernel/features.h) of every pixel of
-  // kd's width x height camera into out[y * width + x];
-  // pass.prev_object_to_world is device memory (or null).
-  virtual void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
-                               uint32_t height, PixelFeatures* out, DeviceStream stream) = 0;
+  // What the launch geometry depends on.
+  virtual DeviceProperties properties() const = 0;
+  // Blocks of `kernel` at `block_threads` threads each that one
+  // multiprocessor holds at once (at least 1): what persistent threads fill
+  // the device with.
+  virtual uint32_t resident_blocks(DeviceKernel kernel, uint32_t block_threads) = 0;
+  // Enqueues `kernel` (device_kernels.h) on `stream` with `args`, its Args
+  // struct, which is copied (`args_bytes` must be its size). The launch
+  // helpers of device_launch.h are the typed way to call it.
+  virtual void launch(DeviceKernel kernel, const LaunchDims& dims, const void* args,
+                      size_t args_bytes, DeviceStream stream) = 0;
 };
 
 // ---------------------------------------------------------------------------

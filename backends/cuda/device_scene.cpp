@@ -10,6 +10,8 @@ namespace {
 
 // Staging offsets keep every array's 16-byte alignment (Vec4, KBvhNode).
 constexpr size_t kStagingAlign = 16;
+// Pinned memory is slow to allocate: chunks of at least this much.
+constexpr size_t kMinStagingChunk = size_t(1) << 20;
 size_t align_up(size_t n) {
   return (n + kStagingAlign - 1) & ~(kStagingAlign - 1);
 }
@@ -24,7 +26,6 @@ DeviceScene::DeviceScene(DeviceOps& ops) : ops_(ops), copy_stream_(ops) {
     set.ready = DeviceEventOwner(ops, true);
     set.d_view = DeviceBuffer(ops, DeviceBuffer::kDevice);
     set.d_view.allocate(sizeof(KernelData));
-    set.staging = DeviceBuffer(ops, DeviceBuffer::kPinned);
   }
 }
 
@@ -83,6 +84,9 @@ size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
     throw;
   }
   commits_.complete(plan);
+  // The set now holds a frame no render has claimed: a second commit before
+  // one does amends it, and the first render to claim it records `ready`.
+  set.claimed = false;
   last_commit_bytes_ = plan.total_bytes();
   return last_commit_bytes_;
 }
@@ -113,28 +117,56 @@ void DeviceScene::upload(BufferSet& set, const CommitPlan& plan, const KernelSce
   set.view.constants = ks.constants;
   set.view.bvh = ks.bvh;
 
-  // Pack every range into the staging buffer, then send each with one copy.
+  // Pack every range into the staging chunks, then send each piece with one
+  // copy (a range that crosses from one chunk into the next is two pieces).
   size_t staging_bytes = plan.view_changed ? align_up(sizeof(KernelData)) : 0;
   for (const ArrayCopy& c : plan.copies)
     staging_bytes += align_up(c.bytes());
-  if (staging_bytes > set.staging.bytes()) set.staging.allocate(staging_bytes + staging_bytes / 4);
-  auto* staging = set.staging.as<unsigned char>();
-  size_t offset = 0;
+  set.staging.reserve(ops_, staging_bytes);
+  size_t chunk = 0, offset = 0;
+  auto send = [&](void* device_dst, const void* host_src, size_t n) {
+    auto* dst = static_cast<unsigned char*>(device_dst);
+    const auto* src = static_cast<const unsigned char*>(host_src);
+    while (n > 0) {
+      if (chunk == set.staging.chunks.size())
+        throw std::logic_error("DeviceScene: staging chunks smaller than the commit");
+      DeviceBuffer& b = set.staging.chunks[chunk];
+      const size_t piece = std::min(n, b.bytes() - offset);
+      auto* packed = b.as<unsigned char>() + offset;
+      std::memcpy(packed, src, piece);
+      ops_.copy_to_device(dst, packed, piece, copy);
+      dst += piece;
+      src += piece;
+      n -= piece;
+      offset = std::min(b.bytes(), align_up(offset + piece));
+      if (offset == b.bytes()) {
+        ++chunk;
+        offset = 0;
+      }
+    }
+  };
   for (const ArrayCopy& c : plan.copies) {
-    const size_t n = c.bytes();
-    if (n == 0) continue;
+    if (c.bytes() == 0) continue;
     const size_t elem = kernel_array_element_size(c.array);
     const auto* src = static_cast<const unsigned char*>(kernel_array_host_data(ks, c.array));
-    std::memcpy(staging + offset, src + size_t(c.begin) * elem, n);
-    auto* dst = static_cast<unsigned char*>(set.buffers[c.array]) + size_t(c.begin) * elem;
-    ops_.copy_to_device(dst, staging + offset, n, copy);
-    offset += align_up(n);
+    send(static_cast<unsigned char*>(set.buffers[c.array]) + size_t(c.begin) * elem,
+         src + size_t(c.begin) * elem, c.bytes());
   }
-  if (plan.view_changed) {
-    std::memcpy(staging + offset, &set.view, sizeof(KernelData));
-    ops_.copy_to_device(set.d_view.get(), staging + offset, sizeof(KernelData), copy);
-  }
+  if (plan.view_changed) send(set.d_view.get(), &set.view, sizeof(KernelData));
   ops_.record(set.uploaded.get(), copy);
+}
+
+void DeviceScene::Staging::reserve(DeviceOps& ops, size_t bytes) {
+  // The packing may skip up to kStagingAlign - 1 bytes at the end of each
+  // chunk; one more chunk of what is missing (and at least half of what
+  // there is, so that a slowly growing scene adds few chunks) covers it.
+  const size_t needed = bytes + chunks.size() * kStagingAlign;
+  if (needed <= capacity) return;
+  const size_t add = std::max({needed - capacity + kStagingAlign, capacity / 2, kMinStagingChunk});
+  DeviceBuffer chunk(ops, DeviceBuffer::kPinned);
+  chunk.allocate(add);
+  chunks.push_back(std::move(chunk));
+  capacity += add;
 }
 
 size_t DeviceScene::last_commit_bytes() const {
@@ -155,7 +187,9 @@ DeviceScene::RenderTicket DeviceScene::begin_render(DeviceStream stream) {
   ops_.wait(stream, set.uploaded.get());
   set.claimed = true;
   ++set.readers;
-  return RenderTicket{s, set.d_view.as<const KernelData>()};
+  const KernelConstants& k = set.view.constants;
+  return RenderTicket{s, set.d_view.as<const KernelData>(), k.camera.width, k.camera.height,
+                      k.integrator.max_depth + 1};
 }
 
 void DeviceScene::end_render(const RenderTicket& ticket, DeviceStream stream) {

@@ -4,13 +4,13 @@
 // sets and how changes reach both.
 //
 // Which set a commit writes: the newest set while no render has claimed it
-// yet (a second commit for the same frame amends it), otherwise the other
-// one. So while frame N renders from one set, frame N+1 is committed into
+// since its last commit (a second commit for the same frame amends it),
+// otherwise the other one. So while frame N renders from one set, frame N+1 is committed into
 // the other, from another thread (sync() during render(): Brigade's
 // SyncAccStruc overlapping the render).
 //
 // Per commit only the changed element ranges are packed into the set's
-// pinned staging buffer and sent with asynchronous copies on the scene's own
+// pinned staging memory and sent with asynchronous copies on the scene's own
 // copy stream. Events order everything without blocking the host or the
 // GPU:
 //   - a set's copies wait (on the copy stream) for `rendered`, recorded after
@@ -55,6 +55,9 @@ class DeviceScene {
   struct RenderTicket {
     uint32_t set = 0;
     const KernelData* view = nullptr;
+    // Of the set's scene, for the host's launch geometry: the camera's film
+    // size and the most segments a path can have (max_depth + 1).
+    uint32_t width = 0, height = 0, max_segments = 1;
   };
   RenderTicket begin_render(DeviceStream stream);
   void end_render(const RenderTicket& ticket, DeviceStream stream);
@@ -78,11 +81,20 @@ class DeviceScene {
   uint32_t newest_set() const;
 
  private:
+  // Pinned memory the host packs a commit into. It grows by adding chunks
+  // and never frees one before the scene goes: freeing pinned memory waits
+  // for the whole device (cudaFreeHost), which would stall the commit of
+  // frame N + 1 until frame N's render ends.
+  struct Staging {
+    std::vector<DeviceBuffer> chunks;
+    size_t capacity = 0;
+    void reserve(DeviceOps& ops, size_t bytes);
+  };
   struct BufferSet {
     std::array<void*, kKernelArrayCount> buffers{};
-    KernelData view{};     // host copy of what d_view holds
-    DeviceBuffer d_view;   // device copy read by the kernels
-    DeviceBuffer staging;  // pinned
+    KernelData view{};    // host copy of what d_view holds
+    DeviceBuffer d_view;  // device copy read by the kernels
+    Staging staging;
     DeviceEventOwner uploaded, rendered, copy_begin, ready;
     bool claimed = false;         // a render claimed the set since its last commit
     uint32_t readers = 0;         // renders between begin_render and end_render

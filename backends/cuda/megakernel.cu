@@ -1,42 +1,29 @@
 // The megakernel: one thread per pixel sample runs the whole path with the
-// shared integrator (core/kernel/integrator.h) over Tandem's BVH, exactly the
-// code the host backend runs on the CPU.
-#include "backends/cuda/cuda_check.h"
-#include "backends/cuda/device_common.cuh"
+// shared integrator (core/kernel/integrator.h) over Tandem's BVH, in the
+// form with one traversal call site (render_pixel_sample_one_trace_site).
+#include "backends/cuda/device_exec.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
 
 namespace tandem {
+TANDEM_KERNEL_BEGIN
 
-namespace {
-
-// 128 threads: the integrator needs many registers, and small blocks keep
-// the tail of a batch short.
-constexpr uint32_t kMegakernelThreads = 128;
-
-__global__ void __launch_bounds__(kMegakernelThreads)
-    megakernel(const KernelData* __restrict__ kd_global, TileBatch batch,
-               Vec3* __restrict__ radiance, unsigned long long* ray_count) {
-  __shared__ KernelData kd;
-  load_kernel_data(&kd, kd_global);
-  const uint64_t item = uint64_t(blockIdx.x) * blockDim.x + threadIdx.x;
+template <class Exec>
+TANDEM_DEVICE_FN void Megakernel::run(Exec& ex, const Args& a) {
+  const KernelData& kd = load_kernel_data(ex, a.kd);
+  const uint64_t item = ex.global_x();
   uint32_t rays = 0;
-  if (item < batch.items()) {
+  if (item < a.batch.items()) {
     uint32_t x, y, sample;
-    batch_item(batch, item, &x, &y, &sample);
-    radiance[item] = render_pixel_sample(kd, BvhTracer{&kd}, x, y, sample, &rays);
+    batch_item(a.batch, item, &x, &y, &sample);
+    a.radiance[item] = render_pixel_sample_one_trace_site(kd, BvhTracer{&kd}, x, y, sample, &rays);
   }
-  add_ray_count(rays, ray_count);
+  add_ray_count(ex, rays, a.ray_count);
 }
 
-}  // namespace
-
-void launch_megakernel(const KernelData* kd, const TileBatch& batch, Vec3* radiance,
-                       unsigned long long* ray_count, cudaStream_t stream) {
-  if (batch.items() == 0) return;
-  megakernel<<<blocks_for(batch.items(), kMegakernelThreads), kMegakernelThreads, 0, stream>>>(
-      kd, batch, radiance, ray_count);
-  TANDEM_CUDA_CHECK_LAUNCH("megakernel");
-}
-
+TANDEM_KERNEL_END
 }  // namespace tandem
+
+TANDEM_KERNEL_REGISTRY(megakernel) {
+  register_kernels<Megakernel>(table);
+}

@@ -1,8 +1,5 @@
 #include "backends/cuda/sim_device.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -17,10 +14,8 @@
 #include <random>
 #include <thread>
 
-#include "backends/cpu_loops/cpu_wavefront.h"
-#include "core/kernel/bvh_traverse.h"
-#include "core/kernel/features.h"
-#include "core/kernel/integrator.h"
+#include "backends/cuda/device_kernels.h"
+#include "backends/cuda/emulated_grid.h"
 
 namespace tandem {
 
@@ -64,6 +59,7 @@ constexpr size_t kAccessLogDepth = 256;
 constexpr size_t kMaxHazards = 64;
 constexpr size_t kAlignment = 256;
 constexpr uint8_t kFreshMemoryPattern = 0xcd;
+constexpr double kSleepQuantumSeconds = 1e-3;
 
 }  // namespace
 
@@ -179,6 +175,7 @@ struct SimDevice::Impl {
     a.memory = p;
     allocations[reinterpret_cast<uintptr_t>(p)] = std::move(a);
     (pinned ? report.live_pinned_allocations : report.live_device_allocations) += 1;
+    ++report.allocations;
     return p;
   }
 
@@ -220,6 +217,11 @@ struct SimDevice::Impl {
 
   void run_stream(DeviceStreamHandle* s) {
     std::unique_lock<std::mutex> lock(mutex);
+    // Device time the stream owes: paid in one sleep once it reaches a
+    // quantum or the queue runs dry, rather than one sleep per operation (a
+    // wavefront batch is hundreds of small kernels, and every sleep costs a
+    // timer's slack on top of its length).
+    double owed = 0.0;
     for (;;) {
       s->work.wait(lock, [&] { return s->stopping || !s->queue.empty(); });
       if (s->queue.empty()) return;
@@ -227,8 +229,13 @@ struct SimDevice::Impl {
       s->queue.pop_front();
       s->vc.join(op.enqueuer);
       s->vc.tick(s->agent);
+      owed += op.seconds;
+      const bool pay = owed >= kSleepQuantumSeconds || s->queue.empty();
       lock.unlock();
-      std::this_thread::sleep_for(std::chrono::duration<double>(op.seconds));
+      if (pay) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(owed));
+        owed = 0.0;
+      }
       op.body();
       lock.lock();
       ++s->done;
@@ -246,12 +253,15 @@ struct SimDevice::Impl {
   }
 
   void drain_all_locked(std::unique_lock<std::mutex>& lock) {
+    bool waited = false;
     for (auto& s : streams) {
       if (!s->live) continue;
       const uint64_t target = s->enqueued;
+      waited = waited || s->done < target;
       progress.wait(lock, [&] { return s->done >= target; });
       host_clock_locked().join(s->vc);
     }
+    report.device_wide_waits += waited;
   }
 
   // Reads the KernelData a kernel receives and records the reads of every
@@ -269,6 +279,226 @@ struct SimDevice::Impl {
     TANDEM_KERNEL_ARRAYS(TANDEM_SIM_READ_ARRAY)
 #undef TANDEM_SIM_READ_ARRAY
     return local;
+  }
+
+  // The live device allocations, which an emulated kernel may address.
+  std::vector<EmulatedMemoryRange> device_memory() {
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<EmulatedMemoryRange> ranges;
+    for (const auto& [base, a] : allocations)
+      if (a.live && !a.pinned) ranges.push_back({base, base + a.bytes});
+    return ranges;
+  }
+
+  // Records what `kernel` reads and writes, from its arguments; false when
+  // an address is bad (the kernel then does not run, as a faulting one).
+  // Whole arrays are recorded where a kernel's reach depends on queue
+  // lengths in device memory: all of a kernel's accesses are in stream
+  // order anyway, and a conflicting access from elsewhere is a hazard
+  // wherever in the array it falls.
+  bool kernel_accesses_locked(DeviceKernel kernel, const void* args, const DeviceStreamHandle& s) {
+    const std::string name = device_kernel_name(kernel);
+    const uint64_t before = hazards_seen;
+    auto read = [&](const void* p, size_t bytes, const char* what) {
+      if (p && bytes) access_locked(p, bytes, false, s, name + " reads " + what, true);
+    };
+    auto write = [&](const void* p, size_t bytes, const char* what) {
+      if (p && bytes) access_locked(p, bytes, true, s, name + " writes " + what, true);
+    };
+    auto tiles = [&](const TileBatch& b) {
+      read(b.tiles, b.tile_count * sizeof(DeviceTile), "tiles");
+    };
+    switch (kernel) {
+      case DeviceKernel::kMegakernel: {
+        const auto& a = *static_cast<const MegakernelArgs*>(args);
+        read_kernel_data_locked(a.kd, s, name.c_str());
+        tiles(a.batch);
+        write(a.radiance, a.batch.items() * sizeof(Vec3), "radiance");
+        write(a.ray_count, sizeof *a.ray_count, "the ray count");
+        break;
+      }
+      case DeviceKernel::kWaveFill:
+      case DeviceKernel::kWaveBeginRound:
+      case DeviceKernel::kWaveExtend:
+      case DeviceKernel::kWaveShadeMiss:
+      case DeviceKernel::kWaveShadeHit:
+      case DeviceKernel::kWaveConnect:
+      case DeviceKernel::kWaveRetire:
+      case DeviceKernel::kWaveCountRays:
+        wave_accesses_locked(kernel, *static_cast<const WaveArgs*>(args), s, read, write);
+        break;
+      case DeviceKernel::kTraceRays: {
+        const auto& a = *static_cast<const TraceRaysArgs*>(args);
+        read_kernel_data_locked(a.kd, s, name.c_str());
+        read(a.rays, a.n * sizeof(Ray), "rays");
+        read(a.alpha_keys, a.n * sizeof(uint32_t), "alpha keys");
+        write(a.hits, a.n * sizeof(Hit), "hits");
+        write(a.work_counter, sizeof(uint32_t), "its work counter");
+        break;
+      }
+      case DeviceKernel::kReduceSamples: {
+        const auto& a = *static_cast<const ReduceSamplesArgs*>(args);
+        read(a.radiance, a.batch.items() * sizeof(Vec3), "radiance");
+        write(a.pixel_sums, 3 * sizeof(double) * a.batch.pixel_count, "pixel sums");
+        break;
+      }
+      case DeviceKernel::kAccumulateFilm: {
+        const auto& a = *static_cast<const AccumulateFilmArgs*>(args);
+        tiles(a.batch);
+        read(a.pixel_sums, 3 * sizeof(double) * a.batch.pixel_count, "pixel sums");
+        film_accesses(a.film, true, read, write);
+        break;
+      }
+      case DeviceKernel::kResolveFilm: {
+        const auto& a = *static_cast<const ResolveFilmArgs*>(args);
+        film_accesses(a.film, false, read, write);
+        write(a.rgb, 3 * sizeof(float) * size_t(a.film.width) * a.film.height, "rgb");
+        break;
+      }
+      case DeviceKernel::kToneMapFilm: {
+        const auto& a = *static_cast<const ToneMapFilmArgs*>(args);
+        film_accesses(a.film, false, read, write);
+        write(a.rgb8, 3 * size_t(a.film.width) * a.film.height, "rgb8");
+        break;
+      }
+      case DeviceKernel::kFeatures: {
+        const auto& a = *static_cast<const FeaturesArgs*>(args);
+        const KernelData kd = read_kernel_data_locked(a.kd, s, name.c_str());
+        if (kd.constants.camera.width != a.width || kd.constants.camera.height != a.height) {
+          hazard_locked(name + ": a " + std::to_string(a.width) + "x" + std::to_string(a.height) +
+                        " film for a " + std::to_string(kd.constants.camera.width) + "x" +
+                        std::to_string(kd.constants.camera.height) + " camera");
+          return false;
+        }
+        if (a.pass.prev_object_to_world)
+          read(a.pass.prev_object_to_world, a.pass.prev_instance_count * sizeof(Mat34),
+               "previous transforms");
+        write(a.out, size_t(a.width) * a.height * sizeof(PixelFeatures), "features");
+        break;
+      }
+      case DeviceKernel::kSvgfTemporal: {
+        const auto& a = *static_cast<const SvgfTemporalArgs*>(args);
+        const size_t n = size_t(a.params.width) * a.params.height;
+        const SvgfTemporalBuffers& b = a.buffers;
+        read(b.features, n * sizeof(PixelFeatures), "features");
+        read(b.radiance, n * sizeof(Vec3), "radiance");
+        if (b.prev_features) {
+          read(b.prev_features, n * sizeof(PixelFeatures), "previous features");
+          read(b.prev_color, n * sizeof(Vec4), "history");
+          read(b.prev_moments, n * sizeof(Vec4), "previous moments");
+        }
+        write(b.color, n * sizeof(Vec4), "illumination");
+        write(b.moments, n * sizeof(Vec4), "moments");
+        write(b.depth_slope, n * sizeof(Vec2), "depth slopes");
+        write(b.guide, n * sizeof(SvgfGuide), "guides");
+        write(b.material, n * sizeof(uint32_t), "materials");
+        break;
+      }
+      case DeviceKernel::kSvgfVariance: {
+        const auto& a = *static_cast<const SvgfVarianceArgs*>(args);
+        const size_t n = size_t(a.params.width) * a.params.height;
+        const SvgfVarianceBuffers& b = a.buffers;
+        read(b.guide, n * sizeof(SvgfGuide), "guides");
+        read(b.material, n * sizeof(uint32_t), "materials");
+        read(b.depth_slope, n * sizeof(Vec2), "depth slopes");
+        read(b.color, n * sizeof(Vec4), "illumination");
+        read(b.moments, n * sizeof(Vec4), "moments");
+        write(b.out, n * sizeof(Vec4), "its output");
+        break;
+      }
+      case DeviceKernel::kSvgfAtrous: {
+        const auto& a = *static_cast<const SvgfAtrousArgs*>(args);
+        const size_t n = size_t(a.params.width) * a.params.height;
+        const SvgfAtrousBuffers& b = a.buffers;
+        read(b.guide, n * sizeof(SvgfGuide), "guides");
+        read(b.material, n * sizeof(uint32_t), "materials");
+        read(b.depth_slope, n * sizeof(Vec2), "depth slopes");
+        read(b.in, n * sizeof(Vec4), "its input");
+        write(a.out, n * sizeof(Vec4), "its output");
+        if (a.radiance) {
+          read(a.features, n * sizeof(PixelFeatures), "features");
+          write(a.radiance, n * sizeof(Vec3), "radiance");
+        }
+        break;
+      }
+      case DeviceKernel::kSvgfModulate: {
+        const auto& a = *static_cast<const SvgfModulateArgs*>(args);
+        const size_t n = size_t(a.params.width) * a.params.height;
+        read(a.features, n * sizeof(PixelFeatures), "features");
+        read(a.illumination, n * sizeof(Vec4), "illumination");
+        write(a.out, n * sizeof(Vec3), "radiance");
+        break;
+      }
+    }
+    return hazards_seen == before;
+  }
+
+  template <class Read, class Write>
+  static void film_accesses(const DeviceFilmView& film, bool adds, const Read& read,
+                            const Write& write) {
+    const size_t pixels = size_t(film.width) * film.height;
+    if (adds) {
+      write(film.sums, 3 * sizeof(double) * pixels, "the film");
+      write(film.samples, sizeof(uint32_t) * pixels, "sample counts");
+    } else {
+      read(film.sums, 3 * sizeof(double) * pixels, "the film");
+      read(film.samples, sizeof(uint32_t) * pixels, "sample counts");
+    }
+  }
+
+  // A wavefront stage: the arrays of its slots it reads and writes
+  // (core/kernel/wavefront.h).
+  template <class Read, class Write>
+  void wave_accesses_locked(DeviceKernel kernel, const WaveArgs& a, const DeviceStreamHandle& s,
+                            const Read& read, const Write& write) {
+    const WavefrontArrays& w = a.w;
+    const size_t slots = w.slots, queue = slots * sizeof(uint32_t);
+    write(w.counters, kWaveCounterCount * sizeof(uint32_t), "queue counters");
+    if (kernel == DeviceKernel::kWaveBeginRound) return;
+    if (kernel == DeviceKernel::kWaveCountRays) {
+      write(a.ray_count, sizeof *a.ray_count, "the ray count");
+      return;
+    }
+    read_kernel_data_locked(a.kd, s, device_kernel_name(kernel));
+    const bool regenerates =
+        kernel == DeviceKernel::kWaveFill || kernel == DeviceKernel::kWaveShadeMiss ||
+        kernel == DeviceKernel::kWaveShadeHit || kernel == DeviceKernel::kWaveRetire;
+    write(w.paths, slots * sizeof(PathState), "paths");
+    if (regenerates) {
+      read(a.batch.tiles, a.batch.tile_count * sizeof(DeviceTile), "tiles");
+      write(w.slot_item, queue, "slot items");
+      if (kernel != DeviceKernel::kWaveFill)
+        write(a.radiance, a.batch.items() * sizeof(Vec3), "radiance");
+    }
+    // Every stage but extend may queue a path for the next round.
+    for (uint32_t* q : w.extend_queues)
+      write(q, queue, "extend queues");
+    switch (kernel) {
+      case DeviceKernel::kWaveExtend:
+        write(w.hits, slots * sizeof(Hit), "hits");
+        write(w.hit_queue, queue, "the hit queue");
+        write(w.miss_queue, queue, "the miss queue");
+        break;
+      case DeviceKernel::kWaveShadeMiss:
+        read(w.miss_queue, queue, "the miss queue");
+        break;
+      case DeviceKernel::kWaveShadeHit:
+        read(w.hit_queue, queue, "the hit queue");
+        read(w.hits, slots * sizeof(Hit), "hits");
+        write(w.shadows, slots * sizeof(ShadowRay), "shadow rays");
+        write(w.shadow_queue, queue, "the shadow queue");
+        break;
+      case DeviceKernel::kWaveConnect:
+        read(w.shadow_queue, queue, "the shadow queue");
+        read(w.shadows, slots * sizeof(ShadowRay), "shadow rays");
+        write(w.retire_queue, queue, "the retire queue");
+        break;
+      case DeviceKernel::kWaveRetire:
+        read(w.retire_queue, queue, "the retire queue");
+        break;
+      default:
+        break;
+    }
   }
 
   bool find_containing_locked(const void* p, size_t bytes) {
@@ -544,211 +774,40 @@ void SimDevice::zero(void* dst, size_t bytes, DeviceStream stream) {
   });
 }
 
-void SimDevice::trace_samples(const KernelData* kd, const TileBatch& batch,
-                              CudaKernelVariant variant, const WavefrontArrays& wave,
-                              Vec3* radiance, unsigned long long* ray_count, DeviceStream stream) {
-  if (batch.items() == 0) return;
-  DeviceStreamHandle* s = stream;
-  auto local = std::make_shared<KernelData>();
-  impl_->launch(
-      stream, "trace_samples",
-      [=, this] {
-        *local = impl_->read_kernel_data_locked(kd, *s, "trace_samples");
-        impl_->access_locked(batch.tiles, batch.tile_count * sizeof(DeviceTile), false, *s,
-                             "trace_samples reads tiles", true);
-        impl_->access_locked(radiance, batch.items() * sizeof(Vec3), true, *s,
-                             "trace_samples writes radiance", true);
-        impl_->access_locked(ray_count, sizeof(*ray_count), true, *s, "trace_samples counts rays",
-                             true);
-        if (variant == CudaKernelVariant::kWavefront) {
-          const uint32_t slots = uint32_t(std::min<uint64_t>(batch.items(), wavefront_slots()));
-          if (wave.slots < slots) {
-            impl_->hazard_locked("trace_samples: wavefront arrays hold fewer slots than needed");
-            return false;
-          }
-          impl_->access_locked(wave.paths, slots * sizeof(PathState), true, *s,
-                               "wavefront writes paths", true);
-          impl_->access_locked(wave.counters, kWaveCounterCount * sizeof(uint32_t), true, *s,
-                               "wavefront counts", true);
-          for (uint32_t* q : {wave.extend_queues[0], wave.extend_queues[1], wave.hit_queue,
-                              wave.miss_queue, wave.shadow_queue, wave.slot_item})
-            impl_->access_locked(q, slots * sizeof(uint32_t), true, *s, "wavefront queues", true);
-        }
-        return true;
-      },
-      [=, this] {
-        const KernelData& k = *local;
-        if (variant == CudaKernelVariant::kWavefront) {
-          WavefrontArrays w = wave;
-          w.slots = uint32_t(std::min<uint64_t>(batch.items(), wavefront_slots()));
-          *ray_count += run_wavefront_on_cpu(k, BvhTracer{&k}, batch, w, radiance);
-          return;
-        }
-        std::atomic<uint64_t> rays{0};
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, batch.items(), 64),
-                          [&](const tbb::blocked_range<uint64_t>& r) {
-                            uint64_t n = 0;
-                            for (uint64_t item = r.begin(); item != r.end(); ++item) {
-                              uint32_t x, y, sample, traced = 0;
-                              batch_item(batch, item, &x, &y, &sample);
-                              radiance[item] =
-                                  render_pixel_sample(k, BvhTracer{&k}, x, y, sample, &traced);
-                              n += traced;
-                            }
-                            rays += n;
-                          });
-        *ray_count += rays.load();
-      });
+DeviceProperties SimDevice::properties() const {
+  // Small: tests see the wavefront's 512 slots regenerated many times per
+  // batch, and persistent kernels run as two blocks.
+  return DeviceProperties{2, 64};
 }
 
-void SimDevice::reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
-                               DeviceStream stream) {
-  if (batch.pixel_count == 0) return;
-  DeviceStreamHandle* s = stream;
-  impl_->launch(
-      stream, "reduce_samples",
-      [=, this] {
-        impl_->access_locked(radiance, batch.items() * sizeof(Vec3), false, *s,
-                             "reduce_samples reads radiance", true);
-        impl_->access_locked(pixel_sums, 3 * sizeof(double) * batch.pixel_count, true, *s,
-                             "reduce_samples adds to pixel sums", true);
-        return true;
-      },
-      [=] {
-        for (uint32_t p = 0; p < batch.pixel_count; ++p)
-          reduce_pixel_samples(batch, radiance, p, pixel_sums);
-      });
+uint32_t SimDevice::resident_blocks(DeviceKernel, uint32_t block_threads) {
+  return std::max<uint32_t>(1, properties().max_threads_per_multiprocessor / block_threads);
 }
 
-void SimDevice::accumulate_film(const TileBatch& batch, const double* pixel_sums,
-                                uint32_t sample_count, const DeviceFilmView& film,
-                                DeviceStream stream) {
-  if (batch.pixel_count == 0) return;
-  DeviceStreamHandle* s = stream;
-  const size_t pixels = size_t(film.width) * film.height;
-  impl_->launch(
-      stream, "accumulate_film",
-      [=, this] {
-        impl_->access_locked(batch.tiles, batch.tile_count * sizeof(DeviceTile), false, *s,
-                             "accumulate_film reads tiles", true);
-        impl_->access_locked(pixel_sums, 3 * sizeof(double) * batch.pixel_count, false, *s,
-                             "accumulate_film reads pixel sums", true);
-        impl_->access_locked(film.sums, 3 * sizeof(double) * pixels, true, *s,
-                             "accumulate_film adds to the film", true);
-        impl_->access_locked(film.samples, sizeof(uint32_t) * pixels, true, *s,
-                             "accumulate_film counts samples", true);
-        return true;
-      },
-      [=] {
-        for (uint32_t p = 0; p < batch.pixel_count; ++p)
-          accumulate_film_pixel(batch, pixel_sums, sample_count, film, p);
-      });
-}
-
-void SimDevice::resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream stream) {
-  const size_t pixels = size_t(film.width) * film.height;
-  if (pixels == 0) return;
+void SimDevice::launch(DeviceKernel kernel, const LaunchDims& dims, const void* args,
+                       size_t args_bytes, DeviceStream stream) {
+  const EmulatedKernelTable& table = emulated_kernels();
+  if (args_bytes != table.kernels[uint32_t(kernel)].args_bytes)
+    throw std::logic_error(std::string("simulated GPU: launch of ") + device_kernel_name(kernel) +
+                           " with arguments of the wrong size");
+  // The arguments are the launch's, as CUDA copies them at the call.
+  auto copy = std::make_shared<std::vector<unsigned char>>(
+      static_cast<const unsigned char*>(args),
+      static_cast<const unsigned char*>(args) + args_bytes);
   DeviceStreamHandle* s = stream;
   impl_->launch(
-      stream, "resolve_film",
+      stream, device_kernel_name(kernel),
+      [=, this] { return impl_->kernel_accesses_locked(kernel, copy->data(), *s); },
       [=, this] {
-        impl_->access_locked(film.sums, 3 * sizeof(double) * pixels, false, *s,
-                             "resolve_film reads the film", true);
-        impl_->access_locked(film.samples, sizeof(uint32_t) * pixels, false, *s,
-                             "resolve_film reads sample counts", true);
-        impl_->access_locked(rgb, 3 * sizeof(float) * pixels, true, *s, "resolve_film writes",
-                             true);
-        return true;
-      },
-      [=] {
-        for (size_t i = 0; i < pixels; ++i)
-          film_pixel_mean(film, i, &rgb[3 * i]);
-      });
-}
-
-void SimDevice::tone_map_film(const DeviceFilmView& film, float exposure_scale, uint32_t curve,
-                              uint8_t* rgb8, DeviceStream stream) {
-  const size_t pixels = size_t(film.width) * film.height;
-  if (pixels == 0) return;
-  DeviceStreamHandle* s = stream;
-  impl_->launch(
-      stream, "tone_map_film",
-      [=, this] {
-        impl_->access_locked(film.sums, 3 * sizeof(double) * pixels, false, *s,
-                             "tone_map_film reads the film", true);
-        impl_->access_locked(film.samples, sizeof(uint32_t) * pixels, false, *s,
-                             "tone_map_film reads sample counts", true);
-        impl_->access_locked(rgb8, 3 * pixels, true, *s, "tone_map_film writes", true);
-        return true;
-      },
-      [=] {
-        for (size_t i = 0; i < pixels; ++i)
-          tone_map_film_pixel(film, i, exposure_scale, curve, rgb8);
-      });
-}
-
-void SimDevice::trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys,
-                           uint32_t n, bool any_hit, Hit* hits, uint32_t* work_counter,
-                           DeviceStream stream) {
-  if (n == 0) return;
-  DeviceStreamHandle* s = stream;
-  auto local = std::make_shared<KernelData>();
-  impl_->launch(
-      stream, "trace_rays",
-      [=, this] {
-        *local = impl_->read_kernel_data_locked(kd, *s, "trace_rays");
-        impl_->access_locked(rays, n * sizeof(Ray), false, *s, "trace_rays reads rays", true);
-        if (alpha_keys)
-          impl_->access_locked(alpha_keys, n * sizeof(uint32_t), false, *s,
-                               "trace_rays reads alpha keys", true);
-        impl_->access_locked(hits, n * sizeof(Hit), true, *s, "trace_rays writes hits", true);
-        impl_->access_locked(work_counter, sizeof(uint32_t), true, *s, "trace_rays takes work",
-                             true);
-        return true;
-      },
-      [=] {
-        const KernelData& k = *local;
-        tbb::parallel_for(
-            tbb::blocked_range<uint32_t>(0, n, 256), [&](const tbb::blocked_range<uint32_t>& r) {
-              for (uint32_t i = r.begin(); i != r.end(); ++i)
-                hits[i] =
-                    bvh_trace(k, rays[i], alpha_keys ? alpha_keys[i] : 0u, k.bvh.layout, any_hit);
-            });
-        *work_counter = n;
-      });
-}
-
-void SimDevice::render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
-                                uint32_t height, PixelFeatures* out, DeviceStream stream) {
-  const size_t n = size_t(width) * height;
-  if (n == 0) return;
-  DeviceStreamHandle* s = stream;
-  auto local = std::make_shared<KernelData>();
-  impl_->launch(
-      stream, "render_features",
-      [=, this] {
-        *local = impl_->read_kernel_data_locked(kd, *s, "render_features");
-        if (local->constants.camera.width != width || local->constants.camera.height != height) {
-          impl_->hazard_locked("render_features: film size differs from the scene's camera");
-          return false;
-        }
-        if (pass.prev_object_to_world && pass.prev_instance_count)
-          impl_->access_locked(pass.prev_object_to_world, pass.prev_instance_count * sizeof(Mat34),
-                               false, *s, "render_features reads previous transforms", true);
-        impl_->access_locked(out, n * sizeof(PixelFeatures), true, *s,
-                             "render_features writes features", true);
-        return true;
-      },
-      [=] {
-        // The same per-pixel code the CUDA kernel and the CPU backends run.
-        const KernelData& k = *local;
-        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, height, 2),
-                          [&](const tbb::blocked_range<uint32_t>& rows) {
-                            for (uint32_t y = rows.begin(); y != rows.end(); ++y)
-                              for (uint32_t x = 0; x < width; ++x)
-                                out[size_t(y) * width + x] =
-                                    compute_pixel_features(k, BvhTracer{&k}, pass, x, y);
-                          });
+        EmulatedLaunch launch;
+        launch.kernel = kernel;
+        launch.args = copy->data();
+        launch.dims = dims;
+        launch.memory = impl_->device_memory();
+        const std::vector<std::string> faults = run_emulated_grid(launch);
+        std::lock_guard<std::mutex> lock(impl_->mutex);
+        for (const std::string& f : faults)
+          impl_->hazard_locked("kernel fault: " + f);
       });
 }
 

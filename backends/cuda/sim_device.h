@@ -11,14 +11,15 @@
 //     no chain of stream order / events / host synchronisation between them
 //     are a hazard, found whether or not the timing of a run exposed it.
 //     Accesses outside a live allocation are hazards too.
-//   - Kernels run the same per-item code the .cu kernels run (batch.h, the
-//     shared integrator over Tandem's BVH), reading the scene from the
-//     simulated device memory: an image rendered on it is bit for bit the
-//     host backend's when the backend's uploads are right.
+//   - Kernels are the .cu files' own bodies, compiled a second time with
+//     the GPU's branches of the kernel code (emulated_*.cpp) and run on an
+//     emulated grid of thread blocks (emulated_grid.h: every thread a fiber,
+//     barriers and warp operations checked for divergence, shared-memory
+//     races, __ldg and atomics checked against device memory). They read
+//     the scene from the simulated device memory with the GPU's BVH loops:
+//     an image rendered on it is bit for bit the host backend's when the
+//     backend's uploads are right. A kernel fault is reported as a hazard.
 //   - Fresh memory is filled with a pattern, not zeroes, as on a GPU.
-// The wavefront variant runs the GPU's queue logic (core/kernel/wavefront.h)
-// over the arrays the backend allocated on the device, with the CPU driver
-// of backends/cpu_loops/cpu_wavefront.h.
 #pragma once
 
 #include <memory>
@@ -30,9 +31,9 @@
 namespace tandem {
 
 struct SimDeviceOptions {
-  double op_seconds = 20e-6;           // every stream operation takes at least this
+  double op_seconds = 10e-6;           // every stream operation takes at least this
   double copy_seconds_per_mib = 2e-4;  // and a copy this much per MiB (about 5 GB/s)
-  double kernel_seconds = 100e-6;      // and a kernel this much besides its computing
+  double kernel_seconds = 30e-6;       // and a kernel this much besides its computing
   uint64_t seed = 1;                   // jitter: up to op_seconds more per operation
 };
 
@@ -43,7 +44,11 @@ struct SimDeviceReport {
   size_t live_streams = 0, live_events = 0;
   uint64_t bytes_to_device = 0, bytes_to_host = 0;
   uint64_t kernels = 0;
-  uint64_t host_waits = 0;  // synchronize() calls that had to block
+  uint64_t host_waits = 0;   // synchronize() calls that had to block
+  uint64_t allocations = 0;  // alloc, alloc_async and alloc_pinned calls
+  // free() and free_pinned() calls that waited for work queued on a stream
+  // (cudaFree and cudaFreeHost wait for the whole device).
+  uint64_t device_wide_waits = 0;
 };
 
 class SimDevice final : public DeviceOps {
@@ -74,22 +79,10 @@ class SimDevice final : public DeviceOps {
   void copy_to_device(void* dst, const void* src, size_t bytes, DeviceStream stream) override;
   void copy_to_host(void* dst, const void* src, size_t bytes, DeviceStream stream) override;
   void zero(void* dst, size_t bytes, DeviceStream stream) override;
-  void trace_samples(const KernelData* kd, const TileBatch& batch, CudaKernelVariant variant,
-                     const WavefrontArrays& wave, Vec3* radiance, unsigned long long* ray_count,
-                     DeviceStream stream) override;
-  // Small, so that tests see slots regenerated many times per batch.
-  uint32_t wavefront_slots() const override { return 512; }
-  void reduce_samples(const TileBatch& batch, const Vec3* radiance, double* pixel_sums,
-                      DeviceStream stream) override;
-  void accumulate_film(const TileBatch& batch, const double* pixel_sums, uint32_t sample_count,
-                       const DeviceFilmView& film, DeviceStream stream) override;
-  void resolve_film(const DeviceFilmView& film, float* rgb, DeviceStream stream) override;
-  void tone_map_film(const DeviceFilmView& film, float exposure_scale, uint32_t curve,
-                     uint8_t* rgb8, DeviceStream stream) override;
-  void trace_rays(const KernelData* kd, const Ray* rays, const uint32_t* alpha_keys, uint32_t n,
-                  bool any_hit, Hit* hits, uint32_t* work_counter, DeviceStream stream) override;
-  void render_features(const KernelData* kd, const FeaturePass& pass, uint32_t width,
-                       uint32_t height, PixelFeatures* out, DeviceStream stream) override;
+  DeviceProperties properties() const override;
+  uint32_t resident_blocks(DeviceKernel kernel, uint32_t block_threads) override;
+  void launch(DeviceKernel kernel, const LaunchDims& dims, const void* args, size_t args_bytes,
+              DeviceStream stream) override;
 
  private:
   struct Impl;

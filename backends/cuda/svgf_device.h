@@ -1,25 +1,41 @@
-// The denoiser's kernels on the CUDA device: the feature pass
-// (core/kernel/features.h) and one frame of the variance-guided filter
-// (core/kernel/svgf.h), the same per-pixel code the CPU runs
-// (backends/cpu_loops/cpu_features.h, core/render/svgf_cpu.h).
+// The denoiser's filter on the CUDA backend's device: the stages of
+// svgf_run_cpu (core/render/svgf_cpu.h) as the kernels of svgf_kernels.cu,
+// through DeviceOps like every other kernel, so that the simulated device
+// runs them in CI and fault injection covers them. The per-pixel code is
+// the CPU's (core/kernel/svgf.h); the two agree within float rounding (the
+// GPU's expf and powf).
 #pragma once
 
-#include <string>
+#include <memory>
 
-#include "core/render/svgf_cpu.h"
+#include "backends/cuda/device_ops.h"
+#include "core/render/temporal_denoiser.h"
 
 namespace tandem {
 
-// Whether this build has the CUDA device code and a device can run it;
-// *reason says why not.
-bool svgf_cuda_available(std::string* reason);
+class DeviceSvgf {
+ public:
+  explicit DeviceSvgf(std::shared_ptr<DeviceOps> device);
+  ~DeviceSvgf();
+  DeviceSvgf(const DeviceSvgf&) = delete;
+  DeviceSvgf& operator=(const DeviceSvgf&) = delete;
 
-// One frame of the filter on the device, in the stage order of
-// svgf_run_cpu: the host buffers of `frame` are copied to the device, the
-// stages run there and the outputs (history_color_out, moments_out, output)
-// are copied back. The two agree within float rounding (the device's expf
-// and powf). Throws DeviceError on a device failure, std::logic_error in a
-// build without the device code.
-SvgfStageSeconds svgf_run_cuda(const SvgfParams& params, const SvgfFrame& frame);
+  // One frame in the stage order of svgf_run_cpu: the inputs of `frame`
+  // are copied to the device, the stages run there and the outputs
+  // (history_color_out, moments_out, output) are copied back; the CPU's
+  // work space in `frame` is not used. The device buffers are kept for the
+  // next frame of the same size. Throws DeviceError when the device fails.
+  SvgfStageSeconds run(const SvgfParams& params, const SvgfFrame& frame);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The filter of a TemporalDenoiser on `device` (TemporalDenoiser::
+// set_offload): when the device fails, the failure is logged once and that
+// frame and every later one are filtered on the CPU, as the backend factory
+// falls back after a failure in render().
+std::shared_ptr<SvgfOffload> make_device_svgf_offload(std::shared_ptr<DeviceOps> device);
 
 }  // namespace tandem

@@ -32,6 +32,7 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
     planes_.assign(svgf_cpu_plane_floats(width_, height_), 0.0f);
     for (SvgfCpuGuide& g : cpu_guide_)
       g.resize(n);
+    cpu_guide_current_[0] = cpu_guide_current_[1] = false;
   }
   for (size_t i = 0; i < n; ++i)
     radiance_[i] = make_vec3(radiance.rgb[3 * i], radiance.rgb[3 * i + 1], radiance.rgb[3 * i + 2]);
@@ -54,9 +55,15 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                   guide_.data(),
                   material_.data(),
                   planes_.data()};
-  frame.guide_out = &cpu_guide_[next];
-  if (has_history_) frame.prev_guide = &cpu_guide_[prev];
-  last_seconds_ = svgf_run_cpu(p, frame);
+  last_on_cpu_ = !offload_ || !offload_->run(p, frame, &last_seconds_);
+  if (last_on_cpu_) {
+    frame.guide_out = &cpu_guide_[next];
+    // The previous frame's guide only if the CPU filter wrote it; without
+    // it svgf_run_cpu derives it from the previous features.
+    if (has_history_ && cpu_guide_current_[prev]) frame.prev_guide = &cpu_guide_[prev];
+    last_seconds_ = svgf_run_cpu(p, frame);
+  }
+  cpu_guide_current_[next] = last_on_cpu_;
   current_ = next;
   has_history_ = true;
   ImageRGB out(width_, height_);

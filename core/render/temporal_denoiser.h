@@ -14,12 +14,24 @@
 // resolution.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "core/image/image.h"
 #include "core/render/svgf_cpu.h"
 
 namespace tandem {
+
+// A filter that runs the stages of svgf_run_cpu somewhere else (a GPU:
+// backends/cuda/svgf_device.h), reading the frame's inputs and writing its
+// outputs (history_color_out, moments_out, output) but not the CPU's work
+// space. run() returns false when it could not (its device failed): the
+// frame is then filtered on the CPU.
+class SvgfOffload {
+ public:
+  virtual ~SvgfOffload() = default;
+  virtual bool run(const SvgfParams& params, const SvgfFrame& frame, SvgfStageSeconds* seconds) = 0;
+};
 
 class TemporalDenoiser {
  public:
@@ -30,6 +42,12 @@ class TemporalDenoiser {
   // Filters `radiance` (this frame's noisy image) guided by `features` (this
   // frame's, width * height of them, motion relative to the previous call).
   ImageRGB process(const std::vector<PixelFeatures>& features, const ImageRGB& radiance);
+  // Filters on `offload` from the next frame on, and on the CPU whenever it
+  // cannot (null: the CPU only).
+  void set_offload(std::shared_ptr<SvgfOffload> offload) { offload_ = std::move(offload); }
+  // Whether the last process() filtered on the CPU.
+  bool last_on_cpu() const { return last_on_cpu_; }
+
   // Forget the history: the next frame starts fresh.
   void reset() { has_history_ = false; }
   bool has_history() const { return has_history_; }
@@ -58,6 +76,9 @@ class TemporalDenoiser {
   std::vector<float> planes_;  // svgf_run_cpu's work space
   SvgfCpuGuide
       cpu_guide_[2];  // double-buffered like the history: the reprojection reads last frame's
+  bool cpu_guide_current_[2] = {false, false};  // written by the CPU filter of that frame
+  std::shared_ptr<SvgfOffload> offload_;
+  bool last_on_cpu_ = true;
   SvgfStageSeconds last_seconds_;
 };
 

@@ -1,0 +1,34 @@
+// The CUDA device's kernels: the host-side function of each (what
+// cudaLaunchKernel takes), registered by the .cu files. Plain types only;
+// included by the .cu files and by the CUDA device (cuda_device_ops.cpp).
+#pragma once
+
+#include <cstddef>
+
+#include "backends/cuda/device_kernel_ids.h"
+
+namespace tandem {
+
+struct CudaKernelTable {
+  struct Kernel {
+    const void* function = nullptr;
+    size_t args_bytes = 0;
+  };
+  Kernel kernels[kDeviceKernelCount];
+
+  void add(DeviceKernel kernel, const void* function, size_t args_bytes) {
+    kernels[uint32_t(kernel)] = Kernel{function, args_bytes};
+  }
+};
+
+// One per .cu file (TANDEM_KERNEL_REGISTRY, device_exec.h).
+void register_cuda_kernels_megakernel(CudaKernelTable& table);
+void register_cuda_kernels_ray_query(CudaKernelTable& table);
+void register_cuda_kernels_wavefront(CudaKernelTable& table);
+void register_cuda_kernels_film(CudaKernelTable& table);
+void register_cuda_kernels_svgf(CudaKernelTable& table);
+
+// Every kernel, registered on first use (cuda_device_ops.cpp).
+const CudaKernelTable& cuda_kernels();
+
+}  // namespace tandem
