@@ -99,6 +99,8 @@ constexpr uint32_t kMaxBlockThreads = 1024;
 // state) takes a few KiB, more in a sanitizer build; pages are committed
 // only when touched.
 constexpr size_t kFiberStackBytes = size_t(512) << 10;
+// What the frames of a lane's entry take at the top of its stack.
+constexpr size_t kStackTopBytes = size_t(16) << 10;
 constexpr size_t kSharedSlotBytes = size_t(48) << 10;
 constexpr uint8_t kSharedGarbage = 0xcd;
 constexpr size_t kMaxFaults = 16;
@@ -121,6 +123,9 @@ class FiberStack {
   FiberStack& operator=(const FiberStack&) = delete;
   void* bottom() const { return base_ + page_; }
   size_t size() const { return kFiberStackBytes; }
+  // A lane was abandoned on this stack in the middle of a call (a fault):
+  // frames anywhere on it may still be poisoned for AddressSanitizer.
+  bool abandoned = false;
 
  private:
   unsigned char* base_ = nullptr;
@@ -326,10 +331,14 @@ void leave(EmulatedBlock& b, Lane& lane, bool final) {
 #endif
 }
 
+const char* kernel_name(const EmulatedLaunch& launch) {
+  return launch.name ? launch.name : device_kernel_name(launch.kernel);
+}
+
 std::string thread_text(const EmulatedBlock& b, const Lane& lane) {
-  return std::string(device_kernel_name(b.launch->kernel)) + ", block " +
-         dim_text(lane.thread.block_idx) + ", thread " + dim_text(lane.thread.thread_idx) +
-         " (warp " + std::to_string(lane.thread.rank / kWarpSize) + ", lane " +
+  return std::string(kernel_name(*b.launch)) + ", block " + dim_text(lane.thread.block_idx) +
+         ", thread " + dim_text(lane.thread.thread_idx) + " (warp " +
+         std::to_string(lane.thread.rank / kWarpSize) + ", lane " +
          std::to_string(lane.thread.rank % kWarpSize) + ")";
 }
 
@@ -337,6 +346,7 @@ std::string thread_text(const EmulatedBlock& b, const Lane& lane) {
 [[noreturn]] void fault(EmulatedBlock& b, Lane& lane, const std::string& what) {
   if (b.fault.empty()) b.fault = thread_text(b, lane) + ": " + what;
   set_state(b, lane, LaneState::kExited);
+  lane.stack->abandoned = true;
   leave(b, lane, true);
   std::abort();  // a faulted lane is never resumed
 }
@@ -398,7 +408,7 @@ std::string describe_deadlock(const EmulatedBlock& b) {
              ", which wait elsewhere: the warp's threads diverged (undefined on a GPU)";
     }
   }
-  return std::string(device_kernel_name(b.launch->kernel)) +
+  return std::string(kernel_name(*b.launch)) +
          ": the block's threads wait for each other and none can go on";
 }
 
@@ -420,9 +430,14 @@ void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stack
     lane = Lane{};
     lane.stack = stacks[rank].get();
 #if defined(TANDEM_EMULATED_GRID_ASAN)
-    // Frames of a lane abandoned mid-call (a fault) or of the entry, which
-    // never returns, are still poisoned from the last block.
-    ASAN_UNPOISON_MEMORY_REGION(lane.stack->bottom(), lane.stack->size());
+    // Frames that never returned are still poisoned from the last block:
+    // the entry's, at the top, and after a fault any frame below it. The
+    // whole stack only then: unpoisoning its 512 KiB for every thread of
+    // every block was most of a sanitizer build's emulation time.
+    const size_t used = lane.stack->abandoned ? lane.stack->size() : kStackTopBytes;
+    ASAN_UNPOISON_MEMORY_REGION(
+        static_cast<unsigned char*>(lane.stack->bottom()) + (lane.stack->size() - used), used);
+    lane.stack->abandoned = false;
 #endif
     lane.thread.thread_idx = {rank % dim.x, rank / dim.x % dim.y, rank / (dim.x * dim.y)};
     lane.thread.block_idx = block_idx;
@@ -438,10 +453,14 @@ void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stack
       if (lane.state != LaneState::kReady) continue;
       resume(b, lane);
       ran = true;
-      if (!b.fault.empty()) return;
+      if (!b.fault.empty()) break;
     }
-    if (ran) continue;
-    if (b.exited != n) b.fault = describe_deadlock(b);
+    if (ran && b.fault.empty()) continue;
+    if (b.fault.empty() && b.exited != n) b.fault = describe_deadlock(b);
+    // The threads of a faulted block are dropped wherever they wait.
+    if (!b.fault.empty())
+      for (Lane& lane : b.lanes)
+        lane.stack->abandoned = true;
     return;
   }
 }
@@ -648,10 +667,11 @@ void gpu_emulation::check_device_access(const void* p, size_t bytes, size_t alig
 
 std::vector<std::string> run_emulated_grid(const EmulatedLaunch& launch) {
   const EmulatedKernelTable& table = emulated_kernels();
-  const char* name = device_kernel_name(launch.kernel);
+  const char* name = kernel_name(launch);
   if (uint32_t(launch.kernel) >= kDeviceKernelCount) return {"launch of an unknown kernel"};
-  const EmulatedKernelTable::Kernel& kernel = table.kernels[uint32_t(launch.kernel)];
-  if (!kernel.entry) return {std::string(name) + ": no emulated build of this kernel"};
+  const EmulatedKernelEntry entry =
+      launch.entry ? launch.entry : table.kernels[uint32_t(launch.kernel)].entry;
+  if (!entry) return {std::string(name) + ": no emulated build of this kernel"};
   const LaunchDims& d = launch.dims;
   if (d.block.count() == 0 || d.block.count() > kMaxBlockThreads || d.grid.count() == 0)
     return {std::string(name) + ": invalid launch of " + dim_text(d.grid) + " blocks of " +
@@ -669,7 +689,7 @@ std::vector<std::string> run_emulated_grid(const EmulatedLaunch& launch) {
     HostThreadState& state = host_thread_state();
     EmulatedBlock& b = *state.block;
     b.launch = &launch;
-    b.entry = kernel.entry;
+    b.entry = entry;
     b.memory = &memory;
     for (uint64_t i = r.begin(); i != r.end(); ++i) {
       if (stop.load(std::memory_order_relaxed)) return;

@@ -91,6 +91,9 @@ struct EmulatedLaunch {
   const void* args = nullptr;  // the kernel's Args (device_kernels.h)
   LaunchDims dims;
   std::vector<EmulatedMemoryRange> memory;  // device memory besides the tables
+  // A kernel of no table (the grid's own tests): run instead of `kernel`'s.
+  EmulatedKernelEntry entry = nullptr;
+  const char* name = nullptr;
 };
 
 // Runs the launch to its end; returns what faulted (empty when nothing did),

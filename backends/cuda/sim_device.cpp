@@ -572,6 +572,10 @@ SimDeviceReport SimDevice::report() const {
   return impl_->report;
 }
 
+void SimDevice::stall(DeviceStream stream, double seconds) {
+  impl_->enqueue(stream, seconds, [] {});
+}
+
 void* SimDevice::alloc(size_t bytes) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->allocate_locked(bytes, false);

@@ -59,6 +59,9 @@ class SimDevice final : public DeviceOps {
   SimDevice& operator=(const SimDevice&) = delete;
 
   SimDeviceReport report() const;
+  // Enqueues an operation that keeps `stream` busy for `seconds` (a long
+  // kernel), for tests of what must not wait for one.
+  void stall(DeviceStream stream, double seconds);
 
   std::string name() const override { return "simulated GPU"; }
   void* alloc(size_t bytes) override;
