@@ -19,6 +19,9 @@ struct CudaKernelTable {
   void add(DeviceKernel kernel, const void* function, size_t args_bytes) {
     kernels[uint32_t(kernel)] = Kernel{function, args_bytes};
   }
+  // The __device__ tables are the module's own memory on a GPU: nothing to
+  // record (the emulated table records them as device memory).
+  void add_device_table(const void*, size_t) {}
 };
 
 // One per .cu file (TANDEM_KERNEL_REGISTRY, device_exec.h).

@@ -199,7 +199,7 @@ TANDEM_DEVICE_FN void persistent_loop(Exec& ex, uint32_t n, uint32_t* taken, con
   }
 }
 
-// One executor's entry of kernel K.
+// Kernel K's entry in this executor's table.
 #if defined(__CUDACC__)
 template <class K>
 __global__ void __launch_bounds__(K::kThreads, K::kMinBlocks)
@@ -207,31 +207,10 @@ __global__ void __launch_bounds__(K::kThreads, K::kMinBlocks)
   DeviceExec ex;
   K::run(ex, args);
 }
-template <class K>
-__global__ void __launch_bounds__(K::kThreads)
-    cuda_entry_block_size(const __grid_constant__ typename K::Args args) {
-  DeviceExec ex;
-  K::run(ex, args);
-}
-template <class K>
-__global__ void cuda_entry_unbounded(const __grid_constant__ typename K::Args args) {
-  DeviceExec ex;
-  K::run(ex, args);
-}
 using DeviceKernelTable = CudaKernelTable;
-// The entry with the bounds K asks for (device_kernels.h).
 template <class K>
-const void* cuda_entry_of() {
-  if constexpr (K::kMinBlocks == kNoLaunchBounds)
-    return reinterpret_cast<const void*>(&cuda_entry_unbounded<K>);
-  else if constexpr (K::kMinBlocks == 0)
-    return reinterpret_cast<const void*>(&cuda_entry_block_size<K>);
-  else
-    return reinterpret_cast<const void*>(&cuda_entry<K>);
-}
-template <class K>
-void add_kernel(DeviceKernelTable& table) {
-  table.add(K::kId, cuda_entry_of<K>(), sizeof(typename K::Args));
+const void* kernel_entry() {
+  return reinterpret_cast<const void*>(&cuda_entry<K>);
 }
 #else
 template <class K>
@@ -241,13 +220,18 @@ void emulated_entry(const void* args, EmulatedThread& thread) {
 }
 using DeviceKernelTable = EmulatedKernelTable;
 template <class K>
+EmulatedKernelEntry kernel_entry() {
+  return &emulated_entry<K>;
+}
+#endif
+
+template <class K>
 void add_kernel(DeviceKernelTable& table) {
-  table.add(K::kId, &emulated_entry<K>, sizeof(typename K::Args));
+  table.add(K::kId, kernel_entry<K>(), sizeof(typename K::Args));
   // What the kernels read through the read-only cache besides the scene.
   table.add_device_table(kSrgb8ToLinearDevice, sizeof kSrgb8ToLinearDevice);
   table.add_device_table(kSheenAlbedoDevice, sizeof kSheenAlbedoDevice);
 }
-#endif
 
 template <class... Kernels>
 void register_kernels(DeviceKernelTable& table) {

@@ -117,10 +117,8 @@ struct SvgfModulateArgs {
 // A kernel: its id, arguments, block size and launch bounds, and its body.
 // The bounds: at most kThreads threads per block, and at least kMinBlocks
 // blocks resident per multiprocessor, which caps its registers at 65536 /
-// (kThreads * kMinBlocks); kMinBlocks 0 states the block size only, and
-// kNoLaunchBounds states nothing (ptxas then plans for blocks of up to 1024
-// threads, which gives small kernels fewer registers and more occupancy).
-constexpr uint32_t kNoLaunchBounds = ~0u;
+// (kThreads * kMinBlocks); kMinBlocks 0 states the block size only and
+// leaves the registers to ptxas.
 #define TANDEM_DEVICE_KERNEL_TRAITS(name, args_type, threads, min_blocks) \
   using Args = args_type;                                                 \
   static constexpr DeviceKernel kId = DeviceKernel::k##name;              \
@@ -145,7 +143,7 @@ struct WaveFill {
   TANDEM_DEVICE_KERNEL_TRAITS(WaveFill, WaveArgs, 128, 0)
 };
 struct WaveBeginRound {
-  TANDEM_DEVICE_KERNEL_TRAITS(WaveBeginRound, WaveArgs, 1, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(WaveBeginRound, WaveArgs, 1, 0)
 };
 struct WaveExtend {
   TANDEM_DEVICE_KERNEL_TRAITS(WaveExtend, WaveArgs, 128, 8)
@@ -163,7 +161,7 @@ struct WaveRetire {
   TANDEM_DEVICE_KERNEL_TRAITS(WaveRetire, WaveArgs, 128, 0)
 };
 struct WaveCountRays {
-  TANDEM_DEVICE_KERNEL_TRAITS(WaveCountRays, WaveArgs, 1, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(WaveCountRays, WaveArgs, 1, 0)
 };
 
 // ray_query.cu: closest hits or occlusion of an array of rays, with
@@ -175,16 +173,16 @@ struct TraceRays {
 // film_kernels.cu: the per-pixel reduction of a batch's samples, the
 // device film and its tone mapping.
 struct ReduceSamples {
-  TANDEM_DEVICE_KERNEL_TRAITS(ReduceSamples, ReduceSamplesArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(ReduceSamples, ReduceSamplesArgs, 256, 0)
 };
 struct AccumulateFilm {
-  TANDEM_DEVICE_KERNEL_TRAITS(AccumulateFilm, AccumulateFilmArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(AccumulateFilm, AccumulateFilmArgs, 256, 0)
 };
 struct ResolveFilm {
-  TANDEM_DEVICE_KERNEL_TRAITS(ResolveFilm, ResolveFilmArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(ResolveFilm, ResolveFilmArgs, 256, 0)
 };
 struct ToneMapFilm {
-  TANDEM_DEVICE_KERNEL_TRAITS(ToneMapFilm, ToneMapFilmArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(ToneMapFilm, ToneMapFilmArgs, 256, 0)
 };
 
 // svgf_kernels.cu: the denoiser's feature pass and filter stages, one
@@ -192,19 +190,19 @@ struct ToneMapFilm {
 // lines).
 constexpr uint32_t kSvgfBlockSide = 16;
 struct Features {
-  TANDEM_DEVICE_KERNEL_TRAITS(Features, FeaturesArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(Features, FeaturesArgs, 256, 0)
 };
 struct SvgfTemporal {
-  TANDEM_DEVICE_KERNEL_TRAITS(SvgfTemporal, SvgfTemporalArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(SvgfTemporal, SvgfTemporalArgs, 256, 0)
 };
 struct SvgfVariance {
-  TANDEM_DEVICE_KERNEL_TRAITS(SvgfVariance, SvgfVarianceArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(SvgfVariance, SvgfVarianceArgs, 256, 0)
 };
 struct SvgfAtrous {
-  TANDEM_DEVICE_KERNEL_TRAITS(SvgfAtrous, SvgfAtrousArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(SvgfAtrous, SvgfAtrousArgs, 256, 0)
 };
 struct SvgfModulate {
-  TANDEM_DEVICE_KERNEL_TRAITS(SvgfModulate, SvgfModulateArgs, 256, kNoLaunchBounds)
+  TANDEM_DEVICE_KERNEL_TRAITS(SvgfModulate, SvgfModulateArgs, 256, 0)
 };
 
 #undef TANDEM_DEVICE_KERNEL_TRAITS
