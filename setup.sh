@@ -19,7 +19,8 @@ packages=(cmake ninja-build g++ pkg-config
           libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
           xvfb xauth
           libopenmpi-dev openmpi-bin
-          clang libclang-rt-14-dev clang-format)
+          clang libclang-rt-14-dev clang-format
+          python3)
 
 missing=()
 for p in "${packages[@]}"; do
