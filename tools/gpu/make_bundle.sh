@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # Builds and checks the GPU bundle HERE (Debian 12, no GPU), from the project root:
 #   tools/gpu/make_bundle.sh [BUILD_DIR]        (default BUILD_DIR: build/gpu-bundle)
-# Builds tandem and every test binary with GPU tests (Release, CUDA on, ccache), packs them
-# into .gpu/bundle.tar.xz with the shared libraries a bare GPU machine lacks, the test data
-# the run needs and run_on_gpu.sh, then starts the bundled binaries in a chroot that holds
-# only the bundle and the system C/C++ runtime, and fails if anything else is needed.
+# Builds tandem and every test binary with GPU tests (Release, CUDA on, no MPI, ccache), packs
+# them into .gpu/bundle.tar.xz with the shared libraries a bare GPU machine lacks, the test
+# data the run needs and run_on_gpu.sh, then checks the bundle: no binary or library of it may
+# need a glibc newer than GLIBC_MAX (default 2.35, older than the 2.36 of the Debian 12
+# machine that builds it), and the bundled binaries must start in a chroot that holds only
+# the bundle and the system C/C++ runtime. It fails if anything else is needed.
 # On the GPU machine, with .gpu/ in the project root: bash .gpu/run_on_gpu.sh.
-# Environment: JOBS (build jobs, default 2), TANDEM_SHARED_DIR (default ../shared).
+# Environment: JOBS (build jobs, default 2), TANDEM_SHARED_DIR (default ../shared),
+# GLIBC_MAX (default 2.35).
 set -euo pipefail
 
 die() {
@@ -21,6 +24,7 @@ build=${1:-$src/build/gpu-bundle}
 shared=${TANDEM_SHARED_DIR:-$src/../shared}
 out=$src/.gpu
 jobs=${JOBS:-2}
+glibc_max=${GLIBC_MAX:-2.35}
 [ -d "$shared/scenes/gltf" ] || die "$shared/scenes/gltf: test data not found (set TANDEM_SHARED_DIR)"
 grep -qx '/.gpu/' .gitignore || die ".gitignore lacks /.gpu/: the bundle must never be committed"
 
@@ -45,9 +49,11 @@ done < <(sed -n 's/^ *tandem_test_area(\([a-z]*\) [^)]*GPU_TESTS "\([^"]*\)".*/\
 targets=(tandem)
 for t in "${gpu_tests[@]}"; do targets+=("${t%% *}"); done
 
-note "configuring $build (Release, CUDA on)"
+note "configuring $build (Release, CUDA on, no MPI)"
 mkdir -p "$build"
-cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DTANDEM_CUDA=ON \
+# No MPI: Open MPI's libraries (libevent_core among them) need a newer glibc than the
+# binaries do, and a GPU run never renders distributed.
+cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DTANDEM_CUDA=ON -DTANDEM_MPI=OFF \
   "${launcher[@]}" >"$build/configure.log" 2>&1 || {
   tail -20 "$build/configure.log"
   die "configure failed (log: $build.configure.log)"
@@ -109,7 +115,25 @@ mapfile -t models < <(printf '%s\n' "${models[@]}" | sort -u)
 for m in "${models[@]}"; do cp -r "$shared/scenes/gltf/$m" "$stage/shared/scenes/gltf/"; done
 [ "$(du -sm "$stage/shared" | cut -f1)" -lt 40 ] || die "test data over 40 MB: ${models[*]}"
 
-cp tools/gpu/run_on_gpu.sh "$stage/"
+cp tools/gpu/run_on_gpu.sh tools/gpu/gtest_counts.sh "$stage/"
+
+# The newest glibc any binary or library of the bundle needs (its version references), and no
+# newer than GLIBC_MAX: a symbol of a newer glibc fails here, naming the file and the symbol,
+# instead of every step on the GPU machine.
+glibc_needed_by() {
+  objdump -p "$1" | grep -oE 'GLIBC_[0-9]+\.[0-9]+' | sed 's/GLIBC_//' | sort -V | tail -n 1
+}
+glibc_needed=0
+for f in "$stage"/bin/* "$stage"/lib/*; do
+  v=$(glibc_needed_by "$f")
+  [ -n "$v" ] || continue
+  if [ "$(printf '%s\n%s\n' "$v" "$glibc_max" | sort -V | tail -n 1)" != "$glibc_max" ]; then
+    sym=$(objdump -T "$f" | grep -m1 "GLIBC_$v" | awk '{print $NF}')
+    die "$(basename "$f") needs glibc $v (symbol $sym): newer than GLIBC_MAX=$glibc_max"
+  fi
+  glibc_needed=$(printf '%s\n%s\n' "$v" "$glibc_needed" | sort -V | tail -n 1)
+done
+note "the bundle needs glibc $glibc_needed (at most $glibc_max allowed)"
 {
   echo "commit $(git rev-parse HEAD 2>/dev/null || echo unknown)"
   echo "uncommitted changes: $(git status --porcelain 2>/dev/null | grep -vc '^??' || true)"
@@ -118,6 +142,8 @@ cp tools/gpu/run_on_gpu.sh "$stage/"
   echo "binaries: ${targets[*]}"
   echo "libraries: $(cd "$stage/lib" && echo *)"
   echo "models: ${models[*]}"
+  echo "glibc needed: $glibc_needed (every binary of bin/ and library of lib/)"
+  echo "lib-old-system/libstdc++.so.6 needs glibc $(glibc_needed_by "$stage/lib-old-system/libstdc++.so.6")"
 } >"$stage/BUNDLE_INFO"
 
 # --- check ------------------------------------------------------------------------------------
@@ -165,7 +191,7 @@ mkdir -p "$out"
 rm -rf "$out/out"
 tar -cJf "$out/bundle.tar.xz.tmp" -C "$stage" .
 mv "$out/bundle.tar.xz.tmp" "$out/bundle.tar.xz"
-cp tools/gpu/run_on_gpu.sh "$out/run_on_gpu.sh"
+cp tools/gpu/run_on_gpu.sh tools/gpu/gtest_counts.sh "$out/"
 note "bundle ready: $out/bundle.tar.xz ($(du -h "$out/bundle.tar.xz" | cut -f1)); contents:"
 sed 's/^/  /' "$stage/BUNDLE_INFO"
 note "on the GPU machine, from the project root: bash .gpu/run_on_gpu.sh"

@@ -1,23 +1,28 @@
 #!/usr/bin/env bash
 # Runs ON the GPU machine, from the project root there, with .gpu/ (made by
 # tools/gpu/make_bundle.sh) in it:   bash .gpu/run_on_gpu.sh
-# Unpacks the bundle, then: nvidia-smi; every GPU test (a skip counts as a failure);
-# compute-sanitizer memcheck and racecheck of a small CUDA render; a 1080p CUDA render against
-# the host backend (the same kernels on the CPU) and a cuda+cpu render of a textured model
-# against the CPU backend, both through `tandem compare`; `tandem bench --gpu` and a cuda+cpu
-# bench. Every step has a timeout and the whole run a budget (BUDGET_S, default 330 s), so it
-# ends within 6 minutes. Logs go to $OUT (default /tmp/tandem-gpu), copied to .gpu/out; a
-# summary table (step, PASS/FAIL/SKIP, seconds, key figure) is printed last. The compared
-# .exr renders go to $IMAGES_DIR (default /tmp/tandem-gpu-images), not to $OUT.
-# A step the budget leaves no time for is a SKIP. Exit code: 0 when every step passed, else 1.
+# Unpacks the bundle and checks that this machine's glibc is as new as it needs, then runs
+# the steps below in the order of what they tell: nvidia-smi; every GPU test (a skip counts
+# as a failure); a 1080p CUDA render against the host backend (the same kernels on the CPU);
+# compute-sanitizer memcheck and racecheck of a small render with both kernels; `tandem
+# bench --gpu`; a cuda+cpu render of a textured model against the CPU backend; the
+# wavefront against the megakernel; a cuda+cpu bench. Every step has a time limit and the
+# limits add up to the budget (BUDGET_S, default 340 s), so the whole run, start-up
+# excluded, ends within 6 minutes; a step the budget leaves no time for is a SKIP.
+# STEPS=a,b,... runs only the named steps (a rerun of what failed; the bundle step always
+# runs): STEPS=tests_cuda,memcheck bash .gpu/run_on_gpu.sh.
+# Logs go to $OUT (default /tmp/tandem-gpu), copied to .gpu/out; the compared .exr renders
+# to $IMAGES_DIR (default /tmp/tandem-gpu-images), not to $OUT. A summary table (step,
+# PASS/FAIL/SKIP, seconds, key figure) is printed last. Exit code: 0 when every step run
+# passed, else 1.
 set -uo pipefail # no -e: every step runs, and the table tells which failed
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 OUT=${OUT:-/tmp/tandem-gpu}
 bundle=${BUNDLE_DIR:-/tmp/tandem-bundle}
-# The large linear images stay out of $OUT, which should come back small.
 images=${IMAGES_DIR:-/tmp/tandem-gpu-images}
-budget=${BUDGET_S:-330}
+budget=${BUDGET_S:-340}
+selected=",${STEPS:-},"
 t_start=$(date +%s.%N)
 mkdir -p "$OUT" "$images"
 # Nothing of an earlier run may pass for this one's.
@@ -27,6 +32,8 @@ step_rc=0 step_s=0 step_skipped=0
 
 elapsed() { awk -v a="$1" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 row() { rows+=("$1|$2|$3|$4"); } # step, status, seconds, key figure
+# wanted NAME: whether STEPS (when set) names the step.
+wanted() { [ "$selected" = ",," ] || [[ $selected == *",$1,"* ]]; }
 
 finish() {
   local failed=0 r step status secs figure
@@ -84,7 +91,7 @@ simple_row() {
   fi
 }
 
-# --- the bundle -------------------------------------------------------------------------------
+# --- the bundle, and whether this machine can load it ------------------------------------------
 t0=$(date +%s.%N)
 rm -rf "$bundle" && mkdir -p "$bundle"
 if ! tar -xJf "$here/bundle.tar.xz" -C "$bundle" 2>"$OUT/bundle.log"; then
@@ -102,87 +109,57 @@ export TANDEM_BVH_CACHE=/tmp/tandem-bvh-cache
 export PATH=$PATH:/usr/local/cuda/bin
 {
   cat "$bundle/BUNDLE_INFO"
+  echo "this machine: $(getconf GNU_LIBC_VERSION 2>/dev/null || echo 'glibc unknown')"
   for b in "$B"/*; do ldd "$b" 2>&1; done
 } >>"$OUT/bundle.log"
-if grep -q 'not found' "$OUT/bundle.log"; then
+need=$(sed -n 's/^glibc needed: \([0-9.]*\).*/\1/p' "$bundle/BUNDLE_INFO")
+have=$(getconf GNU_LIBC_VERSION 2>/dev/null | awk '{print $2}')
+if [ -n "$need" ] && [ -n "$have" ] &&
+  [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -n 1)" != "$need" ]; then
+  row bundle FAIL "$(elapsed "$t0")" "glibc $have here, the bundle needs $need: nothing can load"
+  exit 1
+elif grep -q 'not found' "$OUT/bundle.log"; then
   row bundle FAIL "$(elapsed "$t0")" "$(grep -m1 'not found' "$OUT/bundle.log" | cut -c1-70)"
-else
-  row bundle PASS "$(elapsed "$t0")" "$(sed -n 's/^commit \(.\{12\}\).*/commit \1/p' "$bundle/BUNDLE_INFO")"
+  exit 1
 fi
+row bundle PASS "$(elapsed "$t0")" \
+  "$(sed -n 's/^commit \(.\{12\}\).*/commit \1/p' "$bundle/BUNDLE_INFO"), glibc $have (needs $need)"
 
-# --- the machine ------------------------------------------------------------------------------
-run_step nvidia_smi 20 bash -c 'nvidia-smi && nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv,noheader'
-if [ "$step_rc" = 0 ]; then
-  row nvidia_smi PASS "$step_s" "$(last_line nvidia_smi)"
-else
-  row nvidia_smi FAIL "$step_s" "no GPU or no driver: $(last_line nvidia_smi)"
-fi
-
-# --- the GPU tests: a skip is a failure here ----------------------------------------------------
-while read -r binary filter; do
-  [ -n "$binary" ] || continue
-  name=tests_${binary%_tests}
-  run_step "$name" 150 "$B/$binary" "--gtest_filter=$filter" "--gtest_output=xml:$OUT/$name.xml"
-  log=$OUT/$name.log
-  # One result line per test: "[       OK ] Suite.Name (12 ms)".
-  n_ok=$(grep -cE '^\[ +OK \] .* \([0-9]+ ms\)$' "$log")
-  n_skip=$(grep -cE '^\[ +SKIPPED \] .* \([0-9]+ ms\)$' "$log")
-  n_fail=$(grep -cE '^\[ +FAILED \] .* \([0-9]+ ms\)$' "$log")
-  figure="$n_ok passed, $n_skip skipped, $n_fail failed ($filter)"
-  if skipped_row "$name"; then
-    :
-  elif timed_out; then
-    row "$name" FAIL "$step_s" "timed out after $figure"
-  elif [ "$step_rc" = 0 ] && [ "$n_skip" = 0 ] && [ "$n_ok" -gt 0 ]; then
-    row "$name" PASS "$step_s" "$figure"
+# --- the steps -------------------------------------------------------------------------------
+step_nvidia_smi() {
+  run_step nvidia_smi 10 bash -c 'nvidia-smi && nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv,noheader'
+  if [ "$step_rc" = 0 ]; then
+    row nvidia_smi PASS "$step_s" "$(last_line nvidia_smi)"
   else
-    row "$name" FAIL "$step_s" "$figure, exit $step_rc"
+    row nvidia_smi FAIL "$step_s" "no GPU or no driver: $(last_line nvidia_smi)"
   fi
-done <"$bundle/gpu_tests.txt"
+}
 
-# --- compute-sanitizer on a small render ----------------------------------------------------------
-small=(render builtin:cornell --backend cuda --width 64 --height 64 --spp 2 --quiet)
-for tool in memcheck racecheck; do
-  extra=()
-  [ "$tool" = memcheck ] && extra=(--leak-check full)
-  if ! command -v compute-sanitizer >/dev/null; then
-    row "$tool" FAIL 0.0 "compute-sanitizer not found"
-    continue
-  fi
-  run_step "$tool" 75 compute-sanitizer --tool "$tool" "${extra[@]}" --error-exitcode 99 \
-    "$B/tandem" "${small[@]}" --output "$OUT/$tool.png"
-  summary=$(grep -E '(ERROR|RACECHECK) SUMMARY' "$OUT/$tool.log" | tail -n 1 | sed 's/^=* *//')
-  if skipped_row "$tool"; then
-    :
-  elif [ "$step_rc" = 0 ] && [ -n "$summary" ]; then
-    row "$tool" PASS "$step_s" "$summary"
-  elif timed_out; then
-    row "$tool" FAIL "$step_s" "timed out"
-  else
-    row "$tool" FAIL "$step_s" "exit $step_rc: ${summary:-$(last_line "$tool")}"
-  fi
-done
+# The GPU tests: a skip is a failure here.
+step_tests_cuda() {
+  local binary filter name figure
+  while read -r binary filter; do
+    [ -n "$binary" ] || continue
+    name=tests_${binary%_tests}
+    run_step "$name" 70 "$B/$binary" "--gtest_filter=$filter" "--gtest_output=xml:$OUT/$name.xml"
+    figure="$(bash "$here/gtest_counts.sh" "$OUT/$name.log") ($filter)"
+    if skipped_row "$name"; then
+      :
+    elif timed_out; then
+      row "$name" FAIL "$step_s" "timed out after $figure"
+    elif [ "$step_rc" = 0 ] && [[ $figure == *" 0 skipped, 0 failed"* ]] && [[ $figure != "0 passed"* ]]; then
+      row "$name" PASS "$step_s" "$figure"
+    else
+      row "$name" FAIL "$step_s" "$figure, exit $step_rc"
+    fi
+  done <"$bundle/gpu_tests.txt"
+}
 
-# The wavefront's queue kernels under memcheck too (racecheck of the megakernel above).
-if command -v compute-sanitizer >/dev/null; then
-  run_step memcheck_wavefront 75 compute-sanitizer --tool memcheck --error-exitcode 99 \
-    "$B/tandem" "${small[@]}" --kernel wavefront --output "$OUT/memcheck_wavefront.png"
-  summary=$(grep -E 'ERROR SUMMARY' "$OUT/memcheck_wavefront.log" | tail -n 1 | sed 's/^=* *//')
-  if skipped_row memcheck_wavefront; then
-    :
-  elif [ "$step_rc" = 0 ] && [ -n "$summary" ]; then
-    row memcheck_wavefront PASS "$step_s" "$summary"
-  else
-    row memcheck_wavefront FAIL "$step_s" "exit $step_rc: ${summary:-$(last_line memcheck_wavefront)}"
-  fi
-fi
-
-# --- renders compared ---------------------------------------------------------------------------
-# render_row NAME ARGS...: a render step; the key figure is tandem's throughput summary.
+# render_row NAME LIMIT ARGS...: a render step; the key figure is tandem's throughput summary.
 render_row() {
-  local name=$1
-  shift
-  run_step "$name" 60 "$B/tandem" render "$@"
+  local name=$1 limit=$2
+  shift 2
+  run_step "$name" "$limit" "$B/tandem" render "$@"
   if [ "$step_rc" = 0 ]; then
     row "$name" PASS "$step_s" "$(grep -oE '[0-9.]+ M samples/s.*Mrays/s' "$OUT/$name.log" | tail -n 1)"
   else
@@ -194,7 +171,7 @@ render_row() {
 # only, where the block test's noise estimate means little).
 compare_row() {
   local name=$1 a=$2 b=$3 json verdict rmse mean rel
-  run_step "$name" 20 "$B/tandem" compare "$a" "$b" --json
+  run_step "$name" 5 "$B/tandem" compare "$a" "$b" --json
   json=$(tail -n 1 "$OUT/$name.log")
   verdict=$(echo "$json" | grep -oE '"verdict": "[A-Z]+"' | tail -n 1 | grep -oE '[A-Z]+')
   rmse=$(echo "$json" | grep -oE '"rmse": [-0-9.e+]+' | grep -oE '[-0-9.e+]+$')
@@ -213,25 +190,75 @@ compare_row() {
 }
 
 hd=(builtin:cornell --width 1920 --height 1080 --spp 8 --seed 7)
-render_row render_cuda_1080p "${hd[@]}" --backend cuda --output "$images/cornell_cuda.exr"
-render_row render_host_1080p "${hd[@]}" --backend host --output "$images/cornell_host.exr"
-compare_row compare_cuda_host "$images/cornell_host.exr" "$images/cornell_cuda.exr"
-render_row render_wave_1080p "${hd[@]}" --backend cuda --kernel wavefront \
-  --output "$images/cornell_wave.exr"
-compare_row compare_wave_mega "$images/cornell_cuda.exr" "$images/cornell_wave.exr"
+step_compare_cuda_host() {
+  render_row render_cuda_1080p 15 "${hd[@]}" --backend cuda --output "$images/cornell_cuda.exr"
+  render_row render_host_1080p 25 "${hd[@]}" --backend host --output "$images/cornell_host.exr"
+  compare_row compare_cuda_host "$images/cornell_host.exr" "$images/cornell_cuda.exr"
+}
+
+# compute-sanitizer on a small render, each kernel.
+small=(render builtin:cornell --backend cuda --width 64 --height 64 --spp 2 --quiet)
+sanitizer_row() {
+  local name=$1 limit=$2 tool=$3 summary
+  shift 3
+  if ! command -v compute-sanitizer >/dev/null; then
+    row "$name" FAIL 0.0 "compute-sanitizer not found"
+    return
+  fi
+  run_step "$name" "$limit" compute-sanitizer --tool "$tool" "$@" --error-exitcode 99 \
+    "$B/tandem" "${small[@]}" --output "$OUT/$name.png"
+  summary=$(grep -E '(ERROR|RACECHECK) SUMMARY' "$OUT/$name.log" | tail -n 1 | sed 's/^=* *//')
+  if skipped_row "$name"; then
+    :
+  elif [ "$step_rc" = 0 ] && [ -n "$summary" ]; then
+    row "$name" PASS "$step_s" "$summary"
+  elif timed_out; then
+    row "$name" FAIL "$step_s" "timed out"
+  else
+    row "$name" FAIL "$step_s" "exit $step_rc: ${summary:-$(last_line "$name")}"
+  fi
+}
+step_memcheck() { sanitizer_row memcheck 35 memcheck --leak-check full; }
+step_racecheck() { sanitizer_row racecheck 35 racecheck; }
+step_memcheck_wavefront() {
+  small+=(--kernel wavefront)
+  sanitizer_row memcheck_wavefront 25 memcheck
+}
+
+step_bench_gpu() {
+  run_step bench_gpu 35 "$B/tandem" bench builtin:cornell --gpu --json "$OUT/bench_gpu.json"
+  if [ "$step_rc" = 0 ] && [ ! -s "$OUT/bench_gpu.json" ]; then
+    row bench_gpu FAIL "$step_s" "exit 0 but no $OUT/bench_gpu.json"
+  else
+    simple_row bench_gpu
+  fi
+}
 
 duck=("$bundle/shared/scenes/gltf/Duck/glTF-Binary/Duck.glb" --width 960 --height 540 --spp 16
   --seed 11 --env-color 1)
-render_row render_duck_cuda_cpu "${duck[@]}" --backend cuda+cpu --output "$images/duck_cuda_cpu.exr"
-render_row render_duck_cpu "${duck[@]}" --backend cpu --output "$images/duck_cpu.exr"
-compare_row compare_duck "$images/duck_cpu.exr" "$images/duck_cuda_cpu.exr"
+step_compare_duck() {
+  render_row render_duck_cuda_cpu 15 "${duck[@]}" --backend cuda+cpu --output "$images/duck_cuda_cpu.exr"
+  render_row render_duck_cpu 15 "${duck[@]}" --backend cpu --output "$images/duck_cpu.exr"
+  compare_row compare_duck "$images/duck_cpu.exr" "$images/duck_cuda_cpu.exr"
+}
 
-# --- benchmarks ---------------------------------------------------------------------------------
-run_step bench_gpu 45 "$B/tandem" bench builtin:cornell --gpu --json "$OUT/bench_gpu.json"
-if [ "$step_rc" = 0 ] && [ ! -s "$OUT/bench_gpu.json" ]; then
-  row bench_gpu FAIL "$step_s" "exit 0 but no $OUT/bench_gpu.json"
-else
-  simple_row bench_gpu
-fi
-run_step bench_hetero 60 "$B/tandem" bench builtin:procedural --hetero cuda+cpu
-simple_row bench_hetero
+step_compare_wave_mega() {
+  [ -f "$images/cornell_cuda.exr" ] ||
+    render_row render_cuda_1080p 15 "${hd[@]}" --backend cuda --output "$images/cornell_cuda.exr"
+  render_row render_wave_1080p 15 "${hd[@]}" --backend cuda --kernel wavefront \
+    --output "$images/cornell_wave.exr"
+  compare_row compare_wave_mega "$images/cornell_cuda.exr" "$images/cornell_wave.exr"
+}
+
+step_bench_hetero() {
+  run_step bench_hetero 30 "$B/tandem" bench builtin:procedural --hetero cuda+cpu
+  simple_row bench_hetero
+}
+
+# In the order of what a step tells, with limits that add up to the budget (10 + 70 + 45 +
+# 35 + 35 + 25 + 35 + 35 + 20 + 30 = 340 s): a first run that runs out of time loses the
+# least valuable steps, and STEPS reruns any of them.
+for step in nvidia_smi tests_cuda compare_cuda_host memcheck racecheck memcheck_wavefront \
+  bench_gpu compare_duck compare_wave_mega bench_hetero; do
+  wanted "$step" && "step_$step"
+done
