@@ -1,7 +1,6 @@
-// The per-item bodies of the CUDA backend's small kernels (the device film),
-// written once: the .cu kernels call them on the GPU and the simulated device
-// (sim_device.cpp) calls them on the CPU, so a CI run of the backend's
-// pipeline computes exactly what the GPU computes.
+// The per-pixel functions of the CUDA backend's film kernels
+// (film_kernels.cu), which the GPU and the simulated device's emulated grid
+// both run.
 // POD structs and TANDEM_HD free functions only; no CUDA headers.
 #pragma once
 

@@ -82,10 +82,11 @@ class CudaBackend final : public Backend {
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   // Throws DeviceRenderError when the device fails.
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
-  // The feature pass on the device (the kernel of svgf_kernels.cu; the
-  // simulated device runs the same per-pixel code on the host), for the
-  // camera of the newest sync(). Always true. Throws std::logic_error before
-  // sync(), DeviceError when the device fails.
+  // The feature pass on the device (the Features kernel of svgf_kernels.cu),
+  // for the camera of the newest sync(), which `out` is sized for. Always
+  // true. Throws std::logic_error before sync() and when a sync() with
+  // another film size runs on another thread during the call (nothing is
+  // written then), DeviceError when the device fails.
   bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
 
   void set_variant(CudaKernelVariant variant);
