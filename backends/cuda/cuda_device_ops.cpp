@@ -121,11 +121,9 @@ class CudaDevice final : public DeviceOps {
 const CudaKernelTable& cuda_kernels() {
   static const CudaKernelTable table = [] {
     CudaKernelTable t;
-    register_cuda_kernels_megakernel(t);
-    register_cuda_kernels_ray_query(t);
-    register_cuda_kernels_wavefront(t);
-    register_cuda_kernels_film(t);
-    register_cuda_kernels_svgf(t);
+#define TANDEM_CALL_CUDA_REGISTRY(name) register_cuda_kernels_##name(t);
+    TANDEM_DEVICE_KERNEL_FILES(TANDEM_CALL_CUDA_REGISTRY)
+#undef TANDEM_CALL_CUDA_REGISTRY
     return t;
   }();
   return table;

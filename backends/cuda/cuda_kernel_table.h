@@ -25,11 +25,10 @@ struct CudaKernelTable {
 };
 
 // One per .cu file (TANDEM_KERNEL_REGISTRY, device_exec.h).
-void register_cuda_kernels_megakernel(CudaKernelTable& table);
-void register_cuda_kernels_ray_query(CudaKernelTable& table);
-void register_cuda_kernels_wavefront(CudaKernelTable& table);
-void register_cuda_kernels_film(CudaKernelTable& table);
-void register_cuda_kernels_svgf(CudaKernelTable& table);
+#define TANDEM_DECLARE_CUDA_REGISTRY(name) \
+  void register_cuda_kernels_##name(CudaKernelTable& table);
+TANDEM_DEVICE_KERNEL_FILES(TANDEM_DECLARE_CUDA_REGISTRY)
+#undef TANDEM_DECLARE_CUDA_REGISTRY
 
 // Every kernel, registered on first use (cuda_device_ops.cpp).
 const CudaKernelTable& cuda_kernels();

@@ -30,6 +30,10 @@ namespace tandem {
   X(SvgfAtrous, "svgf_atrous")          \
   X(SvgfModulate, "svgf_modulate")
 
+// X(name): the .cu files, each of which registers its kernels with
+// TANDEM_KERNEL_REGISTRY(name) (device_exec.h) in both executors' tables.
+#define TANDEM_DEVICE_KERNEL_FILES(X) X(megakernel) X(ray_query) X(wavefront) X(film) X(svgf)
+
 enum class DeviceKernel : uint32_t {
 #define TANDEM_DEVICE_KERNEL_ENUMERATOR(name, text) k##name,
   TANDEM_DEVICE_KERNELS(TANDEM_DEVICE_KERNEL_ENUMERATOR)

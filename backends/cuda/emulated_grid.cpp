@@ -481,11 +481,9 @@ void EmulatedKernelTable::add_device_table(const void* table, size_t bytes) {
 const EmulatedKernelTable& emulated_kernels() {
   static const EmulatedKernelTable table = [] {
     EmulatedKernelTable t;
-    register_emulated_kernels_megakernel(t);
-    register_emulated_kernels_ray_query(t);
-    register_emulated_kernels_wavefront(t);
-    register_emulated_kernels_film(t);
-    register_emulated_kernels_svgf(t);
+#define TANDEM_CALL_EMULATED_REGISTRY(name) register_emulated_kernels_##name(t);
+    TANDEM_DEVICE_KERNEL_FILES(TANDEM_CALL_EMULATED_REGISTRY)
+#undef TANDEM_CALL_EMULATED_REGISTRY
     return t;
   }();
   return table;

@@ -78,11 +78,10 @@ struct EmulatedKernelTable {
 };
 // One per .cu file, defined by its emulated build (TANDEM_KERNEL_REGISTRY,
 // device_exec.h).
-void register_emulated_kernels_megakernel(EmulatedKernelTable& table);
-void register_emulated_kernels_ray_query(EmulatedKernelTable& table);
-void register_emulated_kernels_wavefront(EmulatedKernelTable& table);
-void register_emulated_kernels_film(EmulatedKernelTable& table);
-void register_emulated_kernels_svgf(EmulatedKernelTable& table);
+#define TANDEM_DECLARE_EMULATED_REGISTRY(name) \
+  void register_emulated_kernels_##name(EmulatedKernelTable& table);
+TANDEM_DEVICE_KERNEL_FILES(TANDEM_DECLARE_EMULATED_REGISTRY)
+#undef TANDEM_DECLARE_EMULATED_REGISTRY
 // Every emulated kernel, registered on first use.
 const EmulatedKernelTable& emulated_kernels();
 

@@ -24,51 +24,62 @@ TANDEM_DEVICE_FN void WaveBeginRound::run(Exec&, const Args& a) {
   wavefront_begin_round(a.w);
 }
 
-template <class Exec>
-TANDEM_DEVICE_FN void WaveExtend::run(Exec& ex, const Args& a) {
-  const uint32_t n = a.w.counters[kWaveExtend];
-  if (n == 0) return;  // the same for every thread of the grid
+// A stage over the `length` entries of its queue: one thread per entry, or
+// (`taken`: the persistent threads' counter) persistent threads. A queue
+// that is empty (the same for every thread of the grid) ends the kernel
+// before it reads anything else.
+template <class Exec, class F>
+TANDEM_DEVICE_FN void over_queue(Exec& ex, const WaveArgs& a, WavefrontCounter length,
+                                 const F& stage) {
+  const uint32_t n = a.w.counters[length];
+  if (n == 0) return;
+  const KernelData& kd = load_kernel_data(ex, a.kd);
+  const uint64_t i = ex.global_x();
+  if (i < n) stage(kd, uint32_t(i));
+}
+template <class Exec, class F>
+TANDEM_DEVICE_FN void over_queue_persistent(Exec& ex, const WaveArgs& a, WavefrontCounter length,
+                                            WavefrontCounter taken, const F& stage) {
+  const uint32_t n = a.w.counters[length];
+  if (n == 0) return;
   const KernelData& kd = load_kernel_data(ex, a.kd);
   const BvhTracer tracer{&kd};
-  persistent_loop(ex, n, &a.w.counters[kWaveExtendTaken],
-                  [&](uint32_t i) { wavefront_extend(tracer, a.w, a.round, i); });
+  persistent_loop(ex, n, &a.w.counters[taken], [&](uint32_t i) { stage(tracer, i); });
+}
+
+template <class Exec>
+TANDEM_DEVICE_FN void WaveExtend::run(Exec& ex, const Args& a) {
+  over_queue_persistent(ex, a, kWaveExtend, kWaveExtendTaken, [&](const BvhTracer& t, uint32_t i) {
+    wavefront_extend(t, a.w, a.round, i);
+  });
 }
 
 template <class Exec>
 TANDEM_DEVICE_FN void WaveShadeMiss::run(Exec& ex, const Args& a) {
-  const uint32_t n = a.w.counters[kWaveMiss];
-  if (n == 0) return;
-  const KernelData& kd = load_kernel_data(ex, a.kd);
-  const uint64_t i = ex.global_x();
-  if (i < n) wavefront_shade_miss(kd, a.batch, a.w, a.round, uint32_t(i), a.radiance);
+  over_queue(ex, a, kWaveMiss, [&](const KernelData& kd, uint32_t i) {
+    wavefront_shade_miss(kd, a.batch, a.w, a.round, i, a.radiance);
+  });
 }
 
 template <class Exec>
 TANDEM_DEVICE_FN void WaveShadeHit::run(Exec& ex, const Args& a) {
-  const uint32_t n = a.w.counters[kWaveHit];
-  if (n == 0) return;
-  const KernelData& kd = load_kernel_data(ex, a.kd);
-  const uint64_t i = ex.global_x();
-  if (i < n) wavefront_shade_hit(kd, a.batch, a.w, a.round, uint32_t(i), a.radiance);
+  over_queue(ex, a, kWaveHit, [&](const KernelData& kd, uint32_t i) {
+    wavefront_shade_hit(kd, a.batch, a.w, a.round, i, a.radiance);
+  });
 }
 
 template <class Exec>
 TANDEM_DEVICE_FN void WaveConnect::run(Exec& ex, const Args& a) {
-  const uint32_t n = a.w.counters[kWaveShadow];
-  if (n == 0) return;
-  const KernelData& kd = load_kernel_data(ex, a.kd);
-  const BvhTracer tracer{&kd};
-  persistent_loop(ex, n, &a.w.counters[kWaveConnectTaken],
-                  [&](uint32_t i) { wavefront_connect(tracer, a.w, a.round, i); });
+  over_queue_persistent(ex, a, kWaveShadow, kWaveConnectTaken, [&](const BvhTracer& t, uint32_t i) {
+    wavefront_connect(t, a.w, a.round, i);
+  });
 }
 
 template <class Exec>
 TANDEM_DEVICE_FN void WaveRetire::run(Exec& ex, const Args& a) {
-  const uint32_t n = a.w.counters[kWaveRetire];
-  if (n == 0) return;
-  const KernelData& kd = load_kernel_data(ex, a.kd);
-  const uint64_t i = ex.global_x();
-  if (i < n) wavefront_retire_ended(kd, a.batch, a.w, a.round, uint32_t(i), a.radiance);
+  over_queue(ex, a, kWaveRetire, [&](const KernelData& kd, uint32_t i) {
+    wavefront_retire_ended(kd, a.batch, a.w, a.round, i, a.radiance);
+  });
 }
 
 template <class Exec>
