@@ -3,7 +3,10 @@
 #include <cuda_runtime_api.h>
 
 #include <algorithm>
+#include <map>
+#include <mutex>
 #include <stdexcept>
+#include <utility>
 
 #include "backends/cuda/cuda_check.h"
 #include "backends/cuda/cuda_kernel_table.h"
@@ -91,10 +94,16 @@ class CudaDevice final : public DeviceOps {
     return {uint32_t(props_.multiProcessorCount), uint32_t(props_.maxThreadsPerMultiProcessor)};
   }
   uint32_t resident_blocks(DeviceKernel kernel, uint32_t block_threads) override {
-    int per_sm = 0;
-    TANDEM_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, function(kernel),
-                                                                    int(block_threads), 0));
-    return uint32_t(std::max(per_sm, 1));
+    // Asked for every wavefront batch: the driver's answer is cached.
+    std::lock_guard<std::mutex> lock(mutex_);
+    uint32_t& cached = resident_[{kernel, block_threads}];
+    if (cached == 0) {
+      int per_sm = 0;
+      TANDEM_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, function(kernel),
+                                                                      int(block_threads), 0));
+      cached = uint32_t(std::max(per_sm, 1));
+    }
+    return cached;
   }
   void launch(DeviceKernel kernel, const LaunchDims& d, const void* args, size_t args_bytes,
               DeviceStream s) override {
@@ -114,6 +123,8 @@ class CudaDevice final : public DeviceOps {
   }
 
   cudaDeviceProp props_{};
+  std::mutex mutex_;
+  std::map<std::pair<DeviceKernel, uint32_t>, uint32_t> resident_;
 };
 
 }  // namespace

@@ -123,9 +123,6 @@ class FiberStack {
   FiberStack& operator=(const FiberStack&) = delete;
   void* bottom() const { return base_ + page_; }
   size_t size() const { return kFiberStackBytes; }
-  // A lane was abandoned on this stack in the middle of a call (a fault):
-  // frames anywhere on it may still be poisoned for AddressSanitizer.
-  bool abandoned = false;
 
  private:
   unsigned char* base_ = nullptr;
@@ -221,6 +218,7 @@ struct Lane {
   WarpOp op = WarpOp::kShfl;
   uint32_t mask = 0, value = 0, src = 0, result = 0;
   FiberStack* stack = nullptr;
+  bool started = false;        // has run at all (a thread not yet run is simply dropped)
   void* fake_stack = nullptr;  // AddressSanitizer's, while switched out
 };
 
@@ -246,6 +244,7 @@ struct EmulatedBlock {
   FiberContext scheduler;
   Lane* running = nullptr;
   std::string fault;
+  bool cancelled = false;  // the block faulted: waiting threads unwind when resumed
   // Threads in each state but kReady, kept with the states (set_state).
   uint32_t at_barrier = 0, at_warp_op = 0, exited = 0;
   uint64_t epoch = 0;       // barriers completed
@@ -342,19 +341,25 @@ std::string thread_text(const EmulatedBlock& b, const Lane& lane) {
          std::to_string(lane.thread.rank % kWarpSize) + ")";
 }
 
-// Ends the running lane's block with a fault report. Does not return.
+// Thrown through the kernel's frames, on the fiber's own stack, to end a
+// thread of a faulted block: everything the frames hold is released on the
+// way (a fiber that was simply dropped would leak the message it built).
+struct EmulatedFault {};
+
+// Ends the running thread with a fault report; the scheduler then ends its
+// block (run_block). Does not return.
 [[noreturn]] void fault(EmulatedBlock& b, Lane& lane, const std::string& what) {
   if (b.fault.empty()) b.fault = thread_text(b, lane) + ": " + what;
-  set_state(b, lane, LaneState::kExited);
-  lane.stack->abandoned = true;
-  leave(b, lane, true);
-  std::abort();  // a faulted lane is never resumed
+  throw EmulatedFault{};
 }
 
-// Waits, switched out, until another thread makes this one ready.
+// Waits, switched out, until another thread makes this one ready; throws
+// when the block faulted meanwhile.
 void block_until_ready(EmulatedBlock& b, Lane& lane) {
-  while (lane.state != LaneState::kReady)
+  while (lane.state != LaneState::kReady) {
     leave(b, lane, false);
+    if (b.cancelled) throw EmulatedFault{};
+  }
 }
 
 // What a lane that ended leaves behind: threads at a barrier it will never
@@ -381,8 +386,13 @@ void lane_main(void* arg) {
 #if defined(TANDEM_EMULATED_GRID_ASAN)
   __sanitizer_finish_switch_fiber(nullptr, &b.scheduler_stack, &b.scheduler_stack_size);
 #endif
-  b.entry(b.launch->args, lane->thread);
-  check_exit(b, *lane);
+  lane->started = true;
+  try {
+    b.entry(b.launch->args, lane->thread);
+    check_exit(b, *lane);
+  } catch (const EmulatedFault&) {
+    // The block faulted: this thread ends here.
+  }
   set_state(b, *lane, LaneState::kExited);
   leave(b, *lane, true);
   std::abort();  // an exited lane is never resumed
@@ -412,6 +422,19 @@ std::string describe_deadlock(const EmulatedBlock& b) {
          ": the block's threads wait for each other and none can go on";
 }
 
+// After a fault: every thread that started and has not ended is resumed to
+// unwind from where it waits (block_until_ready throws).
+void cancel_block(EmulatedBlock& b) {
+  b.cancelled = true;
+  for (Lane& lane : b.lanes) {
+    if (lane.state == LaneState::kExited) continue;
+    if (lane.started)
+      resume(b, lane);
+    else
+      set_state(b, lane, LaneState::kExited);
+  }
+}
+
 void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stacks,
                const DeviceDim3& block_idx) {
   const DeviceDim3 dim = b.launch->dims.block;
@@ -420,6 +443,7 @@ void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stack
     stacks.push_back(std::make_unique<FiberStack>());
   b.lanes.resize(n);
   b.fault.clear();
+  b.cancelled = false;
   b.at_barrier = b.at_warp_op = b.exited = 0;
   b.epoch = 0;
   b.shared_bytes = 0;
@@ -430,14 +454,13 @@ void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stack
     lane = Lane{};
     lane.stack = stacks[rank].get();
 #if defined(TANDEM_EMULATED_GRID_ASAN)
-    // Frames that never returned are still poisoned from the last block:
-    // the entry's, at the top, and after a fault any frame below it. The
-    // whole stack only then: unpoisoning its 512 KiB for every thread of
+    // The frames of the entry, which never returns, are still poisoned from
+    // the last block, at the top of the stack; every other frame returned or
+    // unwound. Only those: unpoisoning the whole 512 KiB for every thread of
     // every block was most of a sanitizer build's emulation time.
-    const size_t used = lane.stack->abandoned ? lane.stack->size() : kStackTopBytes;
     ASAN_UNPOISON_MEMORY_REGION(
-        static_cast<unsigned char*>(lane.stack->bottom()) + (lane.stack->size() - used), used);
-    lane.stack->abandoned = false;
+        static_cast<unsigned char*>(lane.stack->bottom()) + (lane.stack->size() - kStackTopBytes),
+        kStackTopBytes);
 #endif
     lane.thread.thread_idx = {rank % dim.x, rank / dim.x % dim.y, rank / (dim.x * dim.y)};
     lane.thread.block_idx = block_idx;
@@ -457,10 +480,7 @@ void run_block(EmulatedBlock& b, std::vector<std::unique_ptr<FiberStack>>& stack
     }
     if (ran && b.fault.empty()) continue;
     if (b.fault.empty() && b.exited != n) b.fault = describe_deadlock(b);
-    // The threads of a faulted block are dropped wherever they wait.
-    if (!b.fault.empty())
-      for (Lane& lane : b.lanes)
-        lane.stack->abandoned = true;
+    if (!b.fault.empty()) cancel_block(b);
     return;
   }
 }
