@@ -416,15 +416,18 @@ void AccelStructure::layout_arrays(KernelScene& ks, AccelUpdate& up) {
   laid_out_ = true;
 }
 
+Aabb AccelStructure::tlas_box(const KInstance& inst) const {
+  if (inst.mesh >= blas_.size() || (inst.flags & kInstanceHidden) != 0u) return Aabb{};
+  return transform_box(inst.object_to_world, blas_[inst.mesh].bounds);
+}
+
 void AccelStructure::compute_tlas_boxes(const KernelScene& ks) {
   const uint32_t instances = uint32_t(ks.instances.size());
   tlas_boxes_.resize(instances);
   auto body = [&](uint32_t i) {
-    const KInstance& inst = ks.instances[i];
-    // Instances of meshes without triangles stay out of the TLAS.
-    tlas_boxes_[i] = inst.mesh < blas_.size()
-                         ? transform_box(inst.object_to_world, blas_[inst.mesh].bounds)
-                         : Aabb{};
+    // Instances of meshes without triangles, and hidden ones, stay out of
+    // the TLAS.
+    tlas_boxes_[i] = tlas_box(ks.instances[i]);
   };
   if (instances >= 4096) {
     tbb::parallel_for(0u, instances, body);
@@ -467,10 +470,7 @@ bool AccelStructure::refit_tlas(KernelScene& ks, AccelUpdate& up,
     // result is bit for bit the full refit's (partial_refit.h).
     for (uint32_t i : *moved) {
       if (i >= instances) continue;
-      const KInstance& inst = ks.instances[i];
-      tlas_boxes_[i] = inst.mesh < blas_.size()
-                           ? transform_box(inst.object_to_world, blas_[inst.mesh].bounds)
-                           : Aabb{};
+      tlas_boxes_[i] = tlas_box(ks.instances[i]);
       if (tlas_members_[i] != uint8_t(aabb_valid(tlas_boxes_[i]))) return false;
     }
     tlas_partial_.refit(tlas_, tlas_boxes_, *moved);

@@ -153,6 +153,9 @@ class AccelStructure {
   // got much worse than a rebuild (then the TLAS is left for a rebuild).
   bool refit_tlas(KernelScene& ks, AccelUpdate& up, const std::vector<uint32_t>* moved);
   void compute_tlas_boxes(const KernelScene& ks);
+  // An instance's world box in the TLAS; invalid (out of it) when hidden or
+  // without triangles.
+  Aabb tlas_box(const KInstance& inst) const;
   void emit_tlas(KernelScene& ks, AccelUpdate& up, bool prims_changed);
 
   AccelSettings settings_;

@@ -7,6 +7,7 @@
 #include "app/scene_setup.h"
 #include "core/kernel/math.h"
 #include "core/util/errors.h"
+#include "core/world/scene_ranges.h"
 
 namespace tandem {
 
@@ -50,7 +51,19 @@ int run_info(const std::vector<std::string>& argv) {
   std::printf("triangles:  %zu (%zu unique in %zu meshes, %zu vertices)\n",
               scene.triangle_count_instanced(), scene.triangle_count_unique(),
               scene.meshes().size(), vertices);
-  std::printf("instances:  %zu\n", scene.instances().size());
+  // Singular instances (a node scaled to 0) are not drawn; say how many.
+  size_t hidden = 0;
+  for (const Instance& inst : scene.instances()) {
+    if (inst.mesh < scene.mesh_count() &&
+        classify_instance(inst.transform, scene.mesh_bounds(inst.mesh)) != InstanceState::kVisible)
+      ++hidden;
+  }
+  if (hidden == 0) {
+    std::printf("instances:  %zu\n", scene.instances().size());
+  } else {
+    std::printf("instances:  %zu (%zu not drawn: scaled to 0 or nearly)\n",
+                scene.instances().size(), hidden);
+  }
   std::printf("materials:  %zu\n", scene.materials().size());
   std::printf("textures:   %zu\n", scene.textures().size());
   std::printf("lights:     %zu punctual, %zu emissive triangles%s\n", scene.lights().size(),

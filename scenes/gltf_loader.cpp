@@ -15,6 +15,7 @@
 
 #include "core/util/errors.h"
 #include "core/util/log.h"
+#include "core/world/scene_ranges.h"
 #include "scenes/gltf_internal.h"
 #include "scenes/gltf_validate.h"
 
@@ -198,6 +199,13 @@ class SceneBuilder {
   std::string node_name(int index, const tinygltf::Node& node) const {
     return node.name.empty() ? "node " + std::to_string(index) : node.name;
   }
+  // "node 3 ('arm')" for messages.
+  std::string node_label(int index) const {
+    const std::string& name = ctx_.model.nodes[size_t(index)].name;
+    return "node " + std::to_string(index) +
+           (name.empty() ? ""
+                         : " ('" + name.substr(0, 80) + (name.size() > 80 ? "...'" : "'") + ")");
+  }
 
   // A node whose mesh changes shape over time: skinned, or morph targets.
   bool deforms(const tinygltf::Node& n) const {
@@ -258,7 +266,9 @@ class SceneBuilder {
     bindings_.push_back(
         {uint32_t(instances_.size()), uint32_t(node_index), glm::mat4(local), skinned});
     if (!finite(transform)) {
-      ctx_.fail("node " + std::to_string(node_index) + " has a world transform that is not finite");
+      ctx_.fail(node_label(node_index) +
+                " has a world transform that is not finite (its scales or translations, "
+                "multiplied along its parents, overflow float)");
     }
     instances_.push_back(Instance{name, uint32_t(mesh), transform});
   }
@@ -391,7 +401,9 @@ class SceneBuilder {
     }
     if (!std::isfinite(l.position.x) || !std::isfinite(l.position.y) ||
         !std::isfinite(l.position.z)) {
-      ctx_.fail("node " + std::to_string(index) + " has a world transform that is not finite");
+      ctx_.fail("the light on " + node_label(index) +
+                " has a world position that is not finite (its parents' transforms overflow "
+                "float)");
     }
     l.inner_cone_angle = float(gl.spot.innerConeAngle);
     l.outer_cone_angle = float(gl.spot.outerConeAngle);
@@ -631,6 +643,10 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     scene.set_camera(cam);
   }
   if (scene.triangle_count_instanced() == 0) ctx.warn("the scene has no triangles");
+  // Positions that overflow float after the products (scale, skinning,
+  // morph targets), the camera, lights and emission the tracers cannot
+  // take: refused here, naming the file and the object.
+  check_scene_traceable(scene, label);
   scene.source =
       std::filesystem::path(label).filename().string() +
       (model.asset.generator.empty() ? "" : " (generator: " + model.asset.generator + ")");

@@ -225,10 +225,11 @@ TEST(ApiRenderer, BadTransformsAreInvalidArguments) {
   nan_t.m[13] = std::numeric_limits<float>::quiet_NaN();
   tandem::Transform inf_t;
   inf_t.m[0] = std::numeric_limits<float>::infinity();
-  const tandem::Transform flat = tandem::Transform::scale(1, 0, 1);
   tandem::Transform projective;
   projective.m[3] = 0.5f;
-  for (const tandem::Transform& t : {nan_t, inf_t, flat, projective}) {
+  // Beyond the range Tandem traces (Embree would abort on it).
+  const tandem::Transform far = tandem::Transform::translation(0, 5e18f, 0);
+  for (const tandem::Transform& t : {nan_t, inf_t, projective, far}) {
     EXPECT_EQ(thrown_kind([&] { r.add_instance(mesh, t); }), Error::Kind::kInvalidArgument);
     EXPECT_EQ(thrown_kind([&] { r.set_instance_transform(inst, t); }),
               Error::Kind::kInvalidArgument);
@@ -278,6 +279,21 @@ TEST(ApiRenderer, BadMaterialsLightsAndCamerasAreInvalidArguments) {
   c = {};
   c.position[2] = nan;
   EXPECT_EQ(thrown_kind([&] { r.set_camera(c); }), Error::Kind::kInvalidArgument);
+  // Finite, but beyond what can be traced: refused, never an abort.
+  c = {};
+  c.position[0] = 5e18f;
+  EXPECT_EQ(thrown_kind([&] { r.set_camera(c); }), Error::Kind::kInvalidArgument);
+  l = {};
+  l.position[2] = 1e20f;
+  EXPECT_EQ(thrown_kind([&] { r.add_light(l); }), Error::Kind::kInvalidArgument);
+  l = {};
+  l.intensity = 1e20f;
+  l.color[0] = 1e20f;  // each finite; the product overflows the radiance floats carry
+  EXPECT_EQ(thrown_kind([&] { r.add_light(l); }), Error::Kind::kInvalidArgument);
+  m = {};
+  m.emission[1] = 1e20f;
+  m.emission_strength = 1e20f;
+  EXPECT_EQ(thrown_kind([&] { r.add_material(m); }), Error::Kind::kInvalidArgument);
   EXPECT_EQ(thrown_kind([&] { r.set_environment_color(nan, 0, 0); }),
             Error::Kind::kInvalidArgument);
 }
@@ -411,6 +427,68 @@ TEST(ApiRenderer, DegenerateAndFarAwayGeometryRendersWithoutCrashing) {
   r.render_frame();
   for (float v : r.image_linear())
     ASSERT_TRUE(std::isfinite(v));
+}
+
+}  // namespace
+
+namespace {
+
+// A scale of 0 is how games hide an object: accepted, and the image is the
+// image without that instance, on the frame it happens and after.
+TEST(ApiRenderer, AnInstanceScaledToZeroIsNotDrawn) {
+  tandem::Renderer hidden(small_options());
+  const tandem::InstanceId block = build_scene(hidden);
+  hidden.set_instance_transform(block, tandem::Transform::scale(0, 0, 0));
+  hidden.render_frame();
+  // The same scene with no instance of the block.
+  tandem::Renderer without(small_options());
+  const Quad floor(4.0f), small(0.5f);
+  tandem::MaterialDesc red;
+  red.base_color[0] = 0.9f;
+  const tandem::MaterialId g = without.add_material({});
+  const tandem::MaterialId rd = without.add_material(red);
+  without.add_instance(without.add_mesh(floor.data(), g), tandem::Transform::identity());
+  without.add_mesh(small.data(), rd);
+  tandem::LightDesc light;
+  light.position[1] = 4.0f;
+  light.intensity = 30.0f;
+  without.add_light(light);
+  tandem::CameraDesc cam;
+  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
+  without.set_camera(cam);
+  without.render_frame();
+  EXPECT_EQ(hidden.image_linear(), without.image_linear());
+  // Scaled back, it is drawn again.
+  const std::vector<float> before = hidden.image_linear();
+  hidden.set_instance_transform(block, tandem::Transform::translation(-1.0f, 0.5f, 0.0f));
+  hidden.render_frame();
+  EXPECT_GT(mean_abs_difference(hidden.image_linear(), before), 1e-3);
+}
+
+// A file whose node lies beyond the float range the tracers take is a
+// kFile error naming it, not an abort inside Embree.
+TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {
+  tandem::TempDir dir("api_gltf_range");
+  const fs::path file = dir.path() / "far.gltf";
+  // One triangle at x = 1e20 (positions inline as base64 of 9 floats).
+  std::ofstream(file) << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":36,"uri":)"
+                         R"("data:application/octet-stream;base64,)"
+                         R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
+                         R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
+                         R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
+                         R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
+                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0,)"
+                         R"("translation":[1e20,0,0]}],"scenes":[{"nodes":[0]}]})";
+  tandem::Renderer r(small_options());
+  try {
+    r.load_gltf(file.string());
+    ADD_FAILURE() << "loaded";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), Error::Kind::kFile);
+    EXPECT_NE(std::string(e.what()).find("far.gltf"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("lies beyond 1e+09"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(r.instance_count(), 0u);
 }
 
 }  // namespace

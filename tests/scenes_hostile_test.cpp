@@ -4,6 +4,7 @@
 // tests stay small and fast while exercising the same checks.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -12,6 +13,7 @@
 #include "core/image/image.h"
 #include "core/util/errors.h"
 #include "scenes/gltf_loader.h"
+#include "tests/hostile_scene_cases.h"
 #include "tests/test_temp_dir.h"
 
 namespace tandem {
@@ -320,6 +322,39 @@ TEST(GltfHostile, UrisOutsideTheSceneFolderAreRefused) {
   EXPECT_EQ(summary.images_unavailable, 1u);
   EXPECT_NE(log.find("the URI \"../outside.png\" leaves the scene's folder"), std::string::npos)
       << log;
+}
+
+// Out-of-range transforms, cameras, lights and emission, and values whose
+// products overflow float (hostile_scene_cases.h): refused naming the file
+// and the object, or loaded with finite bounds (singular nodes are simply
+// not drawn).
+TEST(GltfHostile, SceneValuesBeyondFloatAreRefusedByNameOrNotDrawn) {
+  TempDir dir("tandem_hostile");
+  for (const test::HostileScene& c : test::hostile_scenes()) {
+    const fs::path file = dir.path() / (c.name + ".gltf");
+    write_text(file, c.json);
+    testing::internal::CaptureStderr();
+    std::string error;
+    Scene scene;
+    try {
+      scene = load_gltf(file);
+    } catch (const InputError& e) {
+      error = e.what();
+    }
+    const std::string log = testing::internal::GetCapturedStderr();
+    if (c.refusal.empty()) {
+      EXPECT_EQ(error, "") << c.name;
+      const SceneBounds b = scene.bounds();
+      EXPECT_FALSE(b.empty) << c.name;  // node 1 is always drawn
+      EXPECT_TRUE(b.finite) << c.name;
+      // Only node 1's triangle.
+      EXPECT_LE(std::max({b.hi.x, b.hi.y, b.hi.z, -b.lo.x, -b.lo.y, -b.lo.z}), 3.0f) << c.name;
+      continue;
+    }
+    EXPECT_EQ(error.rfind(file.string() + ": ", 0), 0u) << c.name << ": " << error;
+    for (const std::string& part : c.refusal)
+      EXPECT_NE(error.find(part), std::string::npos) << c.name << ": " << error;
+  }
 }
 
 }  // namespace

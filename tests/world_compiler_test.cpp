@@ -8,12 +8,14 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/util/huge_pages.h"
+#include "core/util/log.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
 
@@ -164,6 +166,117 @@ TEST(SceneCompiler, EmissiveTexturesCarryTheirMeanLuminance) {
   EXPECT_NEAR(c.ks.materials[0].emission_luminance_scale, base_mean, 1e-5 * base_mean);
   EXPECT_NEAR(c.ks.materials[t.lamp_material].emission_luminance_scale, glow_mean,
               1e-5 * glow_mean);
+}
+
+// A node scaled to 0 (how an animation hides an object) is compiled hidden:
+// out of the TLAS and the bounds, its triangle lights without power; scaled
+// back it is drawn again. One notice for all such instances.
+TEST(SceneCompiler, AnInstanceScaledToZeroIsHiddenUntilItIsScaledBack) {
+  TwoQuads t = make_two_quads();
+  Compiled c;
+  c.compile(t.scene);
+  const float power_before = c.ks.constants.total_light_power;
+  ASSERT_GT(power_before, 0.0f);
+  const glm::mat4 placed = glm::translate(glm::mat4(1.0f), glm::vec3(0, 2, 0));
+  testing::internal::CaptureStderr();
+  const LogLevel level = log_level();
+  set_log_level(LogLevel::kInfo);
+  for (int round = 0; round < 2; ++round) {
+    t.scene.set_instance_transform(t.lamp_instance, glm::scale(placed, glm::vec3(0.0f)));
+    t.scene.set_instance_transform(t.floor_instance,
+                                   glm::scale(glm::mat4(1.0f), glm::vec3(1e-12f)));
+    const SceneDelta hidden = c.compile(t.scene);
+    EXPECT_TRUE(hidden.instances_changed);
+    for (uint32_t i : {t.lamp_instance, t.floor_instance}) {
+      EXPECT_TRUE(c.ks.instances[i].flags & kInstanceHidden) << i;
+      for (const Vec4& row : c.ks.instances[i].world_to_object.rows)
+        EXPECT_TRUE(row.x == 0.0f && row.y == 0.0f && row.z == 0.0f && row.w == 0.0f);
+    }
+    EXPECT_TRUE(t.scene.bounds().empty);
+    EXPECT_LT(c.ks.constants.total_light_power, 1e-6f * power_before);
+    t.scene.set_instance_transform(t.lamp_instance, placed);
+    t.scene.set_instance_transform(t.floor_instance, glm::mat4(1.0f));
+    c.compile(t.scene);
+    EXPECT_FALSE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
+    EXPECT_NEAR(c.ks.constants.total_light_power, power_before, 1e-5f * power_before);
+    EXPECT_EQ(t.scene.bounds().hi.y, 2.0f);
+  }
+  set_log_level(level);
+  const std::string log = testing::internal::GetCapturedStderr();
+  size_t notices = 0;
+  for (size_t p = log.find("not drawn"); p != std::string::npos; p = log.find("not drawn", p + 1))
+    ++notices;
+  EXPECT_EQ(notices, 1u) << log;
+  EXPECT_NE(log.find("has a singular transform"), std::string::npos) << log;
+}
+
+// Vertices edited out of float hide every instance of their mesh, with a
+// warning naming it, until they are finite again: the tracers never see them.
+TEST(SceneCompiler, AMeshDeformedOutOfFloatIsHiddenUntilItIsFiniteAgain) {
+  TwoQuads t = make_two_quads();
+  Compiled c;
+  c.compile(t.scene);
+  const uint32_t lamp_mesh = t.scene.instances()[t.lamp_instance].mesh;
+  const glm::vec3 before = t.scene.meshes()[lamp_mesh].positions[0];
+  testing::internal::CaptureStderr();
+  t.scene.edit_mesh_vertices(lamp_mesh).positions[0].x = std::numeric_limits<float>::infinity();
+  SceneDelta d = c.compile(t.scene);
+  EXPECT_TRUE(d.instances_changed);
+  EXPECT_TRUE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
+  EXPECT_FALSE(c.ks.instances[t.floor_instance].flags & kInstanceHidden);
+  EXPECT_TRUE(t.scene.bounds().finite);
+  EXPECT_EQ(t.scene.bounds().hi.y, 0.0f);                        // the floor alone
+  t.scene.edit_mesh_vertices(lamp_mesh).positions[0].x = 1e20f;  // finite, out of range
+  c.compile(t.scene);
+  EXPECT_TRUE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
+  t.scene.edit_mesh_vertices(lamp_mesh).positions[0] = before;
+  d = c.compile(t.scene);
+  EXPECT_TRUE(d.instances_changed);
+  EXPECT_FALSE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("instance 1 ('lamp') of mesh 1 ('lamp') has positions that are not finite"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("instance 1 ('lamp') of mesh 1 ('lamp') lies beyond 1e+09"), std::string::npos)
+      << log;
+}
+
+// A punctual light an edit takes beyond what can be traced is off (no
+// radiance, no power) with a warning naming it, and on again when it is back.
+TEST(SceneCompiler, LightsBeyondTheRangeAreOffUntilTheyAreBack) {
+  TwoQuads t = make_two_quads();
+  Light bulb;
+  bulb.name = "bulb";
+  bulb.type = LightType::kPoint;
+  bulb.position = {0, 1, 0};
+  bulb.intensity = 5.0f;
+  const uint32_t light = t.scene.add_light(bulb);
+  Compiled c;
+  c.compile(t.scene);
+  const Vec3 on = c.ks.lights[light].intensity;
+  ASSERT_GT(on.x, 0.0f);
+  testing::internal::CaptureStderr();
+  using Edit = void (*)(Light&);
+  const Edit edits[] = {
+      [](Light& l) { l.intensity = std::numeric_limits<float>::infinity(); },
+      [](Light& l) { l.intensity = 1e35f; },
+      [](Light& l) { l.position.x = 1e20f; },
+      [](Light& l) { l.position.y = std::numeric_limits<float>::quiet_NaN(); },
+  };
+  for (const Edit edit : edits) {
+    edit(t.scene.edit_light(light));
+    c.compile(t.scene);
+    EXPECT_EQ(c.ks.lights[light].intensity.x, 0.0f);
+    EXPECT_TRUE(std::isfinite(c.ks.constants.total_light_power));
+    t.scene.edit_light(light) = bulb;
+    c.compile(t.scene);
+    EXPECT_EQ(c.ks.lights[light].intensity.x, on.x);
+  }
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("light 0 ('bulb') is not finite, out of range or brighter than can be "
+                     "rendered: it is off"),
+            std::string::npos)
+      << log;
 }
 
 // The VmFlags line of the mapping in /proc/self/smaps that holds `address`

@@ -251,10 +251,28 @@ void EmbreeScene::attach_mesh(RTCScene scene, const KernelScene& ks, uint32_t me
   rtcReleaseGeometry(g);
 }
 
+namespace {
+
+// An instance's transform and whether it is traced. A hidden instance
+// (kInstanceHidden: zero transforms) is disabled, with the identity in
+// place of its transform, which Embree would invert.
+void set_instance(RTCGeometry g, const KInstance& inst) {
+  static const Mat34 kIdentity = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+  const bool hidden = (inst.flags & kInstanceHidden) != 0u;
+  rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                          hidden ? &kIdentity : &inst.object_to_world);
+  if (hidden)
+    rtcDisableGeometry(g);
+  else
+    rtcEnableGeometry(g);
+}
+
+}  // namespace
+
 void EmbreeScene::attach_instance(const KInstance& inst, unsigned id) {
   RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
   rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
-  rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &inst.object_to_world);
+  set_instance(g, inst);
   rtcCommitGeometry(g);
   rtcAttachGeometryByID(top_, g, id);
   rtcReleaseGeometry(g);
@@ -328,8 +346,7 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
     if (delta.instances_changed) {
       for (uint32_t i = delta.instances.begin; i < delta.instances.end; ++i) {
         RTCGeometry g = rtcGetGeometry(top_, i);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
-                                &ks.instances[i].object_to_world);
+        set_instance(g, ks.instances[i]);
         rtcCommitGeometry(g);
       }
       // Refit BLAS changed their bounds, so the instances referencing them

@@ -1,7 +1,11 @@
 #include "core/api/api_convert.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+
+#include "core/world/scene_ranges.h"
 
 #include <glm/gtc/type_ptr.hpp>
 
@@ -34,6 +38,25 @@ void check_non_negative(const float* v, int n, const char* what, const char* nam
     check_finite(v[i], what, name);
     if (v[i] < 0.0f) invalid(field(what, name) + " has a negative component");
   }
+}
+
+// A point rays can start from: within the range Tandem traces.
+void check_place(const glm::vec3& p, const char* what, const char* name) {
+  if (glm::all(glm::lessThanEqual(glm::abs(p), glm::vec3(kMaxWorldCoordinate)))) return;
+  char text[96];
+  std::snprintf(text, sizeof text, " (%g, %g, %g) lies beyond %g of the origin", p.x, p.y, p.z,
+                double(kMaxWorldCoordinate));
+  invalid(field(what, name) + text + ", the range Tandem can trace");
+}
+
+// Radiance `scale` x `strength`, each finite, whose product floats cannot carry.
+void check_radiance(float scale, float strength, const char* what, const char* name) {
+  const double radiance = double(scale) * double(strength);
+  if (radiance <= kMaxRadiance) return;
+  char text[96];
+  std::snprintf(text, sizeof text, " is %g, beyond the largest radiance that can be rendered (%g)",
+                radiance, kMaxRadiance);
+  invalid(field(what, name) + text);
 }
 
 glm::vec3 vec3(const float v[3], const char* what, const char* name) {
@@ -145,6 +168,8 @@ Material to_material(const MaterialDesc& d, const char* what) {
   m.metallic = d.metallic;
   m.emissive = glm::vec3(d.emission[0], d.emission[1], d.emission[2]);
   m.emissive_strength = d.emission_strength;
+  check_radiance(std::max({d.emission[0], d.emission[1], d.emission[2]}), d.emission_strength, what,
+                 "emission times emission_strength");
   m.transmission = d.transmission;
   m.ior = d.ior;
   m.double_sided = d.double_sided;
@@ -167,6 +192,7 @@ Light to_light(const LightDesc& d, const char* what) {
       invalid(std::string(what) + ": unknown light kind");
   }
   l.position = vec3(d.position, what, "position");
+  if (l.type != LightType::kDirectional) check_place(l.position, what, "position");
   const glm::vec3 dir = vec3(d.direction, what, "direction");
   if (l.type != LightType::kPoint) {
     if (!(glm::length(dir) > 0.0f)) invalid(std::string(what) + ": direction is zero");
@@ -176,6 +202,8 @@ Light to_light(const LightDesc& d, const char* what) {
   l.color = glm::vec3(d.color[0], d.color[1], d.color[2]);
   check_range(d.intensity, 0.0f, std::numeric_limits<float>::max(), what, "intensity");
   l.intensity = d.intensity;
+  check_radiance(std::max({d.color[0], d.color[1], d.color[2]}), d.intensity, what,
+                 "color times intensity");
   if (l.type == LightType::kSpot) {
     check_range(d.outer_cone_angle, 0.0f, 1.5707963268f, what, "outer_cone_angle");
     check_range(d.inner_cone_angle, 0.0f, d.outer_cone_angle, what, "inner_cone_angle");
@@ -211,6 +239,8 @@ Camera to_camera(const CameraDesc& d, const char* what) {
   c.yfov = d.vertical_fov;
   c.aperture_radius = d.aperture_radius;
   c.focus_distance = d.focus_distance;
+  const std::string problem = camera_problem(c);
+  if (!problem.empty()) invalid(std::string(what) + ": " + problem);
   return c;
 }
 
@@ -223,10 +253,9 @@ glm::mat4 to_matrix(const Transform& t, const char* what) {
   if (t.m[3] != 0.0f || t.m[7] != 0.0f || t.m[11] != 0.0f || t.m[15] != 1.0f)
     invalid(std::string(what) + ": transform is not affine (last row must be 0 0 0 1)");
   const glm::mat4 m = glm::make_mat4(t.m);
-  const float det = glm::determinant(glm::mat3(m));
-  if (!std::isfinite(det) || std::fabs(det) < 1e-12f)
-    invalid(std::string(what) +
-            ": transform is singular (it flattens the mesh) or scales beyond the float range");
+  check_place(glm::vec3(m[3]), what, "translation");
+  // A singular transform (a scale of 0: how games hide an object) is
+  // accepted; the instance is not drawn while it stays so (scene_ranges.h).
   return m;
 }
 

@@ -20,6 +20,7 @@
 #include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
+#include "core/world/scene_ranges.h"
 #include "scenes/gltf_loader.h"
 
 #ifndef TANDEM_VERSION_STRING
@@ -199,11 +200,9 @@ struct Renderer::Impl {
   void place_camera() {
     if (scene.has_camera()) return;
     Camera c = frame_bounds_camera(scene.bounds(), 0.6911112f, aspect(options));
-    // Bounds near the float range (legal vertices, huge scales) can put the
-    // framing camera at infinity: the default camera is better than NaNs.
-    const bool finite = std::isfinite(c.position.x) && std::isfinite(c.position.y) &&
-                        std::isfinite(c.position.z) && std::isfinite(c.focus_distance);
-    scene.set_camera(finite ? c : Camera{});
+    // Bounds near the range Tandem traces can put the framing camera beyond
+    // it: the default camera is better than a refusal.
+    scene.set_camera(camera_problem(c).empty() ? c : Camera{});
   }
 };
 

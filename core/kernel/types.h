@@ -69,6 +69,10 @@ enum KInstanceFlags : uint32_t {
   // scenes): shading skips the transforms of its points, normals and
   // tangents, and Embree traces its mesh without an instance level.
   kInstanceIdentity = 1u << 0,
+  // Not drawn (core/world/scene_ranges.h: a singular transform, or positions
+  // no tracer can take): its transforms are zero, it is out of the TLAS and
+  // disabled in Embree, so no ray ever reaches it.
+  kInstanceHidden = 1u << 1,
 };
 
 struct KInstance {

@@ -18,12 +18,14 @@ void check_bvh_present(const KernelScene& ks, const char* backend) {
     if (inst.mesh >= ks.meshes.size()) fail("instance refers to a missing mesh");
     const KMesh& mesh = ks.meshes[inst.mesh];
     if (mesh.triangle_count == 0) continue;
-    any_triangles = true;
     if (inst.mesh >= ks.blas_roots.size()) fail("a mesh has no BLAS root");
     const KBlasRoot& roots = ks.blas_roots[inst.mesh];
     const uint32_t root = wide ? roots.wide_root : roots.bvh_root;
     // kInvalidIndex is legitimate: a mesh whose triangles are all degenerate.
     if (root != kInvalidIndex && root >= node_count) fail("a mesh's BLAS root is out of range");
+    // A hidden instance, or one of such a mesh, is out of the TLAS: a scene
+    // of nothing else has none.
+    any_triangles = any_triangles || (root != kInvalidIndex && !(inst.flags & kInstanceHidden));
   }
   if (!any_triangles) return;
   const uint32_t tlas = wide ? ks.bvh.tlas_wide_root : ks.bvh.tlas_root;

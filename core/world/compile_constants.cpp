@@ -1,5 +1,8 @@
 // Constants: the camera, the integrator's settings and the scene's bounds.
 #include <cmath>
+#include <string>
+
+#include "core/util/errors.h"
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
 
@@ -8,6 +11,14 @@ namespace tandem {
 void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& s,
                                       KernelScene& out) {
   const Camera& c = scene.camera();
+  // Every camera ray starts at the camera: one the tracers cannot take
+  // (an API edit, an animation, a camera framing a scene beyond range) is
+  // refused here, whatever brought it.
+  const std::string problem = camera_problem(c);
+  if (!problem.empty()) {
+    throw InputError((scene.source.empty() ? std::string("the scene") : scene.source) +
+                     ": the camera cannot be rendered: " + problem);
+  }
   KCamera& k = out.constants.camera;
   k.type = c.type == CameraType::kOrthographic ? kCameraOrthographic : kCameraPerspective;
   k.position = to_vec3(c.position);

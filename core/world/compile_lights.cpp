@@ -8,7 +8,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
+#include "core/util/log.h"
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
 
@@ -19,8 +21,32 @@ namespace tandem {
 
 namespace {
 
+// Whether a punctual light can be traced (scene_ranges.h): a finite place
+// within the world's range, a finite direction where it has one, and a
+// radiance floats can carry. An animation or an API edit can take a light
+// anywhere; loading a file refuses such a light (check_scene_traceable).
+bool punctual_light_traceable(const Light& l) {
+  const auto finite = [](const glm::vec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+  };
+  const double radiance = double(l.intensity) * double(std::max({l.color.r, l.color.g, l.color.b}));
+  const bool placed =
+      l.type == LightType::kDirectional ||
+      (finite(l.position) &&
+       glm::all(glm::lessThanEqual(glm::abs(l.position), glm::vec3(kMaxWorldCoordinate))));
+  const bool aimed =
+      l.type == LightType::kPoint || (finite(l.direction) && glm::length(l.direction) > 0.0f);
+  return placed && aimed && std::fabs(radiance) <= kMaxRadiance;
+}
+
 KLight punctual_light(const Light& l) {
   KLight k{};
+  if (!punctual_light_traceable(l)) {
+    // Off: no radiance, so no power and never chosen.
+    k.type = kLightPoint;
+    k.direction = Vec3{0.0f, 0.0f, -1.0f};
+    return k;
+  }
   const glm::vec3 intensity = l.color * l.intensity;
   k.intensity = to_vec3(intensity);
   k.position = to_vec3(l.position);
@@ -81,6 +107,18 @@ void finish_light_tables(const std::vector<double>& power, KernelScene& out, Sce
 
 }  // namespace
 
+void SceneCompiler::note_light(const Scene& scene, uint32_t index) {
+  if (lights_noted_.size() <= index) lights_noted_.resize(index + 1, 0);
+  const Light& l = scene.lights()[index];
+  const bool off = !punctual_light_traceable(l);
+  if (off && !lights_noted_[index]) {
+    log_warning((scene.source.empty() ? std::string() : scene.source + ": ") + "light " +
+                std::to_string(index) + " ('" + l.name.substr(0, 80) +
+                "') is not finite, out of range or brighter than can be rendered: it is off");
+  }
+  lights_noted_[index] = off;
+}
+
 void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta) {
   out.lights.clear();
   std::vector<double>& power = light_power_;
@@ -90,6 +128,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   triangle_powers_stale_ = false;
 
   for (const Light& l : scene.lights()) {
+    note_light(scene, uint32_t(out.lights.size()));
     const KLight k = punctual_light(l);
     power.push_back(punctual_power(k, radius));
     out.lights.push_back(k);
@@ -143,6 +182,7 @@ void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, Sc
   std::vector<uint32_t> dirty = scene.dirty_lights();
   std::sort(dirty.begin(), dirty.end());
   for (uint32_t i : dirty) {
+    note_light(scene, i);
     out.lights[i] = punctual_light(scene.lights()[i]);
     delta.lights.mark(i, i + 1);
   }

@@ -18,6 +18,7 @@
 
 #include "core/kernel/kernel_data.h"
 #include "core/world/scene.h"
+#include "core/world/scene_ranges.h"
 
 namespace tandem {
 
@@ -169,9 +170,14 @@ class SceneCompiler {
   // Hands the scene's bounds cache the box of each whole mesh it copies.
   void update_meshes(Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
   // compile_instances.cpp
+  // An instance the tracers cannot take (scene_ranges.h) is compiled hidden:
+  // zero transforms, kInstanceHidden, with one notice.
   void compile_instances(const Scene& scene, KernelScene& out);
-  KInstance compile_instance(const Instance& inst) const;
+  KInstance compile_instance(const Scene& scene, uint32_t instance);
+  // Moved instances, and the instances of meshes whose vertices changed
+  // (their world box, and whether they can be drawn, changed with them).
   void update_instances(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  void note_hidden(const Scene& scene, uint32_t instance, InstanceState state);
   // compile_environment.cpp
   void compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta);
   // compile_lights.cpp
@@ -203,6 +209,16 @@ class SceneCompiler {
   // instances of each emissive mesh, so a deformed mesh finds its lights.
   std::vector<uint32_t> instance_lights_;
   std::vector<std::vector<uint32_t>> emissive_mesh_instances_;
+  // The instances of each mesh, for update_instances; and per instance the
+  // state it was last noted hidden in (kVisible: never), so that each is
+  // said once, and singular ones once for all.
+  std::vector<std::vector<uint32_t>> mesh_instances_;
+  std::vector<InstanceState> hidden_noted_;
+  bool singular_noted_ = false;
+  // compile_lights.cpp: a punctual light the tracers cannot take is off;
+  // said once while it stays so.
+  void note_light(const Scene& scene, uint32_t light);
+  std::vector<uint8_t> lights_noted_;
   // An emissive instance moved rigidly since the light tables were built:
   // its triangle powers may differ in the last bits, so the next light
   // change rebuilds the tables in full, as if nothing were cached.

@@ -196,6 +196,11 @@ SceneBounds Scene::bounds() const {
   return bounds_cache_.bounds(meshes_, instances_);
 }
 
+SceneBounds Scene::mesh_bounds(uint32_t mesh) const {
+  bounds();
+  return bounds_cache_.mesh_box(mesh);
+}
+
 bool Scene::any_dirty() const {
   return camera_dirty_ || environment_dirty_ || !textures_dirty_.list.empty() ||
          !materials_dirty_.list.empty() || !meshes_dirty_.list.empty() ||

@@ -220,6 +220,9 @@ class Scene {
   // Like every Scene method it must not run concurrently with another call
   // on the same Scene.
   SceneBounds bounds() const;
+  // Mesh `mesh`'s object-space box (finite says whether all its vertices
+  // are), brought up to date as bounds() does.
+  SceneBounds mesh_bounds(uint32_t mesh) const;
   // The box of all of an edited mesh's positions as they are now, from code
   // that read them all anyway (the compiler's vertex copy), so bounds() needs
   // no pass of its own over them (SceneBoundsCache::mesh_vertex_bounds).

@@ -5,10 +5,12 @@
 #include <limits>
 
 #include "core/world/scene.h"
+#include "core/world/scene_ranges.h"
 
 namespace tandem {
 
 void SceneBounds::extend(const glm::vec3& p) {
+  finite = finite && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
   if (empty) {
     lo = hi = p;
     empty = false;
@@ -20,6 +22,7 @@ void SceneBounds::extend(const glm::vec3& p) {
 
 void SceneBounds::extend(const SceneBounds& b) {
   if (b.empty) return;
+  finite = finite && b.finite;
   if (empty) {
     *this = b;
   } else {
@@ -75,12 +78,13 @@ SceneBounds vertex_bounds(const glm::vec3* positions, size_t count, bool* all_fi
   b.lo = lo;
   b.hi = hi;
   b.empty = false;
+  b.finite = ok;
   return positive_zeros(b);
 }
 
 SceneBounds instance_world_bounds(const Instance& inst, const SceneBounds& mb) {
   SceneBounds b;
-  if (mb.empty) return b;
+  if (mb.empty || classify_instance(inst.transform, mb) != InstanceState::kVisible) return b;
   for (int c = 0; c < 8; ++c) {
     const glm::vec3 corner((c & 1) ? mb.hi.x : mb.lo.x, (c & 2) ? mb.hi.y : mb.lo.y,
                            (c & 4) ? mb.hi.z : mb.lo.z);

@@ -21,6 +21,9 @@ struct Instance;
 struct SceneBounds {
   glm::vec3 lo{0.0f}, hi{0.0f};
   bool empty = true;
+  // Every point that went in was finite (lo and hi alone cannot tell: a
+  // min or max with a NaN keeps the other operand).
+  bool finite = true;
   void extend(const glm::vec3& p);
   void extend(const SceneBounds& b);
   glm::vec3 center() const { return (lo + hi) * 0.5f; }
@@ -32,7 +35,8 @@ SceneBounds mesh_object_bounds(const Mesh& mesh);
 // Box of positions[0, count); *all_finite says whether every coordinate
 // was finite (else the box is not mesh_object_bounds()'s).
 SceneBounds vertex_bounds(const glm::vec3* positions, size_t count, bool* all_finite);
-// The mesh box's 8 corners under the instance's transform.
+// The mesh box's 8 corners under the instance's transform; empty when the
+// instance is not drawn (scene_ranges.h: singular, not finite, out of range).
 SceneBounds instance_world_bounds(const Instance& instance, const SceneBounds& mesh_bounds);
 // The full recomputation (every triangle of every mesh): what the cache
 // must always agree with.
@@ -64,6 +68,8 @@ class SceneBoundsCache {
 
   // Brings the stale entries up to date and returns the union.
   SceneBounds bounds(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
+  // A mesh's object-space box as of the last bounds().
+  const SceneBounds& mesh_box(uint32_t mesh) const { return mesh_bounds_[mesh]; }
 
  private:
   void mark_instance(uint32_t instance);

@@ -89,7 +89,9 @@ struct LightId {
 };
 
 // Object-to-world transform: a column-major 4x4 matrix (m[12..14] is the
-// translation), affine (last row 0 0 0 1) and invertible.
+// translation, within 1e9 of the origin), affine (last row 0 0 0 1). A
+// singular one (a scale of 0, the usual way to hide an object) is allowed:
+// the instance is not drawn while it is singular.
 struct Transform {
   float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 
@@ -122,7 +124,7 @@ struct MaterialDesc {
   float roughness = 0.5f;                    // [0, 1]; GGX alpha = roughness^2
   float metallic = 0.0f;                     // [0, 1]
   float emission[3] = {0.0f, 0.0f, 0.0f};    // emitted radiance, W/(m^2 sr), linear RGB, >= 0
-  float emission_strength = 1.0f;            // multiplies emission, >= 0
+  float emission_strength = 1.0f;            // multiplies emission, >= 0; the product <= 1e30
   float transmission = 0.0f;                 // [0, 1]: 1 = clear glass-like dielectric
   float ior = 1.5f;                          // index of refraction, [1, 5]
   bool double_sided = false;                 // emission and shading on both faces
@@ -212,21 +214,26 @@ class Renderer {
   void set_mesh_vertices(MeshId id, const MeshData& vertices);
 
   // Places a mesh in the world. Errors: kInvalidArgument for an unknown
-  // mesh, or a transform with NaN/infinite entries, not affine, or singular.
+  // mesh, or a transform with NaN/infinite entries, not affine, or a
+  // translation beyond 1e9. An instance whose mesh reaches beyond 1e9 of
+  // the origin, or is scaled to (nearly) nothing, is not drawn (with a
+  // warning, or for a scale of 0 one notice).
   InstanceId add_instance(MeshId mesh, const Transform& transform);
   // Moves an instance (the acceleration structure is refitted, not rebuilt).
   // Errors: as add_instance, and for an unknown instance.
   void set_instance_transform(InstanceId id, const Transform& transform);
 
   // Adds or changes a light. Errors: kInvalidArgument for NaN, negative
-  // intensity or colour, a zero direction, or bad cone angles.
+  // intensity or colour, colour x intensity above 1e30, a position beyond
+  // 1e9 of the origin, a zero direction, or bad cone angles.
   LightId add_light(const LightDesc& light);
   void set_light(LightId id, const LightDesc& light);
 
   // Sets the camera (until then, the first frame places one that frames the
   // whole scene). The image's aspect ratio is width/height of the options,
-  // the field of view is vertical. Errors: kInvalidArgument for NaN, target == position, up
-  // parallel to the view direction, or a field of view outside (0, pi).
+  // the field of view is vertical. Errors: kInvalidArgument for NaN, a
+  // position beyond 1e9 of the origin, target == position, up parallel to
+  // the view direction, or a field of view outside (0, pi).
   void set_camera(const CameraDesc& camera);
 
   // A constant sky: radiance (linear RGB, W/(m^2 sr), >= 0) arriving from
