@@ -83,6 +83,11 @@ class Context {
 // stopping early at `limit` + 1. tinygltf converts JSON to its Value type
 // recursively, so a file nested thousands deep overflows the stack there.
 size_t json_nesting_depth(const char* json, size_t size, size_t limit, size_t* where);
+// Throws InputError naming `label`, the object and the field for an index,
+// offset, stride, count or enum value of the JSON text that the glTF schema
+// forbids (tinygltf reads such a value as absent). Malformed JSON passes:
+// tinygltf explains it.
+void check_schema_ranges(const char* json, size_t size, const std::string& label);
 // The JSON chunk of a .glb, or false when the container is malformed (then
 // tinygltf explains what is wrong).
 bool glb_json_chunk(const unsigned char* data, size_t size, const char** json, size_t* json_size);

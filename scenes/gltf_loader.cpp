@@ -441,7 +441,8 @@ void warn_about_extensions(Context& ctx, bool loading_animations) {
 
 namespace {
 
-// Refuses JSON nested deeper than the limit before tinygltf parses it.
+// Refuses JSON nested deeper than the limit, and values the schema forbids
+// (which tinygltf would read as absent), before tinygltf parses it.
 void check_json_nesting(const std::string& label, const unsigned char* data, size_t size,
                         bool binary, uint32_t limit) {
   const char* json = reinterpret_cast<const char*>(data);
@@ -452,6 +453,7 @@ void check_json_nesting(const std::string& label, const unsigned char* data, siz
     fail(label, "the JSON is nested more than " + std::to_string(limit) + " levels deep (at byte " +
                     std::to_string(where + (binary ? 20 : 0)) + "); refusing to parse it");
   }
+  gltf::check_schema_ranges(json, json_size, label);
 }
 
 Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::EncodedImages& encoded,

@@ -95,7 +95,9 @@ TEST(GltfBadInput, ReasonsForFilesTinygltfAccepts) {
       {"assimp/RecursiveNodes/RecursiveNodes.gltf", "cycle"},
       {"assimp/TestNoRootNode/NoScene.gltf", "no \"scenes\""},
       {"assimp/wrongTypes/badArray.gltf", "mesh 0 has no primitives"},
-      {"assimp/wrongTypes/badUint.gltf", "baseColorTexture has texture index -1"},
+      {"assimp/wrongTypes/badUint.gltf",
+       "materials[0].pbrMetallicRoughness.baseColorTexture.index is -1; the glTF schema requires "
+       "an integer >= 0"},
       {"assimp/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
        "POSITION (accessor 2) has a non-finite value"},
   };

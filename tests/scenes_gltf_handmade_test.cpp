@@ -480,7 +480,10 @@ TEST_F(GltfHandMade, ExplicitTextureIndexMinusOneIsAnError) {
                                                                 R"("}],
       "textures": [{"source": 0}],
       "materials": [{"emissiveTexture": {"index": -1}}])"));
-  EXPECT_NE(msg.find("emissiveTexture has texture index -1"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("materials[0].emissiveTexture.index is -1; the glTF schema requires an "
+                     "integer >= 0"),
+            std::string::npos)
+      << msg;
 }
 
 TEST_F(GltfHandMade, NodeCyclesAndSharedChildrenAreErrors) {
