@@ -258,6 +258,11 @@ int run_render(const std::vector<std::string>& argv) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<BackendFrameMetrics> totals;
   const bool with_features = args.has("denoise") || args.has("aov");
+  // The set-up (BVH builds, the environment's sampling tables: seconds for
+  // a big map) before signals become a polled flag: until then Ctrl-C or
+  // SIGTERM ends the process at once, with nothing written.
+  tracer.set_settings(tracer_settings);
+  tracer.sync_scene(scene);
   // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
   std::optional<GracefulStop> stop(std::in_place);
   for (uint32_t frame = range.first; frame <= range.last; ++frame) {

@@ -8,6 +8,7 @@
 
 #include "app/cli_options.h"
 #include "app/commands.h"
+#include "core/util/activity.h"
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
 
@@ -62,11 +63,14 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tandem: error: %s\n", e.what());
     return 1;
   } catch (const std::bad_alloc&) {
-    // Loaders name the file themselves; this is whatever else ran short.
+    // Loaders name the file themselves; this is whatever else ran short,
+    // named by the stage that was running (core/util/activity.h).
+    const std::string activity = tandem::current_activity();
     std::fprintf(stderr,
-                 "tandem: error: %s: not enough memory for this command (try a smaller image, "
-                 "fewer samples per frame or a smaller scene)\n",
-                 args.empty() ? "tandem" : args[0].c_str());
+                 "tandem: error: %s: not enough memory%s%s (try a smaller image, fewer samples per "
+                 "frame or a smaller scene)\n",
+                 args.empty() ? "tandem" : args[0].c_str(), activity.empty() ? "" : " while ",
+                 activity.c_str());
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tandem: error: %s\n", e.what());

@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <optional>
 
 #include "core/image/image.h"
+#include "core/util/activity.h"
 #include "core/util/errors.h"
 
 namespace tandem {
@@ -92,10 +94,16 @@ ImageRGB default_environment_image() {
 }
 
 Scene load_requested_scene(const SceneRequest& request, const std::string& program) {
+  std::optional<ScopedActivity> activity;
+  activity.emplace("loading " + request.spec);
   Scene scene = load_scene(request.spec, request.load);
   const EnvironmentRequest& e = request.environment;
   const float intensity = e.intensity.value_or(1.0f);
+  activity.reset();
+  activity.emplace("building the environment's sampling tables");
   if (e.map) {
+    activity.reset();
+    activity.emplace("loading the environment map " + *e.map);
     load_environment_map(scene, *e.map, intensity);
   } else if (e.color) {
     Environment& env = scene.edit_environment();

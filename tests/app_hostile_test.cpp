@@ -14,6 +14,7 @@
 #include <fstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "app_run_tandem.h"
 #include "core/image/image.h"
@@ -148,27 +149,39 @@ TEST(CliHostile, CompareRefusesToJudgeWhatItCannotTest) {
 
 // Starts a long render, sends `sig` once it runs, and returns its exit
 // status and stderr.
-Result interrupt_render(const std::string& extra, const fs::path& log, int sig) {
+// Runs `tandem ARGS`, sends it `sig` after `delay_ms`; *seconds_after
+// (when given) is how long it then took to end.
+Result signal_run(const std::string& args, const fs::path& log, int sig, int delay_ms,
+                  double* seconds_after = nullptr) {
   const pid_t child = ::fork();
   if (child == 0) {
     const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(fd, 2);
     ::dup2(fd, 1);
-    const std::string cmd = quote(TANDEM_BINARY) +
-                            " render builtin:cornell --width 8 --height 8 --spp 1048576 "
-                            "--backend cpu --threads 1 " +
-                            extra;
+    const std::string cmd = quote(TANDEM_BINARY) + " " + args;
     ::execl("/bin/sh", "sh", "-c", ("exec " + cmd).c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  // Wait until the render has begun (the scene is tiny, loading is quick).
-  std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+  std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
   ::kill(child, sig);
+  const auto sent = std::chrono::steady_clock::now();
   int status = 0;
   ::waitpid(child, &status, 0);
+  if (seconds_after)
+    *seconds_after = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
   std::ifstream in(log);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status),
           std::string(std::istreambuf_iterator<char>(in), {})};
+}
+
+// A long render of the Cornell box (plus `extra` options), signalled once
+// it has begun (the scene is tiny, loading is quick).
+Result interrupt_render(const std::string& extra, const fs::path& log, int sig) {
+  return signal_run(
+      "render builtin:cornell --width 8 --height 8 --spp 1048576 --backend cpu "
+      "--threads 1 " +
+          extra,
+      log, sig, 3000);
 }
 
 TEST(CliHostile, InterruptedRenderStopsCleanlyAndCanKeepTheImage) {
@@ -188,6 +201,31 @@ TEST(CliHostile, InterruptedRenderStopsCleanlyAndCanKeepTheImage) {
   EXPECT_EQ(tandem::read_image(out).width, 8u);
   for (const auto& e : fs::directory_iterator(dir.path()))
     EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+// SIGTERM while the set-up runs (here the sampling tables of an 8192x4096
+// environment map, seconds of work) ends the run at once: it used to wait
+// for the set-up and the first frame, more than 5 s.
+TEST(CliHostile, SignalDuringTheSetUpEndsTheRunAtOnce) {
+  TempDir dir("tandem_hostile_cli");
+  const fs::path env = dir.path() / "sky.png";
+  std::vector<uint8_t> sky(size_t(8192) * 4096 * 3, 90);
+  tandem::write_png_rgb8(env, 8192, 4096, sky);
+  sky = {};
+  // With one thread the release build loads the map for about 3.5 s and
+  // builds the tables for a few seconds more (2-core EPYC VM); a faster or
+  // slower build may be loading or rendering at either time. Every phase
+  // must end promptly: the frames here (one sample of 8x8 pixels each) do.
+  for (const int delay_ms : {4000, 6000}) {
+    double seconds = 0.0;
+    const Result r = signal_run(
+        "render builtin:cornell --width 8 --height 8 --spp 1 --backend cpu "
+        "--threads 1 --quiet --frames 0..999999 --env " +
+            quote(env.string()) + " --output " + quote((dir.path() / "o_######.pfm").string()),
+        dir.path() / "log", SIGTERM, delay_ms, &seconds);
+    EXPECT_EQ(r.exit_code, 128 + SIGTERM) << r.output;
+    EXPECT_LT(seconds, 1.5) << "signalled after " << delay_ms << " ms: " << r.output;
+  }
 }
 
 }  // namespace

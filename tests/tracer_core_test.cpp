@@ -11,6 +11,7 @@
 #include "core/kernel/bvh_traverse.h"
 #include "core/render/renderer.h"
 #include "core/tracer/core_tracer.h"
+#include "core/util/activity.h"
 #include "scenes/builtin_scenes.h"
 
 namespace tandem {
@@ -248,6 +249,41 @@ TEST(CoreTracer, SceneChangeRestartsAccumulationAndReportsDelta) {
   for (const BackendFrameMetrics& b : third.backends)
     tiles += b.tiles;
   EXPECT_EQ(tiles, uint32_t(tracer.tiles().size()));
+}
+
+// sync_scene() does the first frame's set-up ahead (tandem render runs it
+// before signals become a polled flag): the frames after it are the frames
+// without it, and the snapshot backend (which applies only the deltas it is
+// sent) has the whole scene.
+TEST(CoreTracer, SyncingTheSceneAheadGivesTheSameFrames) {
+  const TracerSettings settings = small_settings(-1.0f, true);
+  const ImageRGB plain = render_frames({"snapshot"}, settings, 2);
+  Scene scene = make_cornell_box();
+  CoreTracer tracer(make({"snapshot"}), settings);
+  tracer.sync_scene(scene);
+  const FrameMetrics& first = tracer.render_frame(scene);
+  EXPECT_EQ(first.delta_bytes, 0u);  // all of it went ahead
+  EXPECT_TRUE(first.accumulation_reset);
+  tracer.render_frame(scene);
+  EXPECT_TRUE(bitwise_equal(tracer.image(), plain));
+  tracer.begin_frame(scene);
+  EXPECT_THROW(tracer.sync_scene(scene), std::logic_error);
+  tracer.end_frame();
+}
+
+// What is being built, for an out-of-memory message: the innermost scope,
+// and the outer one again when it ends.
+TEST(ScopedActivity, NamesTheInnermostStage) {
+  EXPECT_EQ(current_activity(), "");
+  {
+    const ScopedActivity outer("loading a.gltf");
+    {
+      const ScopedActivity inner("building the acceleration structure of a.gltf");
+      EXPECT_EQ(current_activity(), "building the acceleration structure of a.gltf");
+    }
+    EXPECT_EQ(current_activity(), "loading a.gltf");
+  }
+  EXPECT_EQ(current_activity(), "");
 }
 
 TEST(CoreTracer, ResolutionChangeRebuildsTheTileGrid) {

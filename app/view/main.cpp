@@ -19,6 +19,7 @@
 #include "app/view/view_session.h"
 #include "app/view/view_window.h"
 #include "core/image/image.h"
+#include "core/util/activity.h"
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
 
@@ -159,7 +160,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());
     return 1;
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "tandem-view: error: not enough memory (try a smaller window or scene)\n");
+    const std::string activity = tandem::current_activity();
+    std::fprintf(stderr,
+                 "tandem-view: error: not enough memory%s%s (try a smaller window or scene)\n",
+                 activity.empty() ? "" : " while ", activity.c_str());
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tandem-view: error: %s\n", e.what());

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
 #include "accstruc/accel_structure.h"
+#include "core/util/activity.h"
 #include "core/util/errors.h"
 
 namespace tandem {
@@ -188,12 +190,20 @@ void CoreTracer::begin_frame(Scene& scene) {
   // SyncScene (the compiler also notices changed render settings) and
   // UpdateAccStruc; prepare_next_frame() may have done most of it already,
   // and then `late` holds only the edits made since.
+  // Out of memory in any stage names the stage and the scene's file.
+  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
+  std::optional<ScopedActivity> activity;
+  activity.emplace("compiling the materials, meshes and lights" + of);
   auto t = Clock::now();
   SceneDelta late = compiler_.compile(scene, settings_.render, kernel_scene_);
   m.sync_scene_seconds = seconds_since(t);
+  activity.reset();
+  activity.emplace("building the acceleration structure" + of);
   t = Clock::now();
   late = update_accstruc(late);
   m.update_accstruc_seconds = seconds_since(t);
+  activity.reset();
+  activity.emplace("copying the scene" + of + " to the backends");
   SceneDelta delta = late;
   if (prepared_delta_) {
     prepared_delta_->merge(late);
@@ -324,6 +334,29 @@ void CoreTracer::launch_render() {
   in_flight_ = true;
 }
 
+void CoreTracer::sync_scene(Scene& scene) {
+  if (in_flight_ || prepared_delta_)
+    throw std::logic_error("CoreTracer::sync_scene: a frame is in flight or prepared");
+  if (pending_settings_) {
+    apply_settings(*pending_settings_);
+    pending_settings_.reset();
+  }
+  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
+  std::optional<ScopedActivity> activity;
+  activity.emplace("compiling the materials, meshes and lights" + of);
+  SceneDelta delta = compiler_.compile(scene, settings_.render, kernel_scene_);
+  activity.reset();
+  activity.emplace("building the acceleration structure" + of);
+  delta = update_accstruc(delta);
+  activity.reset();
+  activity.emplace("copying the scene" + of + " to the backends");
+  for (size_t b = 0; b < backends_.size(); ++b) {
+    backends_[b]->sync(kernel_scene_, delta);
+    synced_ahead_[b] = false;
+  }
+  if (delta.any()) reset_pending_ = true;
+}
+
 bool CoreTracer::prepare_next_frame(Scene& scene) {
   if (!in_flight_) throw std::logic_error("CoreTracer::prepare_next_frame: no frame in flight");
   if (prepared_delta_) return true;
@@ -332,6 +365,8 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   }
   // The settings the next frame will use (a pending change applies then).
   const RenderSettings& next = pending_settings_ ? pending_settings_->render : settings_.render;
+  const ScopedActivity activity("preparing the next frame of " +
+                                (scene.source.empty() ? std::string("the scene") : scene.source));
   auto t = Clock::now();
   SceneDelta delta = compiler_.compile(scene, next, kernel_scene_);
   prepared_sync_seconds_ = seconds_since(t);

@@ -104,6 +104,12 @@ class CoreTracer {
   // after end_frame().
   void begin_frame(Scene& scene);
   const FrameMetrics& end_frame();
+  // SyncScene, UpdateAccStruc and SyncAccStruc alone, outside a frame: the
+  // set-up the first begin_frame() would otherwise do (BVH builds, the
+  // environment's sampling tables), for a caller that wants it done before
+  // its render loop (`tandem render` runs it while a signal still ends the
+  // process at once). Not while a frame is in flight or prepared ahead.
+  void sync_scene(Scene& scene);
   // Between begin_frame() and end_frame(): runs the next frame's SyncScene
   // and UpdateAccStruc now, while this frame renders, when no backend reads
   // the host KernelScene during render() (GPU-only rendering), and
