@@ -178,8 +178,12 @@ int run_render(const std::vector<std::string>& argv) {
   if (ext != ".png" && ext != ".exr" && ext != ".pfm") {
     throw UsageError("render: --output must end in .png, .exr or .pfm, got '" + output + "'");
   }
-  // ... and that it can be written at all: a render is too costly to throw away at the end.
-  check_output_path(output);
+  // ... and that every frame's output can be written, and destroys no
+  // input: a render is too costly to throw away at the end.
+  // (builtin:NAME names no file, and is never one.)
+  std::vector<std::string> inputs = {scene_request.spec};
+  if (scene_request.environment.map) inputs.push_back(*scene_request.environment.map);
+  check_render_outputs(output_spec, frame_range, inputs);
   if (ext != ".png" && (args.has("exposure") || args.has("tonemap"))) {
     const bool both = args.has("exposure") && args.has("tonemap");
     std::fprintf(stderr,
@@ -206,15 +210,30 @@ int run_render(const std::vector<std::string>& argv) {
   // Resolution: explicit, or from the camera's aspect ratio.
   const float aspect =
       scene.camera().aspect_ratio > 0.0f ? scene.camera().aspect_ratio : 16.0f / 9.0f;
+  // A side derived from the camera's aspect ratio (a file's value) is held
+  // to the limit --width and --height have, before anything is allocated.
+  const auto derived_side = [&](double side, const char* given) {
+    if (side <= 32768.0) return std::max(1u, uint32_t(std::lround(side)));
+    char text[64];
+    std::snprintf(text, sizeof text, "%g", double(aspect));
+    throw InputError(scene_request.spec + ": the camera's aspect ratio " + text + " with " + given +
+                     " asks for an image " + std::to_string(std::llround(std::min(side, 1e15))) +
+                     " pixels " + (std::string(given).rfind("--width", 0) == 0 ? "high" : "wide") +
+                     ", over the limit of 32768; give both --width and --height");
+  };
   if (args.has("width") && args.has("height")) {
     settings.width = args.get_u32("width", 0, 1, 32768);
     settings.height = args.get_u32("height", 0, 1, 32768);
   } else if (args.has("width")) {
     settings.width = args.get_u32("width", 0, 1, 32768);
-    settings.height = std::max(1u, uint32_t(std::lround(float(settings.width) / aspect)));
+    settings.height = derived_side(double(settings.width) / double(aspect),
+                                   ("--width " + std::to_string(settings.width)).c_str());
   } else {
     settings.height = args.get_u32("height", 1, 32768);
-    settings.width = std::max(1u, uint32_t(std::lround(float(settings.height) * aspect)));
+    settings.width = derived_side(double(settings.height) * double(aspect),
+                                  ((args.has("height") ? "--height " : "the default height ") +
+                                   std::to_string(settings.height))
+                                      .c_str());
   }
   if (uint64_t(settings.width) * settings.height > (1ull << 28)) {
     throw UsageError("render: image of " + std::to_string(settings.width) + "x" +

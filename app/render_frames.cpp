@@ -1,9 +1,15 @@
 #include "app/render_frames.h"
 
+#include <sys/stat.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <utility>
 
+#include "core/image/image.h"
 #include "core/util/errors.h"
 
 namespace tandem {
@@ -73,6 +79,65 @@ std::string frame_output_name(const std::string& output, uint32_t frame) {
   const size_t width = end - begin + 1;
   if (number.size() < width) number.insert(0, width - number.size(), '0');
   return output.substr(0, begin) + number + output.substr(end + 1);
+}
+
+void check_render_outputs(const std::string& output, const std::optional<RenderFrames>& frames,
+                          const std::vector<std::string>& inputs) {
+  // Inputs by file identity: a different spelling (./a.exr, a link) is the
+  // same file.
+  std::set<std::pair<dev_t, ino_t>> input_files, input_folders;
+  const auto folder_of = [](const std::string& path) {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    return parent.empty() ? std::string(".") : parent.string();
+  };
+  for (const std::string& input : inputs) {
+    struct stat st = {}, folder = {};
+    if (::stat(input.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) continue;
+    input_files.insert({st.st_dev, st.st_ino});
+    if (::stat(folder_of(input).c_str(), &folder) == 0)
+      input_folders.insert({folder.st_dev, folder.st_ino});
+  }
+  // Whether a folder holds an input (then each output in it is compared).
+  const auto holds_input = [&](const std::string& folder) {
+    struct stat st = {};
+    return ::stat(folder.c_str(), &st) == 0 && input_folders.count({st.st_dev, st.st_ino}) > 0;
+  };
+  const auto check_not_input = [&](const std::string& path) {
+    struct stat st = {};
+    if (input_files.empty() || ::stat(path.c_str(), &st) != 0) return;
+    if (input_files.count({st.st_dev, st.st_ino}) == 0) return;
+    for (const std::string& input : inputs) {
+      struct stat in = {};
+      if (::stat(input.c_str(), &in) == 0 && in.st_dev == st.st_dev && in.st_ino == st.st_ino)
+        throw InputError(path + ": is an input of this render (" + input +
+                         "); writing the image there would destroy it");
+    }
+  };
+  const RenderFrames range = frames.value_or(RenderFrames{});
+  const bool pattern = frames.has_value() && output.find('#') != std::string::npos;
+  if (!pattern) {
+    check_output_path(output);
+    check_not_input(output);
+    return;
+  }
+  // The folder (and so what check_output_path asks of it) changes only
+  // where the pattern is in a folder name; the name's length only where the
+  // frame number outgrows the pattern.
+  std::string last_folder;
+  size_t last_length = 0;
+  bool compare = false;
+  for (uint32_t f = range.first;; ++f) {
+    const std::string path = frame_output_name(output, f);
+    std::string folder = folder_of(path);
+    if (f == range.first || folder != last_folder || path.size() != last_length) {
+      check_output_path(path);
+      if (f == range.first || folder != last_folder) compare = holds_input(folder);
+      last_folder = std::move(folder);
+      last_length = path.size();
+    }
+    if (compare) check_not_input(path);
+    if (f == range.last) break;
+  }
 }
 
 }  // namespace tandem

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace tandem {
 
@@ -39,5 +40,14 @@ inline uint32_t offline_frame_count(uint32_t spp) {
 // `output` with its last run of '#' replaced by `frame`, zero-padded to the
 // run's length (longer numbers are written in full); unchanged without '#'.
 std::string frame_output_name(const std::string& output, uint32_t frame);
+
+// Every output path of a render, checked before the scene is loaded: each
+// frame's folder exists and is writable, its name with the temporary
+// file's suffix fits (check_output_path), and none is one of `inputs` (the
+// scene file, the environment map), which rendering would overwrite. A run
+// of '#' in a folder name gives each frame a folder of its own: all are
+// checked. Throws InputError naming the path.
+void check_render_outputs(const std::string& output, const std::optional<RenderFrames>& frames,
+                          const std::vector<std::string>& inputs);
 
 }  // namespace tandem

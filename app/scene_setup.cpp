@@ -100,7 +100,7 @@ Scene load_requested_scene(const SceneRequest& request, const std::string& progr
   const EnvironmentRequest& e = request.environment;
   const float intensity = e.intensity.value_or(1.0f);
   activity.reset();
-  activity.emplace("building the environment's sampling tables");
+  activity.emplace("setting up the environment");
   if (e.map) {
     activity.reset();
     activity.emplace("loading the environment map " + *e.map);

@@ -40,6 +40,10 @@ uint64_t Context::limit(Budget budget) const {
       return limits.max_instances;
     case Budget::kTextureBytes:
       return limits.max_texture_bytes;
+    case Budget::kNameBytes:
+      return limits.max_name_bytes;
+    case Budget::kEmissiveTriangles:
+      return limits.max_emissive_triangles;
   }
   return 0;
 }
@@ -70,8 +74,15 @@ void Context::charge(Budget budget, uint64_t amount, const std::string& what) co
       case Budget::kTextureBytes:
         kind = "decoded textures";
         break;
+      case Budget::kNameBytes:
+        kind = "instance names";
+        break;
+      case Budget::kEmissiveTriangles:
+        kind = "emissive triangles (one light for each triangle of each instance)";
+        break;
     }
-    const bool counts = budget == Budget::kZeroFilledElements || budget == Budget::kInstances;
+    const bool counts = budget == Budget::kZeroFilledElements || budget == Budget::kInstances ||
+                        budget == Budget::kEmissiveTriangles;
     auto size = [&](uint64_t v) { return counts ? std::to_string(v) : format_bytes(v); };
     fail(what + " needs " + size(amount) + " more " + (counts ? "" : "of ") + kind + " (" +
          size(used) + " already used), over this loader's limit of " + size(cap) +

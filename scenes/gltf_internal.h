@@ -41,8 +41,11 @@ enum class Budget {
   kZeroFilledElements,
   kGeometryBytes,
   kInstances,
-  kTextureBytes
+  kTextureBytes,
+  kNameBytes,          // instance names (a node's name is copied to each of its instances)
+  kEmissiveTriangles,  // emissive triangles times instances: one light record each
 };
+constexpr int kBudgetCount = 7;
 
 // Error/warning helper: every message is prefixed with the file path, as
 // the user gave it, so messages are complete sentences on their own.
@@ -73,7 +76,7 @@ class Context {
 
   std::string path_;
   std::set<std::string> warned_;
-  mutable uint64_t used_[5] = {};
+  mutable uint64_t used_[kBudgetCount] = {};
 };
 
 // --- gltf_input_guard.cpp ------------------------------------------------------
@@ -182,6 +185,9 @@ MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded);
 // RGBA8 (grey -> RGB = grey, missing alpha -> 255, 16 bit -> 8 bit rounded).
 // Returns false when the layout is not one of those.
 bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out);
+// The same for `size` bytes of decoded pixels.
+bool pixels_to_rgba8(const unsigned char* data, size_t size, int width, int height, int channels,
+                     int bits, std::vector<uint32_t>& out);
 
 // --- gltf_animation.cpp -----------------------------------------------------------
 // A node reached by the loader's walk of the chosen scene, in walk order

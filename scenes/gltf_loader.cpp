@@ -15,6 +15,7 @@
 
 #include "core/util/errors.h"
 #include "core/util/log.h"
+#include "core/world/kernel_conversions.h"
 #include "core/world/scene_ranges.h"
 #include "scenes/gltf_internal.h"
 #include "scenes/gltf_validate.h"
@@ -145,10 +146,12 @@ bool finite(const glm::mat4& m) {
 
 class SceneBuilder {
  public:
-  SceneBuilder(Context& ctx, gltf::AccessorCache& cache, gltf::DecodedMeshes& meshes)
+  SceneBuilder(Context& ctx, gltf::AccessorCache& cache, gltf::DecodedMeshes& meshes,
+               const std::vector<Material>& materials)
       : ctx_(ctx),
         cache_(cache),
         meshes_(meshes),
+        materials_(materials),
         mesh_ids_(meshes.meshes.size(), kNotAdded),
         deformed_use_(meshes.meshes.size(), false) {
     // Meshes that some node deforms are copied, never moved, out of the
@@ -196,8 +199,44 @@ class SceneBuilder {
  private:
   static constexpr int kNotAdded = -2;
 
+  // Names are for people: a longer one is cut (it is copied to every
+  // instance of the node, and EXT_mesh_gpu_instancing makes many).
+  static constexpr size_t kMaxNameBytes = 256;
   std::string node_name(int index, const tinygltf::Node& node) const {
-    return node.name.empty() ? "node " + std::to_string(index) : node.name;
+    if (node.name.empty()) return "node " + std::to_string(index);
+    if (node.name.size() <= kMaxNameBytes) return node.name;
+    return node.name.substr(0, kMaxNameBytes - 3) + "...";
+  }
+
+  // Emissive triangles of tandem mesh `id`: each becomes a light record
+  // for every instance of it.
+  uint64_t emissive_triangles(int id) {
+    if (emissive_counts_.size() <= size_t(id)) emissive_counts_.resize(size_t(id) + 1, -1);
+    int64_t& n = emissive_counts_[size_t(id)];
+    if (n >= 0) return uint64_t(n);
+    n = 0;
+    for (uint32_t m : new_meshes_[size_t(id)].triangle_materials)
+      n += m < materials_.size() && material_emits(materials_[m]) ? 1 : 0;
+    return uint64_t(n);
+  }
+
+  // Charges `count` instances of tandem mesh `mesh` named `name` (with a
+  // suffix of up to `suffix` bytes each) to the name and light budgets,
+  // before any is made.
+  void charge_instances(uint64_t count, int mesh, const std::string& name, size_t suffix,
+                        const std::string& who) {
+    // std::string keeps up to 15 bytes inline.
+    const uint64_t name_bytes = name.size() + suffix > 15 ? name.size() + suffix + 1 : 0;
+    ctx_.charge(gltf::Budget::kNameBytes, count * name_bytes,
+                who + " (" + std::to_string(count) + " instance" + (count == 1 ? "" : "s") +
+                    " named '" + name.substr(0, 40) + (name.size() > 40 ? "...'" : "'") + ")");
+    const uint64_t lights = emissive_triangles(mesh);
+    if (lights > 0) {
+      ctx_.charge(gltf::Budget::kEmissiveTriangles, count * lights,
+                  who + " (" + std::to_string(count) + " instance" + (count == 1 ? "" : "s") +
+                      " of mesh '" + new_meshes_[size_t(mesh)].name.substr(0, 40) + "' with " +
+                      std::to_string(lights) + " emissive triangles)");
+    }
   }
   // "node 3 ('arm')" for messages.
   std::string node_label(int index) const {
@@ -259,8 +298,10 @@ class SceneBuilder {
   // A skinned node's instance has no `world`: its joints place it.
   void add_instance(const std::string& name, int mesh, const glm::dmat4& world, int node_index,
                     const glm::dmat4& local = glm::dmat4(1.0), bool charge = true) {
-    if (charge)
+    if (charge) {
       ctx_.charge(gltf::Budget::kInstances, 1, "node " + std::to_string(node_index) + " instance");
+      charge_instances(1, mesh, name, 0, node_label(node_index));
+    }
     const bool skinned = ctx_.model.nodes[size_t(node_index)].skin >= 0;
     const glm::mat4 transform(skinned ? local : world * local);
     bindings_.push_back(
@@ -315,6 +356,7 @@ class SceneBuilder {
     const std::string base = node_name(index, node);
     // Charged up front so a huge count fails before any instance is made.
     ctx_.charge(gltf::Budget::kInstances, count, who + " (" + std::to_string(count) + " entries)");
+    charge_instances(count, mesh, base, 2 + std::to_string(count).size(), who);
     for (size_t i = 0; i < count; ++i) {
       glm::dmat4 m(1.0);
       if (t) m = glm::translate(m, glm::dvec3((*t)[3 * i], (*t)[3 * i + 1], (*t)[3 * i + 2]));
@@ -413,6 +455,8 @@ class SceneBuilder {
   Context& ctx_;
   gltf::AccessorCache& cache_;
   gltf::DecodedMeshes& meshes_;
+  const std::vector<Material>& materials_;
+  std::vector<int64_t> emissive_counts_;  // by tandem mesh; -1: not counted yet
   std::vector<int> mesh_ids_;
   std::vector<bool> deformed_use_;  // by glTF mesh: some node deforms it
   std::vector<gltf::DeformedNode> deformed_;
@@ -593,7 +637,7 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     }
     if (!roots.empty()) ctx.warn("the file has no scenes; showing all root nodes");
   }
-  SceneBuilder builder(ctx, cache, meshes);
+  SceneBuilder builder(ctx, cache, meshes, materials.materials);
   builder.walk(roots);
   // The hierarchy is needed to pose skins and morphs even when the caller
   // does not play animations: the static scene shows their rest pose.

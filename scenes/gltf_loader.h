@@ -39,6 +39,16 @@ struct GltfLimits {
   uint64_t max_instances = uint64_t(1) << 22;       // scene instances (nodes and GPU instancing)
   uint64_t max_texture_pixels = uint64_t(1) << 26;  // one image (8192 x 8192)
   uint64_t max_texture_bytes = uint64_t(2) << 30;   // decoded texels of all textures together
+  // What decoding one image may hold at once (stb's rows and image, then
+  // RGBA8: a 16-bit 8192x8192 RGB PNG takes 768 MiB), and all decoding
+  // threads together.
+  uint64_t max_image_decode_bytes = uint64_t(1) << 30;
+  // Instance names: a node's name is copied to each of its instances (and
+  // EXT_mesh_gpu_instancing makes many); names are cut to 256 bytes.
+  uint64_t max_name_bytes = uint64_t(64) << 20;
+  // Emissive triangles times the instances that place them: the renderer
+  // keeps one light record (about 100 bytes) for each.
+  uint64_t max_emissive_triangles = uint64_t(1) << 21;
 };
 
 struct GltfOptions {

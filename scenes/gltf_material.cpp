@@ -3,10 +3,12 @@
 #include <atomic>
 #include <climits>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <exception>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <new>
 #include <set>
 #include <string_view>
@@ -71,58 +73,135 @@ struct DecodedImage {
   std::string error;
 };
 
-// Width and height from the PNG/JPEG header (without decoding), or an error
-// that says what is wrong: a size over the limit, or a corrupt header.
-bool image_size(const unsigned char* bytes, size_t size, uint64_t max_pixels, uint32_t& w,
-                uint32_t& h, std::string& error) {
+// The shape of an encoded image, from its header (without decoding).
+struct ImageShape {
+  uint32_t width = 0, height = 0;
+  int channels = 4, bytes_per_channel = 1;
+  uint64_t pixels() const { return uint64_t(width) * height; }
+  // What the texture keeps: packed RGBA8.
+  uint64_t kept_bytes() const { return pixels() * 4; }
+  // The most decoding holds at once: stb's inflated rows and its image
+  // (a 16-bit RGB PNG: 12 bytes a pixel), then its image and our RGBA8.
+  uint64_t decode_bytes() const {
+    const uint64_t native = uint64_t(channels) * uint64_t(bytes_per_channel);
+    return pixels() * std::max(2 * native, native + 4);
+  }
+  std::string text() const {
+    return std::to_string(width) + "x" + std::to_string(height) + " pixels, " +
+           std::to_string(channels) + " channel" + (channels == 1 ? "" : "s") + " of " +
+           std::to_string(8 * bytes_per_channel) + " bits";
+  }
+};
+
+// The shape from the PNG/JPEG header, or an error that says what is wrong:
+// a size over the limit, or a corrupt header.
+bool image_shape(const unsigned char* bytes, size_t size, uint64_t max_pixels, ImageShape& shape,
+                 std::string& error) {
   const EncodedImageInfo info = probe_encoded_image(bytes, size);
   if (info.format != EncodedImageInfo::kUnknown) {
     if (!info.header_ok) {
       error = info.problem;
       return false;
     }
-    w = info.width;
-    h = info.height;
+    shape.width = info.width;
+    shape.height = info.height;
+    shape.channels = info.channels;
+    shape.bytes_per_channel = info.bytes_per_channel;
   } else {
     int iw = 0, ih = 0, comp = 0;
     if (size > size_t(INT_MAX) || !stbi_info_from_memory(bytes, int(size), &iw, &ih, &comp)) {
       error = "not a PNG or JPEG image";
       return false;
     }
-    w = uint32_t(iw);
-    h = uint32_t(ih);
+    shape.width = uint32_t(iw);
+    shape.height = uint32_t(ih);
+    shape.channels = std::clamp(comp, 1, 4);
+    shape.bytes_per_channel = stbi_is_16_bit_from_memory(bytes, int(size)) ? 2 : 1;
   }
-  if (w < 1 || h < 1 || uint64_t(w) * h > max_pixels) {
-    error = "it claims " + std::to_string(w) + "x" + std::to_string(h) +
+  if (shape.width < 1 || shape.height < 1 || shape.pixels() > max_pixels) {
+    error = "it claims " + std::to_string(shape.width) + "x" + std::to_string(shape.height) +
             " pixels, over the limit of " + std::to_string(max_pixels) + " pixels per texture";
     return false;
   }
   return true;
 }
 
-DecodedImage decode_image(const unsigned char* bytes, size_t size, int index) {
+// Decodes with stb directly (tinygltf's decoder copies the decoded pixels
+// once more): the memory it takes is ImageShape::decode_bytes().
+DecodedImage decode_image(const unsigned char* bytes, size_t size) {
   DecodedImage out;
   if (size > size_t(INT_MAX)) {
     out.error = "the encoded image is larger than 2 GiB";
     return out;
   }
-  tinygltf::Image image;
-  std::string err, warn;
-  // user_data nullptr: tinygltf's decoder with its default options.
-  if (!tinygltf::LoadImageData(&image, index, &err, &warn, 0, 0, bytes, int(size), nullptr)) {
-    out.error = err.empty() ? "the image could not be decoded" : err.substr(0, err.find('\n'));
+  int w = 0, h = 0, c = 0;
+  const bool sixteen = stbi_is_16_bit_from_memory(bytes, int(size)) != 0;
+  void* pixels = sixteen
+                     ? static_cast<void*>(stbi_load_16_from_memory(bytes, int(size), &w, &h, &c, 0))
+                     : static_cast<void*>(stbi_load_from_memory(bytes, int(size), &w, &h, &c, 0));
+  if (pixels == nullptr) {
+    const char* reason = stbi_failure_reason();
+    out.error = reason != nullptr && std::string(reason) == "outofmem"
+                    ? std::string("not enough memory to decode it")
+                    : "the image could not be decoded (" +
+                          std::string(reason != nullptr ? reason : "unknown reason") + ")";
     return out;
   }
-  if (!image_to_rgba8(image, out.rgba8)) {
-    out.error = "unsupported pixel layout (" + std::to_string(image.component) + " channels, " +
-                std::to_string(image.bits) + " bits)";
+  const int bits = sixteen ? 16 : 8;
+  const size_t byte_count = size_t(w) * size_t(h) * size_t(c) * size_t(bits / 8);
+  bool converted = false;
+  try {
+    converted = pixels_to_rgba8(static_cast<const unsigned char*>(pixels), byte_count, w, h, c,
+                                bits, out.rgba8);
+  } catch (...) {
+    stbi_image_free(pixels);
+    throw;
+  }
+  stbi_image_free(pixels);
+  if (!converted) {
+    out.error = "unsupported pixel layout (" + std::to_string(c) + " channels, " +
+                std::to_string(bits) + " bits)";
     return out;
   }
-  out.width = uint32_t(image.width);
-  out.height = uint32_t(image.height);
+  out.width = uint32_t(w);
+  out.height = uint32_t(h);
   out.ok = true;
   return out;
 }
+
+// The memory the decoding threads may take together: a thread waits until
+// its image's share is free (one image larger than all of it runs alone).
+class DecodeMemory {
+ public:
+  explicit DecodeMemory(uint64_t capacity) : free_(capacity), capacity_(capacity) {}
+  class Hold {
+   public:
+    Hold(DecodeMemory& pool, uint64_t bytes)
+        : pool_(pool), bytes_(std::min(bytes, pool.capacity_)) {
+      std::unique_lock<std::mutex> lock(pool_.mutex_);
+      pool_.freed_.wait(lock, [&] { return pool_.free_ >= bytes_; });
+      pool_.free_ -= bytes_;
+    }
+    ~Hold() {
+      {
+        const std::lock_guard<std::mutex> lock(pool_.mutex_);
+        pool_.free_ += bytes_;
+      }
+      pool_.freed_.notify_all();
+    }
+    Hold(const Hold&) = delete;
+    Hold& operator=(const Hold&) = delete;
+
+   private:
+    DecodeMemory& pool_;
+    uint64_t bytes_;
+  };
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable freed_;
+  uint64_t free_, capacity_;
+};
 
 std::string image_label(const tinygltf::Model& m, int index) {
   const tinygltf::Image& img = m.images[size_t(index)];
@@ -219,11 +298,14 @@ class MaterialConverter {
       int image;
       const unsigned char* data;
       size_t size;
+      uint64_t decode_bytes = 0;
     };
+    uint64_t encoded_total = 0;
+    std::pair<uint64_t, int> largest_decode{0, -1};
     std::vector<Job> jobs;
     std::map<std::pair<size_t, size_t>, std::vector<Job>> by_content;
     for (int i : images) {
-      Job job{i, nullptr, 0};
+      Job job{i, nullptr, 0, 0};
       std::string error;
       if (!encoded_bytes(i, job.data, job.size, error)) {
         decoded_[size_t(i)].error = error;
@@ -240,19 +322,43 @@ class MaterialConverter {
         continue;
       }
       same.push_back(job);
-      uint32_t w = 0, h = 0;
-      if (!image_size(job.data, job.size, ctx_.limits.max_texture_pixels, w, h, error)) {
+      ImageShape shape;
+      if (!image_shape(job.data, job.size, ctx_.limits.max_texture_pixels, shape, error)) {
         decoded_[size_t(i)].error = error;
         continue;
       }
-      const uint64_t bytes = uint64_t(w) * h * 4;
+      // Decoding takes more than the texture keeps (a 16-bit PNG three
+      // times as much): that is held to a limit of its own per image, and
+      // the decoders together to the same amount at any one time.
+      job.decode_bytes = shape.decode_bytes();
+      if (job.decode_bytes > ctx_.limits.max_image_decode_bytes) {
+        decoded_[size_t(i)].error = "its " + shape.text() + " need " +
+                                    format_bytes(job.decode_bytes) +
+                                    " while decoding, over this loader's limit of " +
+                                    format_bytes(ctx_.limits.max_image_decode_bytes) + " per image";
+        continue;
+      }
+      const uint64_t bytes = shape.kept_bytes();
       if (!ctx_.fits(Budget::kTextureBytes, bytes)) {
-        decoded_[size_t(i)].error = budget_message(w, h, bytes);
+        decoded_[size_t(i)].error = budget_message(shape.width, shape.height, bytes);
         continue;
       }
       ctx_.charge(Budget::kTextureBytes, bytes, image_label(m, i));
+      encoded_total += job.size;
+      if (job.decode_bytes > largest_decode.first) largest_decode = {job.decode_bytes, i};
       jobs.push_back(job);
     }
+    // A small file whose textures need far more memory than it holds says
+    // so before that memory is taken (a 500 KiB PNG can decode to 1 GiB).
+    const uint64_t need = ctx_.used(Budget::kTextureBytes) + largest_decode.first;
+    if (need > (uint64_t(512) << 20) && need > 64 * encoded_total) {
+      ctx_.warn("the textures' " + format_bytes(encoded_total) + " of encoded images need up to " +
+                format_bytes(need) + " of memory to decode (" +
+                format_bytes(ctx_.used(Budget::kTextureBytes)) + " kept; the largest, " +
+                image_label(m, largest_decode.second) + ", takes " +
+                format_bytes(largest_decode.first) + " while decoding)");
+    }
+    DecodeMemory decode_memory(ctx_.limits.max_image_decode_bytes);
 
     // PNG decoding dominates load time for textured models; images are
     // independent, so decode them on all cores.
@@ -262,7 +368,8 @@ class MaterialConverter {
         const Job& job = jobs[k];
         DecodedImage& d = decoded_[size_t(job.image)];
         try {
-          d = decode_image(job.data, job.size, job.image);
+          const DecodeMemory::Hold hold(decode_memory, job.decode_bytes);
+          d = decode_image(job.data, job.size);
         } catch (const std::exception& e) {  // bad_alloc: must not escape a thread
           d = DecodedImage{};
           d.error = std::string("decoding failed (") +
@@ -597,22 +704,26 @@ void to_rgba8(int channels, const unsigned char* src, size_t pixels, uint32_t* o
 
 }  // namespace
 
-bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out) {
-  const int c = image.component;
-  const int bytes = image.bits / 8;
-  if (image.width < 1 || image.height < 1 || c < 1 || c > 4 ||
-      (image.bits != 8 && image.bits != 16)) {
+bool pixels_to_rgba8(const unsigned char* data, size_t size, int width, int height, int channels,
+                     int bits, std::vector<uint32_t>& out) {
+  const int bytes = bits / 8;
+  if (width < 1 || height < 1 || channels < 1 || channels > 4 || (bits != 8 && bits != 16)) {
     return false;
   }
-  const size_t pixels = size_t(image.width) * size_t(image.height);
-  if (image.image.size() != pixels * size_t(c) * size_t(bytes)) return false;
+  const size_t pixels = size_t(width) * size_t(height);
+  if (size != pixels * size_t(channels) * size_t(bytes)) return false;
   out.resize(pixels);
   if (bytes == 1) {
-    to_rgba8<1>(c, image.image.data(), pixels, out.data());
+    to_rgba8<1>(channels, data, pixels, out.data());
   } else {
-    to_rgba8<2>(c, image.image.data(), pixels, out.data());
+    to_rgba8<2>(channels, data, pixels, out.data());
   }
   return true;
+}
+
+bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out) {
+  return pixels_to_rgba8(image.image.data(), image.image.size(), image.width, image.height,
+                         image.component, image.bits, out);
 }
 
 void EncodedImages::keep(int index, const unsigned char* data, size_t size) {

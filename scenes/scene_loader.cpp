@@ -8,6 +8,7 @@
 
 #include "core/image/image.h"
 #include "core/util/errors.h"
+#include "core/util/log.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/gltf_loader.h"
 
@@ -32,7 +33,31 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
 }
 
 void load_environment_map(Scene& scene, const std::string& path, float intensity) {
-  set_environment_map(scene, read_image(path), path, intensity);
+  // Checked from the header, before anything is decoded: a 400 KiB PNG can
+  // claim 16384x8192 pixels, and each takes about
+  // kEnvironmentBytesPerPixel in the end (the float map twice: the scene's
+  // and the kernel's, and the sampling tables), more while it is decoded.
+  ImageReadLimits limits;
+  limits.max_pixels = kMaxEnvironmentPixels;
+  limits.use = "an environment map";
+  limits.advice = "scale it down to 8192x4096 or less";
+  limits.bytes_per_pixel_in_use = kEnvironmentBytesPerPixel;
+  const ImageRGB image = read_image(path, limits);
+  // Within the limit, a small file can still ask for much more memory than
+  // it holds: it is said before the rest is taken.
+  const uint64_t need = uint64_t(image.width) * image.height * kEnvironmentBytesPerPixel;
+  std::error_code ec;
+  const uintmax_t file_bytes = std::filesystem::file_size(path, ec);
+  if (need > (uint64_t(512) << 20) && !ec && need > 64 * uint64_t(file_bytes)) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  ": this %.0f KiB file is an environment map of %ux%u pixels; it takes about "
+                  "%.1f GiB of memory to render",
+                  double(file_bytes) / 1024.0, image.width, image.height,
+                  double(need) / double(1u << 30));
+    log_warning(path + text);
+  }
+  set_environment_map(scene, image, path, intensity);
 }
 
 void set_environment_map(Scene& scene, const ImageRGB& img, const std::string& path,

@@ -109,6 +109,104 @@ TEST(CliHostile, OutputProblemsAreFoundBeforeRendering) {
   }
 }
 
+// Every output of the run is checked before the scene is loaded: the name
+// with the temporary file's suffix, every frame's folder where the '#'
+// pattern is in a folder name, and that no output is an input.
+TEST(CliHostile, EveryOutputOfTheRunIsCheckedBeforeLoading) {
+  TempDir dir("tandem_hostile_cli");
+  const std::string quick = "render builtin:cornell --width 8 --height 8 --spp 1 --quiet ";
+  Result r = tandem_cli(quick + "--output " +
+                        quote((dir.path() / (std::string(240, 'a') + ".png")).string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("bytes of the temporary file written first"), std::string::npos)
+      << r.output;
+  // Frame 0's folder exists, frame 1's does not: nothing is rendered.
+  fs::create_directory(dir.path() / "shot_00");
+  r = tandem_cli(quick + "--frames 0..3 --output " +
+                 quote((dir.path() / "shot_##" / "img.png").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("shot_01/img.png: cannot write: directory"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir.path() / "shot_00" / "img.png"));
+  // The output is the environment map, or a frame of the sequence is.
+  tandem::ImageRGB sky(4, 2);
+  sky.rgb.assign(sky.rgb.size(), 0.5f);
+  const fs::path env = dir.path() / "sky_0002.pfm";
+  tandem::write_image(env, sky);
+  const std::string before = [&] {
+    std::ifstream in(env, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  for (const std::string& frames_and_output :
+       {"--output " + quote(env.string()),
+        "--frames 0..3 --output " + quote((dir.path() / "sky_####.pfm").string())}) {
+    r = tandem_cli(quick + "--env " + quote(env.string()) + " " + frames_and_output);
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find("sky_0002.pfm: is an input of this render"), std::string::npos)
+        << r.output;
+  }
+  std::ifstream in(env, std::ios::binary);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), before);
+}
+
+// A camera's aspect ratio (a file's value) sets one side of the image: it is
+// held to the limit --width and --height have before anything is allocated.
+TEST(CliHostile, CameraAspectRatiosCannotAskForHugeImages) {
+  TempDir dir("tandem_hostile_cli");
+  for (const char* aspect : {"1e-6", "100"}) {
+    const fs::path file = dir.path() / (std::string("aspect_") + aspect + ".gltf");
+    std::ofstream(file)
+        << R"({"asset":{"version":"2.0"},"cameras":[{"type":"perspective","perspective":)"
+        << R"({"yfov":0.8,"znear":0.1,"aspectRatio":)" << aspect
+        << R"(}}],"nodes":[{"camera":0}],"scenes":[{"nodes":[0]}]})";
+    const std::string size = std::string(aspect) == "100" ? "" : "--width 16 ";
+    const Result r = tandem_cli("render " + quote(file.string()) + " --spp 1 --quiet " + size +
+                                "--output " + quote((dir.path() / "o.png").string()));
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(file.string() + ": the camera's aspect ratio"), std::string::npos)
+        << r.output;
+    EXPECT_NE(
+        r.output.find(std::string(aspect) == "100" ? "asks for an image 72000 pixels wide"
+                                                   : "asks for an image 16000000 pixels high"),
+        std::string::npos)
+        << r.output;
+  }
+}
+
+// An environment map is held to 8192x4096 pixels from its header, before
+// anything is decoded: a 400 KB PNG of 16384x8192 took 3.6 GB.
+TEST(CliHostile, EnvironmentMapsAreSizedFromTheirHeader) {
+  TempDir dir("tandem_hostile_cli");
+  const fs::path png = dir.path() / "huge.png";
+  tandem::write_png_rgb8(png, 1, 1, {0, 0, 0});
+  std::string bytes;
+  {
+    std::ifstream in(png, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // IHDR width 16384, height 8192 (big-endian) and its CRC.
+  const unsigned char size[8] = {0, 0, 0x40, 0, 0, 0, 0x20, 0};
+  bytes.replace(16, 8, reinterpret_cast<const char*>(size), 8);
+  uint32_t c = 0xffffffffu;
+  for (size_t i = 12; i < 29; ++i) {
+    c ^= uint8_t(bytes[i]);
+    for (int k = 0; k < 8; ++k)
+      c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+  }
+  c = ~c;
+  for (int k = 0; k < 4; ++k)
+    bytes[size_t(29 + k)] = char(c >> (24 - 8 * k));
+  std::ofstream(png, std::ios::binary) << bytes;
+  const Result r = tandem_cli(kQuick + "--env " + quote(png.string()) + " --output " +
+                              quote((dir.path() / "o.png").string()));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("huge.png: PNG header claims 16384x8192 pixels, over the limit of "
+                          "33554432 pixels for an environment map (it would take about 5.0 GiB "
+                          "of memory); scale it down to 8192x4096 or less"),
+            std::string::npos)
+      << r.output;
+}
+
 TEST(CliHostile, NonFileEnvironmentMapsSayWhatTheyAre) {
   TempDir dir("tandem_hostile_cli");
   const std::string out = " --output " + quote((dir.path() / "o.png").string());

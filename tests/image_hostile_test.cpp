@@ -218,6 +218,13 @@ TEST(ImageHostile, OutputPathIsCheckedUpFront) {
   EXPECT_NE(error(dir.path() / "missing" / "o.png").find("does not exist"), std::string::npos);
   EXPECT_NE(error(dir.path() / "file" / "o.png").find("is a file, not a directory"),
             std::string::npos);
+  // The temporary file's name (22 bytes longer) must fit the file-name
+  // limit too, or a finished render is lost at the very end.
+  EXPECT_EQ(error(dir.path() / (std::string(255 - 22 - 4, 'a') + ".png")), "");
+  EXPECT_NE(error(dir.path() / (std::string(255 - 22 - 3, 'a') + ".png"))
+                .find("with the 22 bytes of the temporary file written first it passes the limit "
+                      "of 255 bytes for a file name"),
+            std::string::npos);
   if (::geteuid() != 0) {  // root may write anywhere
     fs::create_directory(dir.path() / "ro");
     fs::permissions(dir.path() / "ro", fs::perms::owner_read | fs::perms::owner_exec);
@@ -255,6 +262,29 @@ TEST(ImageHostile, WritesNeverFollowLinks) {
       EXPECT_TRUE(fs::is_symlink(e.path())) << name;
     }
   }
+}
+
+// Replacing an output keeps its permission bits (the temporary file is
+// created with the umask's); a new output gets the umask's.
+TEST(ImageHostile, ReplacingAnOutputKeepsItsPermissions) {
+  TempDir dir("tandem_image");
+  const fs::path out = dir.path() / "private.pfm";
+  write_text(out, "old");
+  fs::permissions(out, fs::perms::owner_read | fs::perms::owner_write);
+  write_image(out, ImageRGB(2, 2));
+  EXPECT_EQ(fs::status(out).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
+  EXPECT_EQ(read_image(out).width, 2u);
+  fs::permissions(out, fs::perms::owner_all | fs::perms::group_read);
+  write_image(out, ImageRGB(2, 2));
+  EXPECT_EQ(fs::status(out).permissions() & fs::perms::all,
+            fs::perms::owner_all | fs::perms::group_read);
+  const mode_t mask = ::umask(022);
+  write_image(dir.path() / "new.pfm", ImageRGB(2, 2));
+  ::umask(mask);
+  EXPECT_EQ(fs::status(dir.path() / "new.pfm").permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read |
+                fs::perms::others_read);
 }
 
 TEST(ImageHostile, SignalDuringAWriteRemovesTheTemporaryFile) {

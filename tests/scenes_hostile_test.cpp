@@ -12,6 +12,7 @@
 
 #include "core/image/image.h"
 #include "core/util/errors.h"
+#include "core/world/scene.h"
 #include "scenes/gltf_loader.h"
 #include "tests/hostile_scene_cases.h"
 #include "tests/test_temp_dir.h"
@@ -354,6 +355,197 @@ TEST(GltfHostile, SceneValuesBeyondFloatAreRefusedByNameOrNotDrawn) {
     EXPECT_EQ(error.rfind(file.string() + ": ", 0), 0u) << c.name << ": " << error;
     for (const std::string& part : c.refusal)
       EXPECT_NE(error.find(part), std::string::npos) << c.name << ": " << error;
+  }
+}
+
+// A file of one triangle placed `count` times by EXT_mesh_gpu_instancing
+// (a zero-filled TRANSLATION accessor), its node named `name`; with
+// `emissive`, its material glows.
+std::string instanced_gltf(const std::string& name, size_t count, bool emissive) {
+  test::GltfTestFile f;
+  const int pos = f.vec3(test::kTriangle);
+  const int where =
+      f.accessor(R"({"componentType":5126,"type":"VEC3","count":)" + std::to_string(count) + "}");
+  return f.file(
+      R"("extensionsUsed":["EXT_mesh_gpu_instancing"],"materials":[{"emissiveFactor":)" +
+      std::string(emissive ? "[1,1,1]" : "[0,0,0]") +
+      R"(}],"meshes":[{"name":"glow","primitives":[{"attributes":{"POSITION":)" +
+      std::to_string(pos) + R"(},"material":0}]}],"nodes":[{"name":")" + name +
+      R"(","mesh":0,"extensions":{"EXT_mesh_gpu_instancing":{"attributes":{"TRANSLATION":)" +
+      std::to_string(where) + R"(}}}}],"scenes":[{"nodes":[0]}])");
+}
+
+// A node's name is copied to each of its instances: 600 KB x 1,200 took
+// 1.4 GB. Names are cut to 256 bytes and all together budgeted.
+TEST(GltfHostile, InstanceNamesAreCutAndBudgeted) {
+  TempDir dir("tandem_hostile");
+  const fs::path file = dir.path() / "names.gltf";
+  write_text(file, instanced_gltf(std::string(200000, 'n'), 50, false));
+  const Scene scene = load_gltf(file);
+  ASSERT_EQ(scene.instances().size(), 50u);
+  for (const Instance& i : scene.instances()) {
+    EXPECT_LE(i.name.size(), 256u + 4u);
+    EXPECT_EQ(i.name.compare(0, 10, std::string(10, 'n')), 0);
+  }
+  GltfOptions options;
+  options.limits.max_name_bytes = 5000;  // 50 x about 260 bytes do not fit
+  const std::string error = load_error(file, options);
+  EXPECT_EQ(error.rfind(file.string() + ": node 0 EXT_mesh_gpu_instancing (50 instances named", 0),
+            0u)
+      << error;
+  EXPECT_NE(error.find("more of instance names"), std::string::npos) << error;
+  EXPECT_NE(error.find("limit of 4.9 KiB"), std::string::npos) << error;
+}
+
+// One light record per emissive triangle and instance: 5.6 KB of glTF
+// asked for 1.4 GB. The product is charged before any instance is made.
+TEST(GltfHostile, EmissiveTrianglesTimesInstancesAreBudgeted) {
+  TempDir dir("tandem_hostile");
+  const fs::path file = dir.path() / "glow.gltf";
+  write_text(file, instanced_gltf("lamp", 100, true));
+  GltfOptions options;
+  options.limits.max_emissive_triangles = 99;
+  const std::string error = load_error(file, options);
+  EXPECT_EQ(error.rfind(file.string() + ": node 0 EXT_mesh_gpu_instancing (100 instances of mesh "
+                                        "'glow' with 1 emissive triangles) needs 100 more "
+                                        "emissive triangles",
+                        0),
+            0u)
+      << error;
+  EXPECT_NE(error.find("limit of 99"), std::string::npos) << error;
+  options.limits.max_emissive_triangles = 100;
+  EXPECT_EQ(load_error(file, options), "");
+  // Not emissive: nothing is charged.
+  write_text(file, instanced_gltf("lamp", 100, false));
+  options.limits.max_emissive_triangles = 0;
+  EXPECT_EQ(load_error(file, options), "");
+}
+
+// A PNG of `width` x `height` 16-bit RGB pixels (value `value` each),
+// written with stored (uncompressed) deflate blocks.
+void write_png16(const fs::path& path, uint32_t width, uint32_t height, uint16_t value) {
+  auto be32 = [](std::string& out, uint32_t v) {
+    for (int k = 3; k >= 0; --k)
+      out.push_back(char(v >> (8 * k)));
+  };
+  auto crc = [](const std::string& bytes) {
+    uint32_t c = 0xffffffffu;
+    for (unsigned char b : bytes) {
+      c ^= b;
+      for (int k = 0; k < 8; ++k)
+        c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+    }
+    return ~c;
+  };
+  auto chunk = [&](std::string& out, const char* type, const std::string& data) {
+    be32(out, uint32_t(data.size()));
+    const std::string body = type + data;
+    out += body;
+    be32(out, crc(body));
+  };
+  std::string raw;
+  for (uint32_t y = 0; y < height; ++y) {
+    raw.push_back(0);  // filter: none
+    for (uint32_t i = 0; i < width * 3; ++i) {
+      raw.push_back(char(value >> 8));
+      raw.push_back(char(value & 0xff));
+    }
+  }
+  std::string z = "\x78\x01";
+  for (size_t at = 0; at < raw.size() || at == 0;) {
+    const size_t n = std::min<size_t>(65535, raw.size() - at);
+    z.push_back(at + n == raw.size() ? 1 : 0);
+    z.push_back(char(n & 0xff));
+    z.push_back(char(n >> 8));
+    z.push_back(char(~n & 0xff));
+    z.push_back(char((~n >> 8) & 0xff));
+    z += raw.substr(at, n);
+    at += n;
+  }
+  uint32_t a = 1, b = 0;
+  for (unsigned char c : raw) {
+    a = (a + c) % 65521;
+    b = (b + a) % 65521;
+  }
+  be32(z, (b << 16) | a);
+  std::string header;
+  be32(header, width);
+  be32(header, height);
+  header += std::string("\x10\x02\x00\x00\x00", 5);  // 16 bits, RGB
+  std::string png = "\x89PNG\r\n\x1a\n";
+  chunk(png, "IHDR", header);
+  chunk(png, "IDAT", z);
+  chunk(png, "IEND", "");
+  write_text(path, png);
+}
+
+// A 16-bit 8192x8192 PNG of 522 KB peaked at 1.03 GB while the texel
+// budget charged it 256 MB: decoding is now held to a limit of its own,
+// at its decoded size.
+TEST(GltfHostile, SixteenBitTexturesAreDecodedAndChargedAtTheirDecodedSize) {
+  TempDir dir("tandem_hostile");
+  write_png16(dir.path() / "deep.png", 16, 8, 0x8080);
+  const fs::path file = dir.path() / "deep.gltf";
+  write_text(file, textured_gltf({"deep.png"}));
+  const Scene scene = load_gltf(file);
+  ASSERT_EQ(scene.textures().size(), 1u);
+  const Texture& t = scene.textures()[0];
+  ASSERT_EQ(t.rgba8.size(), 16u * 8u);
+  EXPECT_EQ(t.rgba8[0], 0xff808080u);  // 0x8080 -> 0x80, alpha 255
+  GltfOptions options;
+  options.limits.max_image_decode_bytes = 16 * 8 * 12 - 1;  // stb's rows and image: 12 B/pixel
+  GltfSummary summary;
+  testing::internal::CaptureStderr();
+  load_gltf(file, options, &summary);
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(summary.images_unavailable, 1u);
+  EXPECT_NE(log.find("image 0 (\"deep.png\") is unavailable: its 16x8 pixels, 3 channels of 16 "
+                     "bits need 1.5 KiB while decoding, over this loader's limit of 1.5 KiB per "
+                     "image"),
+            std::string::npos)
+      << log;
+}
+
+// Values the schema forbids, which tinygltf reads as absent (a negative
+// byteOffset rendered as if it were 0): refused naming the object and field.
+TEST(GltfHostile, SchemaRangesAreCheckedOnTheJsonText) {
+  TempDir dir("tandem_hostile");
+  test::GltfTestFile f;
+  const int pos = f.vec3(test::kTriangle);
+  const std::string good =
+      f.file(R"("meshes":[{"primitives":[{"attributes":{"POSITION":)" + std::to_string(pos) +
+             R"(},"mode":4}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0,)"
+             R"("samplers":[{"magFilter":9729}],"extras":{"byteOffset":-1,"index":"x"})");
+  const fs::path file = dir.path() / "schema.gltf";
+  write_text(file, good);
+  EXPECT_EQ(load_error(file), "");  // extras are the application's, not checked
+  const struct {
+    std::string from, to, message;
+  } cases[] = {
+      {R"("byteOffset": 0)", R"("byteOffset": -4)",
+       "bufferViews[0].byteOffset is -4; the glTF schema requires an integer >= 0"},
+      {R"("count": 3)", R"("count": 1.5)",
+       "accessors[0].count is 1.5; the glTF schema requires an integer >= 1"},
+      {R"("componentType": 5126)", R"("componentType": 5124)",
+       "accessors[0].componentType is 5124; the glTF schema requires one of 5120, 5121, 5122, "
+       "5123, 5125, 5126"},
+      {R"("mode":4)", R"("mode":9)",
+       "meshes[0].primitives[0].mode is 9; the glTF schema requires an integer in 0..6"},
+      {R"("magFilter":9729)", R"("magFilter":1)", "samplers[0].magFilter is 1"},
+      {R"("mesh":0)", R"("mesh":"0")",
+       "nodes[0].mesh is \"0\"; the glTF schema requires an integer >= 0"},
+      {R"("scene":0)", R"("scene":-1)", "scene is -1"},
+      {R"("type": "VEC3")", R"("type": "VEC9")", "accessors[0].type is \"VEC9\""},
+      {R"("byteLength": 36})", R"("byteLength": 36, "byteStride": 2})",
+       "bufferViews[0].byteStride is 2; the glTF schema requires an integer in 4..252"},
+  };
+  for (const auto& c : cases) {
+    const size_t at = good.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    write_text(file, std::string(good).replace(at, c.from.size(), c.to));
+    const std::string error = load_error(file);
+    EXPECT_EQ(error.rfind(file.string() + ": ", 0), 0u) << error;
+    EXPECT_NE(error.find(c.message), std::string::npos) << c.to << ": " << error;
   }
 }
 

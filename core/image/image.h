@@ -61,6 +61,11 @@ void check_output_path(const std::filesystem::path& path);
 struct ImageReadLimits {
   uint64_t max_pixels = uint64_t(1) << 27;      // 16384 x 8192: 1.5 GiB as float RGB
   uint64_t max_file_bytes = uint64_t(4) << 30;  // read into memory whole
+  // For the message of an image over max_pixels: what the image is for
+  // ("an environment map") and the bytes a pixel takes there in the end.
+  const char* use = nullptr;
+  uint32_t bytes_per_pixel_in_use = 0;
+  const char* advice = nullptr;  // what to do instead, after "; "
 };
 
 // Reads .hdr (Radiance RGBE), .exr (uncompressed scanline, half/float), .pfm,
@@ -79,6 +84,9 @@ struct EncodedImageInfo {
   enum Format { kUnknown, kPng, kJpeg } format = kUnknown;
   bool header_ok = false;
   uint32_t width = 0, height = 0;
+  // What a decoder produces (for the memory decoding takes): channels
+  // (a palette PNG counts as 4) and bytes per channel (2 for 16-bit PNGs).
+  int channels = 4, bytes_per_channel = 1;
   std::string problem;
 };
 EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size);

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -38,6 +39,9 @@ fs::path output_dir(const fs::path& path) {
 // fails on anything already there, a symlink planted under the name
 // included, and O_NOFOLLOW makes sure of it. The random part makes the
 // name unpredictable, so nobody can plant one in advance either.
+// The temporary name is "." + the file name + ".tmp." + 16 hex digits.
+constexpr size_t kTempNameExtraBytes = 1 + 5 + 16;
+
 int create_temp_file(const fs::path& path, std::string& tmp_name) {
   const fs::path dir = output_dir(path);
   static thread_local std::mt19937_64 rng(std::random_device{}() ^ (uint64_t(::getpid()) << 32));
@@ -45,6 +49,7 @@ int create_temp_file(const fs::path& path, std::string& tmp_name) {
     char suffix[24];
     std::snprintf(suffix, sizeof suffix, "%016llx", static_cast<unsigned long long>(rng()));
     tmp_name = (dir / ("." + path.filename().string() + ".tmp." + suffix)).string();
+    static_assert(kTempNameExtraBytes == sizeof(".") - 1 + sizeof(".tmp.") - 1 + 16);
     const int fd =
         ::open(tmp_name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
     if (fd >= 0 || errno != EEXIST) return fd;
@@ -85,6 +90,11 @@ void write_file_atomically(const fs::path& path, const std::vector<uint8_t>& byt
   if (written && !synced) saved = errno;
   const bool closed = ::close(fd) == 0;
   if (written && synced && !closed) saved = errno;
+  // Replacing a file keeps its permission bits (a 0600 output stays 0600);
+  // a new one gets the umask's, as any created file does.
+  struct stat old = {};
+  if (written && synced && closed && ::lstat(path.c_str(), &old) == 0 && S_ISREG(old.st_mode))
+    ::chmod(tmp.c_str(), old.st_mode & 07777);
   if (!written || !synced || !closed) {
     ::unlink(tmp.c_str());
     throw InputError(path.string() + ": write failed: " + std::strerror(saved));
@@ -212,6 +222,23 @@ void check_output_path(const fs::path& path) {
   if (::access(dir.c_str(), W_OK | X_OK) != 0) {
     throw InputError(name + ": cannot write: directory '" + dir.string() + "' is not writable (" +
                      std::strerror(errno) + ")");
+  }
+  // The image is written to a temporary sibling first, whose name is
+  // longer: it must fit too, or a finished render is lost at the end.
+  const long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  const size_t limit = name_max > 0 ? size_t(name_max) : 255;
+  const size_t name_bytes = path.filename().string().size();
+  if (name_bytes + kTempNameExtraBytes > limit) {
+    throw InputError(name + ": cannot write: the file name is " + std::to_string(name_bytes) +
+                     " bytes; with the " + std::to_string(kTempNameExtraBytes) +
+                     " bytes of the temporary file written first it passes the limit of " +
+                     std::to_string(limit) + " bytes for a file name in '" + dir.string() + "'");
+  }
+  const size_t path_bytes = (dir / path.filename()).string().size() + kTempNameExtraBytes;
+  if (path_bytes >= PATH_MAX) {
+    throw InputError(name + ": cannot write: with the temporary file's suffix the path is " +
+                     std::to_string(path_bytes) + " bytes, over the limit of " +
+                     std::to_string(PATH_MAX - 1));
   }
 }
 

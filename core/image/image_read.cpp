@@ -40,8 +40,18 @@ void check_pixels(const std::string& name, const char* format, uint64_t w, uint6
   if (w < 1 || h < 1) fail(name, std::string(format) + " image has no pixels (" + dims(w, h) + ")");
   // w and h are each below 2^32 here, so the product cannot overflow.
   if (w > UINT32_MAX || h > UINT32_MAX || w * h > limits.max_pixels) {
+    std::string use;
+    if (limits.use != nullptr) use = std::string(" for ") + limits.use;
+    if (limits.bytes_per_pixel_in_use > 0 && w <= UINT32_MAX && h <= UINT32_MAX) {
+      const double gib = double(w * h) * limits.bytes_per_pixel_in_use / double(1u << 30);
+      char text[96];
+      std::snprintf(text, sizeof text, " (it would take about %.1f GiB of memory)", gib);
+      use += text;
+    }
+    if (limits.advice != nullptr) use += std::string("; ") + limits.advice;
     fail(name, std::string(format) + " header claims " + dims(w, h) +
-                   " pixels, over the limit of " + std::to_string(limits.max_pixels) + " pixels");
+                   " pixels, over the limit of " + std::to_string(limits.max_pixels) + " pixels" +
+                   use);
   }
 }
 
@@ -507,6 +517,8 @@ EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
       if (std::memcmp(data + p + 4, "IEND", 4) == 0) break;
       p += 12 + size_t(length);
     }
+    info.bytes_per_channel = depth == 16 ? 2 : 1;
+    info.channels = color == 0 ? 1 : color == 2 ? 3 : color == 4 ? 2 : 4;
     info.header_ok = true;
     return info;
   }
@@ -534,6 +546,7 @@ EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
         if (length < 8 || p + 2 + 7 > size) break;
         info.height = uint32_t(data[p + 5]) << 8 | data[p + 6];
         info.width = uint32_t(data[p + 7]) << 8 | data[p + 8];
+        info.channels = p + 9 < size && data[p + 9] >= 1 && data[p + 9] <= 4 ? data[p + 9] : 4;
         if (info.width == 0 || info.height == 0) {
           info.problem = "corrupt JPEG: the frame header has a zero width or height";
           return info;
