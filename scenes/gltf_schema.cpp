@@ -277,7 +277,7 @@ class Scanner {
     const char c = *p_;
     if (c == '{' || c == '[') {
       if (rule != nullptr) refuse(c == '{' ? "an object" : "an array", kind_text(*rule));
-      return c == '{' ? object() : array();
+      return container(c == '{' ? '}' : ']');
     }
     if (c == '"') {
       std::string text;
@@ -304,47 +304,31 @@ class Scanner {
     return true;
   }
 
-  bool object() {
-    ++p_;  // '{'
+  // An object ('{', keyed members) or an array ('[', items named by index).
+  bool container(char close) {
+    const bool keyed = close == '}';
+    ++p_;
     skip_space();
-    if (p_ < end_ && *p_ == '}') return ++p_, true;
-    while (true) {
-      skip_space();
-      std::string key;
-      if (!string(&key)) return false;
-      skip_space();
-      if (p_ >= end_ || *p_ != ':') return false;
-      ++p_;
-      skip_space();
-      path_.push_back(std::move(key));
-      is_index_.push_back(false);
-      const bool ok = value();
-      path_.pop_back();
-      is_index_.pop_back();
-      if (!ok) return false;
-      skip_space();
-      if (p_ >= end_) return false;
-      if (*p_ == '}') return ++p_, true;
-      if (*p_ != ',') return false;
-      ++p_;
-    }
-  }
-
-  bool array() {
-    ++p_;  // '['
-    skip_space();
-    if (p_ < end_ && *p_ == ']') return ++p_, true;
+    if (p_ < end_ && *p_ == close) return ++p_, true;
     for (size_t i = 0;; ++i) {
       skip_space();
-      path_.push_back(std::to_string(i));
-      is_index_.push_back(true);
+      std::string name = keyed ? std::string() : std::to_string(i);
+      if (keyed) {
+        if (!string(&name)) return false;
+        skip_space();
+        if (p_ >= end_ || *p_ != ':') return false;
+        ++p_;
+        skip_space();
+      }
+      path_.push_back(std::move(name));
+      is_index_.push_back(!keyed);
       const bool ok = value();
       path_.pop_back();
       is_index_.pop_back();
       if (!ok) return false;
       skip_space();
       if (p_ >= end_) return false;
-      if (*p_ == ']') return ++p_, true;
+      if (*p_ == close) return ++p_, true;
       if (*p_ != ',') return false;
       ++p_;
     }

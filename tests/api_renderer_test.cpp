@@ -442,20 +442,7 @@ TEST(ApiRenderer, AnInstanceScaledToZeroIsNotDrawn) {
   hidden.render_frame();
   // The same scene with no instance of the block.
   tandem::Renderer without(small_options());
-  const Quad floor(4.0f), small(0.5f);
-  tandem::MaterialDesc red;
-  red.base_color[0] = 0.9f;
-  const tandem::MaterialId g = without.add_material({});
-  const tandem::MaterialId rd = without.add_material(red);
-  without.add_instance(without.add_mesh(floor.data(), g), tandem::Transform::identity());
-  without.add_mesh(small.data(), rd);
-  tandem::LightDesc light;
-  light.position[1] = 4.0f;
-  light.intensity = 30.0f;
-  without.add_light(light);
-  tandem::CameraDesc cam;
-  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
-  without.set_camera(cam);
+  build_scene(without, false);
   without.render_frame();
   EXPECT_EQ(hidden.image_linear(), without.image_linear());
   // Scaled back, it is drawn again.

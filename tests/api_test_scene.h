@@ -41,8 +41,9 @@ inline tandem::RendererOptions small_options() {
 }
 
 // A floor, a small red square above it and a light: the square's instance is
-// returned so tests can move it.
-inline tandem::InstanceId build_scene(tandem::Renderer& r) {
+// returned so tests can move it. Without `place_square` its mesh is added
+// but no instance of it (the id returned is then meaningless).
+inline tandem::InstanceId build_scene(tandem::Renderer& r, bool place_square = true) {
   const Quad floor(4.0f);
   const Quad block(0.5f);
   tandem::MaterialDesc grey;
@@ -54,7 +55,8 @@ inline tandem::InstanceId build_scene(tandem::Renderer& r) {
   const tandem::MeshId block_mesh = r.add_mesh(block.data(), rd);
   r.add_instance(floor_mesh, tandem::Transform::identity());
   const tandem::InstanceId moving =
-      r.add_instance(block_mesh, tandem::Transform::translation(-1.0f, 0.5f, 0.0f));
+      place_square ? r.add_instance(block_mesh, tandem::Transform::translation(-1.0f, 0.5f, 0.0f))
+                   : tandem::InstanceId{};
   tandem::LightDesc light;
   light.position[1] = 4.0f;
   light.intensity = 30.0f;

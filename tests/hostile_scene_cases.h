@@ -23,8 +23,9 @@ struct HostileScene {
 };
 
 // Two triangles: node 0 (changed by `node0`, JSON members) and node 1, a
-// plain triangle at x = 2; `members` adds top-level members; `mesh0` adds
-// members to the primitive.
+// plain triangle at x = 2; `members` adds top-level members, `primitive`
+// members of the primitive, and `material` (JSON of one) gives it that
+// material.
 inline std::string two_triangle_file(GltfTestFile& f, const std::string& node0,
                                      const std::string& members = "",
                                      const std::string& primitive = "",
@@ -107,36 +108,31 @@ inline std::vector<HostileScene> hostile_scenes() {
                R"("scenes":[{"nodes":[0,1]}])"),
         {"node 0 ('body') with mesh 0 ('skinned')"});
   }
-  {
+  // A triangle (node 0) and node 1 holding `node` (a camera, a light),
+  // with `members` at the top level.
+  auto triangle_and_node = [](const std::string& members, const std::string& node) {
     GltfTestFile f;
     const int pos = f.vec3(kTriangle);
-    add("ortho_camera_1e300",
-        f.file(R"("meshes":[{"primitives":[{"attributes":{"POSITION":)" + std::to_string(pos) +
-               R"(}}]}],"cameras":[{"type":"orthographic","orthographic":)"
-               R"({"xmag":1e300,"ymag":1e300,"znear":0.1,"zfar":100}}],)"
-               R"("nodes":[{"mesh":0},{"camera":0,"translation":[0,0,5]}],)"
-               R"("scenes":[{"nodes":[0,1]}])"),
-        {"the camera cannot be rendered: its orthographic half height"});
-  }
-  {
-    GltfTestFile f;
-    const int pos = f.vec3(kTriangle);
-    add("camera_far_away",
-        f.file(R"("meshes":[{"primitives":[{"attributes":{"POSITION":)" + std::to_string(pos) +
-               R"(}}]}],"cameras":[{"type":"perspective","perspective":{"yfov":0.8,"znear":0.1}}],)"
-               R"("nodes":[{"mesh":0},{"camera":0,"translation":[0,0,5e18]}],)"
-               R"("scenes":[{"nodes":[0,1]}])"),
-        {"the camera cannot be rendered: its position", "lies beyond 1e+09"});
-  }
-  const std::string lights_used = R"("extensionsUsed":["KHR_lights_punctual"],)";
-  auto light_file = [&](const std::string& light, const std::string& node) {
-    GltfTestFile f;
-    const int pos = f.vec3(kTriangle);
-    return f.file(
-        lights_used + R"("extensions":{"KHR_lights_punctual":{"lights":[)" + light +
-        R"(]}},"meshes":[{"primitives":[{"attributes":{"POSITION":)" + std::to_string(pos) +
-        R"(}}]}],"nodes":[{"mesh":0},{"extensions":{"KHR_lights_punctual":{"light":0}},)" + node +
-        R"(}],"scenes":[{"nodes":[0,1]}])");
+    return f.file(members + R"("meshes":[{"primitives":[{"attributes":{"POSITION":)" +
+                  std::to_string(pos) + R"(}}]}],"nodes":[{"mesh":0},{)" + node +
+                  R"(}],"scenes":[{"nodes":[0,1]}])");
+  };
+  add("ortho_camera_1e300",
+      triangle_and_node(R"("cameras":[{"type":"orthographic","orthographic":)"
+                        R"({"xmag":1e300,"ymag":1e300,"znear":0.1,"zfar":100}}],)",
+                        R"("camera":0,"translation":[0,0,5])"),
+      {"the camera cannot be rendered: its orthographic half height"});
+  add("camera_far_away",
+      triangle_and_node(
+          R"("cameras":[{"type":"perspective","perspective":{"yfov":0.8,"znear":0.1}}],)",
+          R"("camera":0,"translation":[0,0,5e18])"),
+      {"the camera cannot be rendered: its position", "lies beyond 1e+09"});
+  auto light_file = [&](const std::string& light, const std::string& placement) {
+    return triangle_and_node(
+        R"("extensionsUsed":["KHR_lights_punctual"],"extensions":{"KHR_lights_punctual":)"
+        R"({"lights":[)" +
+            light + "]}},",
+        R"("extensions":{"KHR_lights_punctual":{"light":0}},)" + placement);
   };
   add("light_1e300",
       light_file(R"({"name":"sun","type":"point","intensity":1e300})", R"("translation":[0,0,2])"),
