@@ -177,4 +177,26 @@ inline std::string animated_hiding_file(bool far_at_2) {
       (far_at_2 ? R"(,{"sampler":1,"target":{"node":0,"path":"translation"}})" : "") + "]}]");
 }
 
+// A triangle (node 0, mesh 'blob') with a morph target of deltas 1e38
+// whose weight a STEP animation sets to 10 from t = 1 s to 2 s (positions
+// of 1e39: infinite as floats) and back to 0; the animation lasts 2 s and
+// loops. Node 1 stays.
+inline std::string animated_morph_overflow_file() {
+  GltfTestFile f;
+  const int pos = f.vec3(kTriangle);
+  const int delta = f.vec3({1e38f, 0, 0, 1e38f, 0, 0, 0, 0, 0});
+  const int times =
+      f.accessor(R"({"bufferView":)" + std::to_string(f.view(std::vector<float>{0, 1, 2})) +
+                 R"(,"componentType":5126,"type":"SCALAR","count":3,"min":[0],"max":[2]})");
+  const int weights = f.add(std::vector<float>{0, 10, 0}, 5126, "SCALAR", 3);
+  return f.file(R"("meshes":[{"name":"blob","weights":[0],"primitives":[{"attributes":)"
+                R"({"POSITION":)" +
+                std::to_string(pos) + R"(},"targets":[{"POSITION":)" + std::to_string(delta) +
+                R"(}]}]}],"nodes":[{"name":"morpher","mesh":0},{"mesh":0,"translation":[2,0,0]}],)"
+                R"("scenes":[{"nodes":[0,1]}],"animations":[{"samplers":[{"input":)" +
+                std::to_string(times) + R"(,"output":)" + std::to_string(weights) +
+                R"(,"interpolation":"STEP"}],"channels":[{"sampler":0,"target":)"
+                R"({"node":0,"path":"weights"}}]}])");
+}
+
 }  // namespace tandem::test
