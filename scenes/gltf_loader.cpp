@@ -618,6 +618,19 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
   const uint32_t default_material = uint32_t(model.materials.size());
   stage = "decoding meshes";
   gltf::DecodedMeshes meshes = gltf::decode_meshes(ctx, cache, default_material);
+  {
+    // Within the budget a small file can still decode to far more than it
+    // holds (one accessor drawn by many primitives, zero-filled ones): it
+    // says so, as the textures do.
+    uint64_t buffer_bytes = 0;
+    for (const tinygltf::Buffer& b : model.buffers)
+      buffer_bytes += b.data.size();
+    const uint64_t geometry = ctx.used(gltf::Budget::kGeometryBytes);
+    if (geometry > (uint64_t(512) << 20) && geometry > 64 * buffer_bytes) {
+      ctx.warn("its " + gltf::format_bytes(buffer_bytes) + " of buffers decode to " +
+               gltf::format_bytes(geometry) + " of mesh geometry");
+    }
+  }
   stage = "decoding textures";
   gltf::MaterialResult materials = gltf::convert_materials(ctx, encoded);
   stage = "building the scene";
