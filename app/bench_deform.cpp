@@ -12,7 +12,6 @@
 #include <memory>
 #include <optional>
 
-#include "accstruc/accel_structure.h"
 #include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
@@ -22,6 +21,7 @@
 #include "scenes/gltf_animation.h"
 #include "scenes/scene_animator.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 
@@ -114,17 +114,16 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
   const bool tandem_bvh = config != DeformConfig::kEmbree;
   const bool embree = config == DeformConfig::kEmbree || config == DeformConfig::kCpuCuda;
   const bool upload = config == DeformConfig::kCpuCuda || config == DeformConfig::kBothLayouts;
-  KernelScene ks;
-  SceneCompiler compiler;
-  AccelSettings accel_settings;
-  accel_settings.refit_unused_layout = config == DeformConfig::kBothLayouts;
+  SceneSyncSettings sync_settings;
+  sync_settings.bvh = tandem_bvh;
+  sync_settings.accel.refit_unused_layout = config == DeformConfig::kBothLayouts;
   // The layout the configuration's backends trace, as CoreTracer picks it:
   // the host backend's alone, the CUDA backend's with it.
   if (config == DeformConfig::kHost) {
-    accel_settings.layout = CpuBackend(CpuTraversal::kTandemBvh).traits().bvh_layout;
-    accel_settings.deforming_binary_only = true;
+    sync_settings.accel.layout = CpuBackend(CpuTraversal::kTandemBvh).traits().bvh_layout;
+    sync_settings.accel.deforming_binary_only = true;
   }
-  AccelStructure accel(accel_settings);
+  SceneSync scene_sync(sync_settings);
   std::unique_ptr<CpuBackend> cpu;
   if (embree) cpu = std::make_unique<CpuBackend>(CpuTraversal::kEmbree);
   RenderSettings settings;
@@ -134,24 +133,22 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
   for (uint32_t f = 0; f <= frames; ++f) {
     const double c0 = cpu_ms_now();
     const auto t0 = Clock::now();
-    // Nothing reads ks between frames here: the skinning writes into it.
-    animator->pose_into(double(f) / 30.0, scene, &ks);
+    // Nothing reads the arrays between frames here: the skinning writes
+    // into them.
+    animator->pose_into(double(f) / 30.0, scene, &scene_sync.arrays_for_deformer());
     const double pose = ms_since(t0);
     const double c1 = cpu_ms_now();
     out.vertices = std::max(out.vertices, deformed_vertices(scene));
-    const auto t1 = Clock::now();
-    SceneDelta delta = compiler.compile(scene, settings, ks);
-    const double compile = ms_since(t1);
-    const double c_compiled = cpu_ms_now();
-    const auto t2 = Clock::now();
-    if (tandem_bvh) delta = delta | accel.update(ks, delta).delta;
-    const double refit = ms_since(t2);
+    const SceneSyncUpdate& up = scene_sync.update(scene, settings);
+    const double compile = up.compile_seconds * 1e3;
+    const double refit = up.accstruc_seconds * 1e3;
     const double c_refit = cpu_ms_now();
     const auto t3 = Clock::now();
-    if (cpu) cpu->sync(ks, delta);
+    const KernelScene& ks = scene_sync.kernel_scene();
+    if (cpu) cpu->sync(ks, up.changes);
     const double commit = ms_since(t3);
     const double c2 = cpu_ms_now();
-    const size_t frame_bytes = delta.bytes(ks);
+    const size_t frame_bytes = up.changes.bytes(ks);
     if (f == 0) continue;  // the first frame builds everything
     skin_ms.push_back(pose);
     update_ms.push_back(compile + refit + commit);
@@ -163,8 +160,8 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
     uploaded.push_back(upload ? double(frame_bytes) : 0.0);
     skin_cpu.push_back(c1 - c0);
     update_cpu.push_back(c2 - c1);
-    sync_cpu.push_back(c_compiled - c1);
-    accstruc_cpu.push_back(c_refit - c_compiled);
+    sync_cpu.push_back(up.compile_cpu_seconds * 1e3);
+    accstruc_cpu.push_back(up.accstruc_cpu_seconds * 1e3);
     embree_cpu.push_back(c2 - c_refit);
   }
   out.skin = median(skin_ms);

@@ -30,6 +30,7 @@
 #include "core/world/motion_history.h"
 #include "scenes/arena_scene.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 
@@ -154,8 +155,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   const Camera base = scene.camera();
   const uint32_t measured[3] = {frames / 4, frames / 2, frames - 1};
 
-  KernelScene ks;
-  SceneCompiler compiler;
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());  // Embree builds its own
   CpuBackend backend{CpuTraversal::kEmbree};
   MotionHistory motion;
   SvgfParams params = svgf_default_params(settings.width, settings.height);
@@ -179,7 +179,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
               "feature_ms", "render_ms");
   auto render = [&](uint32_t seed, uint32_t spp) {
     settings.seed = seed;
-    backend.sync(ks, compiler.compile(scene, settings, ks));
+    backend.sync(scene_sync.kernel_scene(), scene_sync.update(scene, settings).changes);
     OfflineRenderOptions o;
     o.spp = spp;
     return render_offline(backend, w, h, o).image;
@@ -207,7 +207,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
     const double render_ms = median(render_samples);
     const auto feature_start = Clock::now();
     features.resize(size_t(w) * h);
-    backend.render_features(motion.advance(ks.view()), features.data());
+    backend.render_features(motion.advance(scene_sync.view()), features.data());
     const double feature_ms = ms_since(feature_start);
     for (uint32_t r = 0; r + 1 < runs; ++r) {
       TemporalDenoiser trial = denoiser;

@@ -4,12 +4,12 @@
 #include <chrono>
 #include <cstdio>
 
-#include "accstruc/accel_structure.h"
 #include "app/bench_report.h"
 #include "backends/cuda/cuda_backend.h"
 #include "core/render/film.h"
 #include "core/render/tiles.h"
 #include "core/util/errors.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 
@@ -24,21 +24,29 @@ const char* layout_name(KBvhLayout layout) {
   return layout == kBvhLayoutWide ? "wide" : "binary";
 }
 
-AccelSettings bench_accel_settings(KBvhLayout layout) {
-  AccelSettings s;
-  s.cache.enabled = false;  // measure without touching the user's BVH cache
-  s.layout = layout;
-  return s;
-}
-
-// Switches the synced scene to `layout`: both layouts are always built, so
-// only the layout constant changes and goes to the device.
-void use_layout(AccelStructure& accel, KernelScene& ks, CudaBackend& cuda, KBvhLayout layout) {
-  accel.set_layout(layout);
-  SceneDelta delta;
-  delta = delta | accel.update(ks, delta).delta;
-  cuda.sync(ks, delta);
-}
+// `scene` compiled under `settings` with its BVH in both layouts, and a
+// CUDA backend synced to it.
+struct GpuScene {
+  SceneSync sync;
+  CudaBackend cuda;
+  GpuScene(Scene& scene, const RenderSettings& settings)
+      : sync([] {
+          SceneSyncSettings s;
+          s.accel.cache.enabled = false;  // measure without touching the user's BVH cache
+          return s;
+        }()) {
+    sync.update(scene, settings);
+    cuda.sync(sync.kernel_scene(), sync.changes_since(0));
+  }
+  // Switches to `layout`: both layouts are always built, so only the
+  // layout constant changes and goes to the device.
+  void use_layout(Scene& scene, const RenderSettings& settings, KBvhLayout layout) {
+    const uint64_t before = sync.generation();
+    sync.set_bvh_layout(layout);
+    sync.update(scene, settings);
+    cuda.sync(sync.kernel_scene(), sync.changes_since(before));
+  }
+};
 
 // Mrays/s of CudaBackend::trace_rays, best of three after a warm-up call.
 // The figure includes copying the rays to the device and the hits back:
@@ -86,16 +94,15 @@ GpuFrameFigures time_frames(CudaBackend& cuda, const GpuBenchConfig& c) {
 
 }  // namespace
 
-GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, KernelScene& ks,
-                                  const SceneDelta& delta, const CpuBackend& embree,
-                                  const BenchRays& rays, uint32_t ray_width, uint32_t ray_height,
-                                  int embree_threads, bool frame_camera_from_bounds,
-                                  const GpuBenchConfig& config) {
+GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name,
+                                  const CpuBackend& embree, const BenchRays& rays,
+                                  const RenderSettings& ray_settings, int embree_threads,
+                                  bool frame_camera_from_bounds, const GpuBenchConfig& config) {
   GpuBenchFigures f;
   f.scene = scene_name;
   f.embree_threads = embree_threads;
-  f.ray_width = ray_width;
-  f.ray_height = ray_height;
+  f.ray_width = ray_settings.width;
+  f.ray_height = ray_settings.height;
   f.frame_width = config.frame_width;
   f.frame_height = config.frame_height;
   f.spp = config.spp;
@@ -105,12 +112,9 @@ GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, K
 
   // --- The Embree comparison's rays, kind by kind.
   {
-    AccelStructure accel(bench_accel_settings(kBvhLayoutBinary));
-    SceneDelta d = delta;
-    d = d | accel.update(ks, d).delta;
-    CudaBackend cuda;
+    GpuScene gpu(scene, ray_settings);
+    CudaBackend& cuda = gpu.cuda;
     f.device = cuda.device_name();
-    cuda.sync(ks, d);
     const std::array<std::vector<Ray>, 3> by_kind = rays_by_kind(rays);
     struct Kind {
       const char* name;
@@ -125,9 +129,9 @@ GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, K
       const std::vector<Ray>& set = by_kind[size_t(k.kind)];
       r.rays = set.size();
       r.embree_mrays = embree_kind_mrays(embree, set, r.any_hit);
-      use_layout(accel, ks, cuda, kBvhLayoutBinary);
+      gpu.use_layout(scene, ray_settings, kBvhLayoutBinary);
       r.gpu_binary_mrays = gpu_mrays(cuda, set, r.any_hit);
-      use_layout(accel, ks, cuda, kBvhLayoutWide);
+      gpu.use_layout(scene, ray_settings, kBvhLayoutWide);
       r.gpu_wide_mrays = gpu_mrays(cuda, set, r.any_hit);
       f.rays.push_back(r);
     }
@@ -142,17 +146,12 @@ GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, K
     scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f,
                                          float(settings.width) / float(settings.height)));
   }
-  KernelScene frame_ks;
-  SceneCompiler compiler;
-  SceneDelta frame_delta = compiler.compile(scene, settings, frame_ks);
-  AccelStructure accel(bench_accel_settings(kBvhLayoutBinary));
-  frame_delta = frame_delta | accel.update(frame_ks, frame_delta).delta;
-  CudaBackend cuda;
-  cuda.sync(frame_ks, frame_delta);
+  GpuScene gpu(scene, settings);
+  CudaBackend& cuda = gpu.cuda;
   for (const CudaKernelVariant kernel : config.kernels) {
     cuda.set_variant(kernel);
     for (const KBvhLayout layout : {kBvhLayoutBinary, kBvhLayoutWide}) {
-      use_layout(accel, frame_ks, cuda, layout);
+      gpu.use_layout(scene, settings, layout);
       GpuFrameFigures p = time_frames(cuda, config);
       p.kernel = kernel_variant_name(kernel);
       p.layout = layout_name(layout);

@@ -28,10 +28,9 @@ struct GpuBenchConfig {
 // `scene` is compiled again at the frame resolution for path tracing (with
 // a camera of that aspect when `frame_camera_from_bounds`). Throws
 // InputError when no CUDA device is usable.
-GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name, KernelScene& ks,
-                                  const SceneDelta& delta, const CpuBackend& embree,
-                                  const BenchRays& rays, uint32_t ray_width, uint32_t ray_height,
-                                  int embree_threads, bool frame_camera_from_bounds,
-                                  const GpuBenchConfig& config);
+GpuBenchFigures measure_gpu_bench(Scene& scene, const std::string& scene_name,
+                                  const CpuBackend& embree, const BenchRays& rays,
+                                  const RenderSettings& ray_settings, int embree_threads,
+                                  bool frame_camera_from_bounds, const GpuBenchConfig& config);
 
 }  // namespace tandem

@@ -13,13 +13,13 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "accstruc/accel_structure.h"
 #include "app/bench_mode.h"
 #include "app/bench_report.h"
 #include "app/cli_args.h"
 #include "core/util/errors.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 
@@ -116,19 +116,15 @@ int run_scene_update_bench(const std::vector<std::string>& argv) {
     // light_1 needs a light to change.
     if (scene.lights().empty()) scene.add_light(Light{});
     if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(scene.bounds(), 0.69f, 1.0f));
-    KernelScene ks;
-    SceneCompiler compiler;
-    AccelStructure accel;
-    const SceneDelta first = compiler.compile(scene, settings, ks);
-    accel.update(ks, first);
+    SceneSync scene_sync;
+    scene_sync.update(scene, settings);
     for (const UpdateCase& c : update_cases(scene)) {
       std::vector<double> ms;
       // One untimed round first: caches and the refit path warm up.
       for (uint32_t r = 0; r <= repeats; ++r) {
         c.edit(scene, r);
         const auto t0 = Clock::now();
-        const SceneDelta delta = compiler.compile(scene, settings, ks);
-        accel.update(ks, delta);
+        scene_sync.update(scene, settings);
         const double t = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
         if (r > 0) ms.push_back(t);
       }

@@ -34,6 +34,7 @@
 #include "core/kernel/integrator.h"
 #include "core/render/renderer.h"
 #include "core/util/errors.h"
+#include "sync/scene_sync.h"
 
 #include "app/bench_gpu.h"
 
@@ -183,12 +184,18 @@ int run_bench(const std::vector<std::string>& argv) {
     scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f,
                                          float(settings.width) / float(settings.height)));
   }
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  // The scene's kernel arrays; with --accstruc also Tandem's BVH, in the
+  // layout the host backend traces, for its path tracing at the end.
+  SceneSyncSettings sync_settings;
+  sync_settings.bvh = args.has("accstruc");
+  sync_settings.accel.cache.enabled = false;  // measure without the user's BVH cache
+  sync_settings.accel.layout = CpuBackend(CpuTraversal::kTandemBvh).traits().bvh_layout;
+  SceneSync scene_sync(sync_settings);
+  scene_sync.update(scene, settings);
+  const KernelScene& ks = scene_sync.kernel_scene();
   CpuBackend backend{CpuTraversal::kEmbree};
   const auto build_start = Clock::now();
-  backend.sync(ks, delta);
+  backend.sync(ks, scene_sync.changes_since(0));
   const double build_s = seconds_since(build_start);
   const KernelData kd = ks.view();
 
@@ -205,9 +212,8 @@ int run_bench(const std::vector<std::string>& argv) {
     GpuBenchConfig config;
     config.timed_frames = gpu_frames;
     if (args.has("kernel")) config.kernels = {backend_options.kernel};
-    const GpuBenchFigures figures =
-        measure_gpu_bench(scene, spec, ks, delta, backend, rays, settings.width, settings.height,
-                          workers, camera_from_bounds, config);
+    const GpuBenchFigures figures = measure_gpu_bench(scene, spec, backend, rays, settings, workers,
+                                                      camera_from_bounds, config);
     std::printf("%s", format_gpu_bench_table(figures).c_str());
     JsonValue report = bench_report("gpu", workers);
     add_gpu_bench_json(report, figures);
@@ -297,12 +303,11 @@ int run_bench(const std::vector<std::string>& argv) {
                  .set("path_tracing_cpu", json_number_list(pt_runs)));
 
   if (args.has("accstruc")) {
-    report.set("accstruc", run_accstruc_bench(ks, backend, rays, workers));
+    report.set("accstruc", run_accstruc_bench(scene, settings, scene_sync, backend, rays, workers));
     // The same path tracing on the host backend: our BVH (in the layout the
-    // host backend traces, filled in by run_accstruc_bench) under the same
-    // kernels.
+    // host backend traces) under the same kernels.
     CpuBackend host{CpuTraversal::kTandemBvh};
-    host.sync(ks, delta);
+    host.sync(ks, scene_sync.changes_since(0));
     const OfflineRenderResult h = render_offline(host, settings.width, settings.height, options);
     const double host_mrays = double(h.stats.rays) / h.seconds * 1e-6;
     std::printf("path tracing (host):    %8.2f Mrays/s, %.3f M samples/s, %.2f s (host/cpu %.2f)\n",

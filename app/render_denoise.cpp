@@ -7,20 +7,20 @@
 #include "core/render/temporal_denoiser.h"
 #include "core/util/errors.h"
 #include "core/world/motion_history.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 
 std::vector<PixelFeatures> render_scene_features(const Scene& scene,
                                                  const RenderSettings& settings) {
   Scene copy = scene;
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(copy, settings, ks);
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());  // Embree builds its own
+  const SceneSyncUpdate& up = scene_sync.update(copy, settings);
   CpuBackend backend{CpuTraversal::kEmbree};
-  backend.sync(ks, delta);
+  backend.sync(scene_sync.kernel_scene(), up.changes);
   MotionHistory motion;
   std::vector<PixelFeatures> features(size_t(settings.width) * settings.height);
-  backend.render_features(motion.advance(ks.view()), features.data());
+  backend.render_features(motion.advance(scene_sync.view()), features.data());
   return features;
 }
 

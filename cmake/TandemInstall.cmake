@@ -15,7 +15,7 @@ include(CMakePackageConfigHelpers)
 
 set(tandem_exported_libraries
   tandem_api tandem_tracer tandem_backends tandem_backend_cpu tandem_backend_cuda
-  tandem_cpu_loops tandem_scenes tandem_accstruc tandem_core tandem_kernel
+  tandem_cpu_loops tandem_scenes tandem_sync tandem_accstruc tandem_core tandem_kernel
   # Interface targets the static libraries name in their link interfaces.
   tandem_stb tandem_warnings)
 if(TARGET tandem_cuda_device)

@@ -114,8 +114,9 @@ TEST(CliHostileScenes, AnimationsPlayThroughHiddenAndOutOfRangeFrames) {
         ASSERT_TRUE(fs::exists(out)) << out;
         EXPECT_TRUE(all_finite(read_image(out))) << out;
       }
-      if (!c.warning.empty())
+      if (!c.warning.empty()) {
         EXPECT_NE(r.output.find(c.warning), std::string::npos) << b.backend << ": " << r.output;
+      }
     }
   }
 }

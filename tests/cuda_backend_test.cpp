@@ -228,8 +228,9 @@ TEST(CudaCommit, GrowthKeepsHeadroomAndSizeChangesResendWholeArrays) {
   EXPECT_EQ(commits.capacity(0, kArray_instances), instances + instances / 4);
   // A size change the delta does not flag is still sent whole.
   SceneDelta quiet;
-  fs.ks.instances.push_back(fs.ks.instances.front());
-  const CommitPlan p = commits.plan(fs.ks, quiet);
+  KernelScene grown = fs.ks;
+  grown.instances.push_back(grown.instances.front());
+  const CommitPlan p = commits.plan(grown, quiet);
   bool whole = false;
   for (const ArrayCopy& c : p.copies)
     whole = whole ||
@@ -349,7 +350,7 @@ TEST(CudaGpu, ImagesMatchHostTileByTile) {
     for (uint32_t layout : {uint32_t(kBvhLayoutBinary), uint32_t(kBvhLayoutWide)}) {
       SCOPED_TRACE(c.name + ", " + (layout == kBvhLayoutWide ? "wide" : "binary") + " BVH");
       FrameScene fs(c.scene(), width, height);
-      fs.accel.set_layout(KBvhLayout(layout));
+      fs.sync.set_bvh_layout(KBvhLayout(layout));
       const SceneDelta delta = fs.next_frame();
       CpuBackend host{CpuTraversal::kTandemBvh};
       host.sync(fs.ks, delta);
@@ -594,10 +595,11 @@ TEST(CudaGpu, DeviceFilmMatchesHostFilmAndToneMap) {
 
 TEST(CudaGpu, SyncWithoutBvhIsACallerBug) {
   TANDEM_REQUIRE_CUDA_DEVICE();
-  FrameScene fs(load_scene("builtin:cornell"), 16, 16);
-  const SceneDelta delta = fs.compiler.compile(fs.scene, fs.settings, fs.ks);  // no AccelStructure
+  Scene scene = load_scene("builtin:cornell");
+  SceneSync arrays_only(SceneSyncSettings::arrays_only());  // no BVH
+  const SceneSyncUpdate& up = arrays_only.update(scene, RenderSettings{});
   CudaBackend cuda;
-  EXPECT_THROW(cuda.sync(fs.ks, delta), std::logic_error);
+  EXPECT_THROW(cuda.sync(arrays_only.kernel_scene(), up.changes), std::logic_error);
 }
 
 }  // namespace

@@ -115,7 +115,7 @@ TEST(CudaSim, RendersTheHostBackendsImageBitForBitWithoutHazards) {
     auto sim = std::make_shared<SimDevice>();
     {
       FrameScene fs(load_scene("builtin:cornell-spheres"), width, height);
-      fs.accel.set_layout(KBvhLayout(layout));
+      fs.sync.set_bvh_layout(KBvhLayout(layout));
       const SceneDelta delta = fs.next_frame();
       CpuBackend host{CpuTraversal::kTandemBvh};
       host.sync(fs.ks, delta);

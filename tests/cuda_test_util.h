@@ -20,6 +20,7 @@
 #include "core/render/renderer.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem::cuda_test {
 
@@ -63,10 +64,9 @@ inline bool on_simulated_device() {
 
 struct FrameScene {
   Scene scene;
-  KernelScene ks;
-  SceneCompiler compiler;
   RenderSettings settings;
-  AccelStructure accel{accstruc_test::test_settings()};
+  SceneSync sync{SceneSyncSettings{.bvh = true, .accel = accstruc_test::test_settings()}};
+  const KernelScene& ks = sync.kernel_scene();
 
   FrameScene(Scene s, uint32_t width, uint32_t height) : scene(std::move(s)) {
     settings.width = width;
@@ -76,11 +76,7 @@ struct FrameScene {
     }
   }
   // Compiles the scene's edits and updates the BVH; returns the delta.
-  SceneDelta next_frame() {
-    SceneDelta delta = compiler.compile(scene, settings, ks);
-    delta = delta | accel.update(ks, delta).delta;
-    return delta;
-  }
+  SceneDelta next_frame() { return sync.update(scene, settings).changes; }
 };
 
 // Frame f of the dynamic-scene sequence: moves an instance, recolours a

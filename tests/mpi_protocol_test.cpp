@@ -7,6 +7,7 @@
 #include "backends/mpi/mpi_protocol.h"
 #include "core/render/film.h"
 #include "scenes/builtin_scenes.h"
+#include "sync/scene_sync.h"
 
 namespace tandem::mpi {
 namespace {
@@ -28,10 +29,11 @@ TEST(MpiProtocol, SceneArrivesWholeThenAsDeltas) {
   RenderSettings settings;
   settings.width = 64;
   settings.height = 48;
-  SceneCompiler compiler;
-  KernelScene sender, receiver;
+  SceneSync sync(SceneSyncSettings::arrays_only());
+  const KernelScene& sender = sync.kernel_scene();
+  KernelScene receiver;
   ArrayCounts counts{};
-  SceneDelta delta = compiler.compile(scene, settings, sender);
+  SceneDelta delta = sync.update(scene, settings).changes;
   WireWriter w;
   encode_scene(sender, delta, counts, w);
   WireReader r(w.bytes(), "test");
@@ -45,7 +47,7 @@ TEST(MpiProtocol, SceneArrivesWholeThenAsDeltas) {
   glm::mat4 moved = scene.instances()[0].transform;
   moved[3][0] += 0.25f;
   scene.set_instance_transform(0, moved);
-  delta = compiler.compile(scene, settings, sender);
+  delta = sync.update(scene, settings).changes;
   ASSERT_TRUE(delta.any());
   WireWriter w2;
   encode_scene(sender, delta, counts, w2);
@@ -84,10 +86,10 @@ TEST(MpiProtocol, ArrayThatChangedSizeIsSentWhole) {
 TEST(MpiProtocol, TruncatedOrCorruptMessagesAreErrorsNotCrashes) {
   Scene scene = make_builtin_scene("cornell");
   RenderSettings settings;
-  SceneCompiler compiler;
-  KernelScene sender;
+  SceneSync sync(SceneSyncSettings::arrays_only());
+  const KernelScene& sender = sync.kernel_scene();
   ArrayCounts counts{};
-  const SceneDelta delta = compiler.compile(scene, settings, sender);
+  const SceneDelta delta = sync.update(scene, settings).changes;
   WireWriter w;
   encode_scene(sender, delta, counts, w);
   const std::vector<uint8_t>& bytes = w.bytes();

@@ -9,6 +9,7 @@
 #include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/builtin_scenes.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -45,9 +46,9 @@ Stats pixel_stats(const ImageRGB& img, Keep keep) {
 }
 
 ImageRGB render_scene(Scene& scene, RenderSettings settings, uint32_t spp) {
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());
+  const SceneDelta delta = scene_sync.update(scene, settings).changes;
+  const KernelScene& ks = scene_sync.kernel_scene();
   CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;

@@ -28,6 +28,7 @@
 #include "core/render/renderer.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 #include "test_stats.h"
 
 namespace tandem {
@@ -71,18 +72,18 @@ Scene load_case(const SceneCase& c) {
 }
 
 // One compiled scene with both backends synced to it. The BVH is built by
-// AccelStructure exactly as `tandem render --backend host` does.
+// SceneSync exactly as `tandem render --backend host` does.
 struct BackendPair {
   Scene scene;
   RenderSettings settings;
-  KernelScene ks;
-  SceneCompiler compiler;
-  AccelStructure accel;
+  SceneSync sync;
+  const KernelScene& ks = sync.kernel_scene();
   CpuBackend cpu{CpuTraversal::kEmbree};
   CpuBackend host{CpuTraversal::kTandemBvh};
   CpuBackend host_wavefront{CpuTraversal::kTandemBvh, CudaKernelVariant::kWavefront};
 
-  BackendPair(Scene s, KBvhLayout layout) : scene(std::move(s)), accel(accel_settings(layout)) {
+  BackendPair(Scene s, KBvhLayout layout)
+      : scene(std::move(s)), sync(SceneSyncSettings{.bvh = true, .accel = accel_settings(layout)}) {
     settings.width = kWidth;
     settings.height = kHeight;
     settings.max_depth = 4;
@@ -97,12 +98,11 @@ struct BackendPair {
     a.layout = layout;
     return a;
   }
-  // A new frame with another seed: the compiler's delta, our BVH update and
-  // both syncs, as the per-frame loop runs them.
+  // A new frame with another seed: the scene and BVH update and the
+  // backends' syncs, as the per-frame loop runs them.
   void set_seed(uint32_t seed) {
     settings.seed = seed;
-    SceneDelta delta = compiler.compile(scene, settings, ks);
-    delta = delta | accel.update(ks, delta).delta;
+    const SceneDelta& delta = sync.update(scene, settings).changes;
     cpu.sync(ks, delta);
     host.sync(ks, delta);
     host_wavefront.sync(ks, delta);
@@ -215,9 +215,9 @@ TEST(HostBackendTest, SyncWithoutBvhIsAClearError) {
   RenderSettings settings;
   settings.width = 8;
   settings.height = 8;
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());
+  const SceneDelta delta = scene_sync.update(scene, settings).changes;
+  const KernelScene& ks = scene_sync.kernel_scene();
   CpuBackend host{CpuTraversal::kTandemBvh};
   EXPECT_TRUE(host.traits().needs_bvh);
   EXPECT_FALSE(CpuBackend(CpuTraversal::kEmbree).traits().needs_bvh);
@@ -225,7 +225,7 @@ TEST(HostBackendTest, SyncWithoutBvhIsAClearError) {
     host.sync(ks, delta);
     FAIL() << "sync without a BVH must throw";
   } catch (const std::logic_error& e) {
-    EXPECT_NE(std::string(e.what()).find("AccelStructure"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("SceneSync"), std::string::npos) << e.what();
   }
 }
 

@@ -14,6 +14,7 @@
 #include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/deforming_grid.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -62,9 +63,8 @@ TEST(RenderDeform, RefitEveryFrameRendersLikeAFreshBuild) {
   settings.width = kWidth;
   settings.height = kHeight;
   settings.max_depth = 4;
-  SceneCompiler compiler;
-  KernelScene ks;
-  AccelStructure accel(no_cache());
+  SceneSync sync(SceneSyncSettings{.bvh = true, .accel = no_cache()});
+  const KernelScene& ks = sync.kernel_scene();
   CpuBackend host(CpuTraversal::kTandemBvh);
   uint32_t refits = 0;
   for (uint32_t frame = 0; frame <= 30; ++frame) {
@@ -73,15 +73,15 @@ TEST(RenderDeform, RefitEveryFrameRendersLikeAFreshBuild) {
       deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.04f * float(frame));
       deform_wave_grid(scene.edit_mesh_vertices(1), lg, 0.1f * float(frame));
     }
-    SceneDelta delta = compiler.compile(scene, settings, ks);
-    const AccelUpdate up = accel.update(ks, delta);
-    refits += up.blas_refit;
-    host.sync(ks, delta | up.delta);
+    const SceneSyncUpdate& up = sync.update(scene, settings);
+    refits += up.accel.blas_refit;
+    host.sync(ks, up.changes);
   }
   EXPECT_GT(refits, 30u);
   const ImageRGB refit = render(host);
 
-  // The same frame's kernel arrays with every BVH built from scratch.
+  // The same frame's kernel arrays with every BVH built from scratch (the
+  // reference: AccelStructure alone, on a copy of the arrays).
   KernelScene fresh_ks = ks;
   AccelStructure fresh_accel(no_cache());
   fresh_accel.update(fresh_ks, SceneDelta::everything());

@@ -14,6 +14,7 @@
 #include "core/render/temporal_denoiser.h"
 #include "core/world/motion_history.h"
 #include "scenes/builtin_scenes.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -233,11 +234,11 @@ TEST(Denoise, NoGhostTrailBehindMovingObject) {
 // --- on a rendered scene ----------------------------------------------------
 
 struct Compiled {
-  KernelScene ks;
-  SceneCompiler compiler;
+  SceneSync sync{SceneSyncSettings::arrays_only()};
+  const KernelScene& ks = sync.kernel_scene();
   CpuBackend backend{CpuTraversal::kEmbree};
   void compile(Scene& scene, const RenderSettings& settings) {
-    backend.sync(ks, compiler.compile(scene, settings, ks));
+    backend.sync(ks, sync.update(scene, settings).changes);
   }
 };
 
@@ -305,11 +306,9 @@ TEST(Denoise, FeaturesAreTheSameOnEveryCpuBackendAndStaticWithoutMotion) {
   RenderSettings settings;
   settings.width = 40;
   settings.height = 30;
-  KernelScene ks;
-  SceneCompiler compiler;
-  SceneDelta delta = compiler.compile(scene, settings, ks);
-  AccelStructure accel;
-  delta = delta | accel.update(ks, delta).delta;
+  SceneSync sync;
+  const SceneDelta delta = sync.update(scene, settings).changes;
+  const KernelScene& ks = sync.kernel_scene();
   CpuBackend cpu{CpuTraversal::kEmbree};
   CpuBackend host{CpuTraversal::kTandemBvh};
   cpu.sync(ks, delta);

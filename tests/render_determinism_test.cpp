@@ -9,6 +9,7 @@
 #include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/builtin_scenes.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -20,9 +21,9 @@ ImageRGB render_cornell(uint32_t threads, uint32_t tile_size, uint32_t seed) {
   settings.width = 48;
   settings.height = 48;
   settings.seed = seed;
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());
+  const SceneDelta delta = scene_sync.update(scene, settings).changes;
+  const KernelScene& ks = scene_sync.kernel_scene();
   CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;

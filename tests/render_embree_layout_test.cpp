@@ -16,6 +16,7 @@
 #include "core/world/kernel_scene.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -25,8 +26,8 @@ constexpr uint32_t kWidth = 48, kHeight = 36;
 struct Compiled {
   Scene scene;
   RenderSettings settings;
-  KernelScene ks;
-  SceneCompiler compiler;
+  SceneSync sync{SceneSyncSettings::arrays_only()};
+  const KernelScene& ks = sync.kernel_scene();
   SceneDelta delta;
 
   explicit Compiled(Scene s) : scene(std::move(s)) {
@@ -35,7 +36,7 @@ struct Compiled {
     if (!scene.has_camera()) {
       scene.set_camera(frame_bounds_camera(scene.bounds(), 0.69f, float(kWidth) / float(kHeight)));
     }
-    delta = compiler.compile(scene, settings, ks);
+    delta = sync.update(scene, settings).changes;
   }
 };
 
@@ -155,7 +156,7 @@ TEST(EmbreeLayout, AMovedInstanceTurnsTheSceneTwoLevel) {
   const uint32_t sphere = 1;  // the mirror sphere (instance 0 is the box)
   c.scene.set_instance_transform(sphere,
                                  glm::translate(glm::mat4(1.0f), glm::vec3(0.2f, 0.1f, 0.3f)));
-  const SceneDelta moved = c.compiler.compile(c.scene, c.settings, c.ks);
+  const SceneDelta moved = c.sync.update(c.scene, c.settings).changes;
   embree.sync(c.ks, moved);
   EXPECT_FALSE(embree.flat());
   // It traces the moved scene: the same answers as a scene built for it.
@@ -164,7 +165,7 @@ TEST(EmbreeLayout, AMovedInstanceTurnsTheSceneTwoLevel) {
   fresh.sync(c.ks, moved);
   expect_same_answers(c.ks.view(), embree, fresh);
   // And it stays two-level through the next frames.
-  const SceneDelta again = c.compiler.compile(c.scene, c.settings, c.ks);
+  const SceneDelta again = c.sync.update(c.scene, c.settings).changes;
   embree.sync(c.ks, again);
   EXPECT_FALSE(embree.flat());
 }

@@ -18,6 +18,7 @@
 #include "core/world/kernel_scene.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -152,9 +153,8 @@ uint32_t expect_reference_bits(const KernelData& kd, uint32_t width, uint32_t he
 
 struct Compiled {
   Scene scene;
-  KernelScene ks;
-  SceneCompiler compiler;
-  AccelStructure accel{no_cache()};
+  SceneSync sync{SceneSyncSettings{.bvh = true, .accel = no_cache()}};
+  const KernelScene& ks = sync.kernel_scene();
   static AccelSettings no_cache() {
     AccelSettings as;
     as.cache.enabled = false;
@@ -168,8 +168,7 @@ struct Compiled {
     rs.radiance_clamp = 20.0f;  // the clamp is part of what must agree
     if (!scene.has_camera())
       scene.set_camera(frame_bounds_camera(scene.bounds(), 0.7f, float(width) / float(height)));
-    SceneDelta delta = compiler.compile(scene, rs, ks);
-    delta = delta | accel.update(ks, delta).delta;
+    sync.update(scene, rs);
   }
 };
 

@@ -8,6 +8,7 @@
 #include "backends/cpu/cpu_backend.h"
 #include "core/render/renderer.h"
 #include "scenes/scene_loader.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -35,9 +36,9 @@ TEST_P(ModelRenderTest, RendersFiniteNonBlackImage) {
   settings.height = 16;
   settings.max_depth = 4;
   if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(scene.bounds(), 0.69f, 1.5f));
-  KernelScene ks;
-  SceneCompiler compiler;
-  const SceneDelta delta = compiler.compile(scene, settings, ks);
+  SceneSync scene_sync(SceneSyncSettings::arrays_only());
+  const SceneDelta delta = scene_sync.update(scene, settings).changes;
+  const KernelScene& ks = scene_sync.kernel_scene();
   CpuBackend backend{CpuTraversal::kEmbree};
   backend.sync(ks, delta);
   OfflineRenderOptions options;

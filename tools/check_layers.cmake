@@ -16,15 +16,16 @@ set(TANDEM_LAYER_RULES
   "core/render:core/world,core/kernel,core/image,core/util"
   "accstruc:core/world,core/kernel,core/util"
   "scenes:core/world,core/kernel,core/image,core/util"
+  "sync:accstruc,core/world,core/kernel,core/image,core/util"
   "backends/cpu_loops:core/render,core/world,core/kernel,core/image,core/util"
   "backends/cpu:backends,backends/cpu_loops,core/render,core/world,core/kernel,core/image,core/util"
   "backends/cuda:backends,backends/cpu_loops,core/render,core/world,core/kernel,core/image,core/util"
   "backends/mpi:backends,core/render,core/world,core/kernel,core/image,core/util"
   "backends:backends/cpu,backends/cuda,core/render,core/world,core/kernel,core/image,core/util"
-  "core/tracer:accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "core/api:core/tracer,backends,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "app/view:app,core/tracer,backends,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "app:app/view,core/tracer,backends,backends/cpu,backends/mpi,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
+  "core/tracer:sync,accstruc,core/render,core/world,core/kernel,core/image,core/util"
+  "core/api:core/tracer,sync,backends,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
+  "app/view:app,core/tracer,sync,backends,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
+  "app:app/view,core/tracer,sync,backends,backends/cpu,backends/mpi,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
 )
 # Folders whose files may include anything (they test or measure the rest).
 set(TANDEM_LAYER_FREE tests tools)

@@ -11,7 +11,7 @@
 //               backend runs on the device. It is the reference that backend
 //               is tested against, and lets the BVH be checked against Embree
 //               image by image. It does not build the BVH itself: the caller
-//               runs AccelStructure::update() before sync()
+//               updates the scene through a SceneSync with a BVH before sync()
 //               (traits().needs_bvh).
 // Like the CUDA backend it has two kernels: the megakernel (one path per
 // sample, tile by tile) and the wavefront pipeline (core/kernel/wavefront.h

@@ -7,7 +7,6 @@
 #include <stdexcept>
 #include <thread>
 
-#include "accstruc/accel_structure.h"
 #include "core/util/activity.h"
 #include "core/util/errors.h"
 
@@ -45,21 +44,22 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
     : backends_(std::move(backends)), settings_(settings), scheduler_(settings.scheduler) {
   if (backends_.empty()) throw InputError("core tracer: no backend to render with");
   probe_rate_.assign(backends_.size(), 0.0);
-  synced_ahead_.assign(backends_.size(), false);
+  synced_generation_.assign(backends_.size(), 0);
   refresh_traits();
   // Only at the start: a BVH built from some later frame on would need a
   // full build, and backends only ever lose the need (a GPU falling back).
   // Every backend traces the layout kd.bvh.layout names, so refit frames
   // keep only that one.
-  AccelSettings accel;
-  accel.refit_unused_layout = false;
-  accel.layout = bvh_layout();
+  SceneSyncSettings sync;
+  sync.bvh = false;
+  for (const BackendTraits& t : traits_)
+    sync.bvh = sync.bvh || t.needs_bvh;
+  sync.accel.refit_unused_layout = false;
+  sync.accel.layout = bvh_layout();
   // The wide layout is chosen only when the host's loops alone trace it:
   // deforming meshes can then be refit in the binary layout alone.
-  accel.deforming_binary_only = true;
-  for (const BackendTraits& t : traits_) {
-    if (t.needs_bvh && !accel_) accel_ = std::make_unique<AccelStructure>(accel);
-  }
+  sync.accel.deforming_binary_only = true;
+  scene_sync_ = std::make_unique<SceneSync>(sync);
 }
 
 KBvhLayout CoreTracer::bvh_layout() const {
@@ -73,29 +73,23 @@ KBvhLayout CoreTracer::bvh_layout() const {
 }
 
 // While no backend traces Tandem's BVH (the GPU that needed it fell back to
-// Embree), nobody reads it: it is not updated, and the deltas it missed are
-// kept, merged, so that the frame a backend needs it again brings it to
-// what every update would have made of it.
-SceneDelta CoreTracer::update_accstruc(const SceneDelta& delta) {
-  if (!accel_) return delta;
+// Embree), nobody reads it: SceneSync leaves it alone until a backend needs
+// it again. The layout follows the backends that trace it.
+const SceneSyncUpdate& CoreTracer::update_scene(Scene& scene, const RenderSettings& settings) {
   bool needed = false;
   for (const BackendTraits& t : traits_)
     needed = needed || t.needs_bvh;
-  if (!needed) {
-    if (!accel_missed_) accel_missed_.emplace();
-    accel_missed_->merge(delta);
-    return delta;
-  }
-  // The backends that trace it may have changed (a GPU fell back): the
-  // layout follows them, the other one catching up in this update.
-  accel_->set_layout(bvh_layout());
-  if (accel_missed_) {
-    SceneDelta missed = std::move(*accel_missed_);
-    accel_missed_.reset();
-    missed.merge(delta);
-    return delta | accel_->update(kernel_scene_, missed).delta;
-  }
-  return delta | accel_->update(kernel_scene_, delta).delta;
+  scene_sync_->set_bvh_needed(needed);
+  if (needed) scene_sync_->set_bvh_layout(bvh_layout());
+  return scene_sync_->update(scene, settings);
+}
+
+// Called every frame, also when nothing changed: a backend with two copies
+// of the scene learns here which one the next render reads.
+void CoreTracer::sync_backend(size_t b) {
+  backends_[b]->sync(scene_sync_->kernel_scene(),
+                     scene_sync_->changes_since(synced_generation_[b]));
+  synced_generation_[b] = scene_sync_->generation();
 }
 
 void CoreTracer::refresh_traits() {
@@ -145,7 +139,7 @@ void CoreTracer::apply_settings(const TracerSettings& settings) {
 }
 
 bool CoreTracer::render_features(MotionHistory& motion, std::vector<PixelFeatures>& out) {
-  const KernelData kd = kernel_scene_.view();
+  const KernelData kd = scene_sync_->view();
   out.resize(size_t(kd.constants.camera.width) * kd.constants.camera.height);
   const FeaturePass pass = motion.advance(kd);
   for (const std::unique_ptr<Backend>& backend : backends_)
@@ -189,45 +183,39 @@ void CoreTracer::begin_frame(Scene& scene) {
 
   // SyncScene (the compiler also notices changed render settings) and
   // UpdateAccStruc; prepare_next_frame() may have done most of it already,
-  // and then `late` holds only the edits made since.
-  // Out of memory in any stage names the stage and the scene's file.
-  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
-  std::optional<ScopedActivity> activity;
-  activity.emplace("compiling the materials, meshes and lights" + of);
-  auto t = Clock::now();
-  SceneDelta late = compiler_.compile(scene, settings_.render, kernel_scene_);
-  m.sync_scene_seconds = seconds_since(t);
-  activity.reset();
-  activity.emplace("building the acceleration structure" + of);
-  t = Clock::now();
-  late = update_accstruc(late);
-  m.update_accstruc_seconds = seconds_since(t);
-  activity.reset();
-  activity.emplace("copying the scene" + of + " to the backends");
-  SceneDelta delta = late;
-  if (prepared_delta_) {
-    prepared_delta_->merge(late);
-    delta = std::move(*prepared_delta_);
-    prepared_delta_.reset();
+  // and then this update holds only the edits made since.
+  const SceneSyncUpdate& up = update_scene(scene, settings_.render);
+  m.sync_scene_seconds = up.compile_seconds;
+  m.update_accstruc_seconds = up.accstruc_seconds;
+  if (prepared_) {
     m.sync_scene_seconds += prepared_sync_seconds_;
     m.update_accstruc_seconds += prepared_accstruc_seconds_;
     m.overlapped_prepare = true;
+    prepared_ = false;
   }
-  m.delta_bytes = delta.any() ? delta.bytes(kernel_scene_) : 0;
+  const uint64_t previous_frame = frame_generation_;
+  const SceneDelta changes = scene_sync_->changes_since(previous_frame);
+  frame_generation_ = scene_sync_->generation();
+  m.delta_bytes = changes.any() ? changes.bytes(scene_sync_->kernel_scene()) : 0;
 
-  // SyncAccStruc: each backend commits what changed (the CUDA backend
-  // queues the upload on its copy stream and returns). Backends that
-  // prepare_next_frame() synced already get only the late edits.
-  t = Clock::now();
-  for (size_t b = 0; b < backends_.size(); ++b) {
-    backends_[b]->sync(kernel_scene_, synced_ahead_[b] ? late : delta);
-    m.overlapped_commit = m.overlapped_commit || synced_ahead_[b];
-    synced_ahead_[b] = false;
+  // SyncAccStruc: each backend commits what changed since it last did (the
+  // CUDA backend queues the upload on its copy stream and returns).
+  // Backends that prepare_next_frame() synced already get only the late
+  // edits.
+  {
+    const ScopedActivity activity("copying the scene of " +
+                                  (scene.source.empty() ? std::string("the scene") : scene.source) +
+                                  " to the backends");
+    const auto t = Clock::now();
+    for (size_t b = 0; b < backends_.size(); ++b) {
+      m.overlapped_commit = m.overlapped_commit || synced_generation_[b] > previous_frame;
+      sync_backend(b);
+    }
+    m.sync_accstruc_seconds = seconds_since(t) + prepared_commit_seconds_;
+    prepared_commit_seconds_ = 0.0;
   }
-  m.sync_accstruc_seconds = seconds_since(t) + prepared_commit_seconds_;
-  prepared_commit_seconds_ = 0.0;
 
-  if (delta.any()) reset_pending_ = true;
+  if (changes.any()) reset_pending_ = true;
   if (grid_stale_) {
     film_.resize(settings_.render.width, settings_.render.height);
     scheduler_.reset(
@@ -335,31 +323,26 @@ void CoreTracer::launch_render() {
 }
 
 void CoreTracer::sync_scene(Scene& scene) {
-  if (in_flight_ || prepared_delta_)
+  if (in_flight_ || prepared_)
     throw std::logic_error("CoreTracer::sync_scene: a frame is in flight or prepared");
   if (pending_settings_) {
     apply_settings(*pending_settings_);
     pending_settings_.reset();
   }
-  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
-  std::optional<ScopedActivity> activity;
-  activity.emplace("compiling the materials, meshes and lights" + of);
-  SceneDelta delta = compiler_.compile(scene, settings_.render, kernel_scene_);
-  activity.reset();
-  activity.emplace("building the acceleration structure" + of);
-  delta = update_accstruc(delta);
-  activity.reset();
-  activity.emplace("copying the scene" + of + " to the backends");
-  for (size_t b = 0; b < backends_.size(); ++b) {
-    backends_[b]->sync(kernel_scene_, delta);
-    synced_ahead_[b] = false;
-  }
-  if (delta.any()) reset_pending_ = true;
+  update_scene(scene, settings_.render);
+  const bool changed = scene_sync_->changes_since(frame_generation_).any();
+  frame_generation_ = scene_sync_->generation();
+  const ScopedActivity activity("copying the scene of " +
+                                (scene.source.empty() ? std::string("the scene") : scene.source) +
+                                " to the backends");
+  for (size_t b = 0; b < backends_.size(); ++b)
+    sync_backend(b);
+  if (changed) reset_pending_ = true;
 }
 
 bool CoreTracer::prepare_next_frame(Scene& scene) {
   if (!in_flight_) throw std::logic_error("CoreTracer::prepare_next_frame: no frame in flight");
-  if (prepared_delta_) return true;
+  if (prepared_) return true;
   for (const BackendTraits& t : traits_) {
     if (t.reads_host_scene_while_rendering) return false;
   }
@@ -367,17 +350,14 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   const RenderSettings& next = pending_settings_ ? pending_settings_->render : settings_.render;
   const ScopedActivity activity("preparing the next frame of " +
                                 (scene.source.empty() ? std::string("the scene") : scene.source));
-  auto t = Clock::now();
-  SceneDelta delta = compiler_.compile(scene, next, kernel_scene_);
-  prepared_sync_seconds_ = seconds_since(t);
-  t = Clock::now();
-  delta = update_accstruc(delta);
-  prepared_accstruc_seconds_ = seconds_since(t);
+  const SceneSyncUpdate& up = update_scene(scene, next);
+  prepared_sync_seconds_ = up.compile_seconds;
+  prepared_accstruc_seconds_ = up.accstruc_seconds;
 
   // SyncAccStruc ahead, for backends that commit into a copy this frame's
   // render does not read: once each render holds its scene, its backend may
   // receive the next frame.
-  t = Clock::now();
+  const auto t = Clock::now();
   for (size_t b = 0; b < backends_.size(); ++b) {
     if (!traits_[b].syncs_while_rendering) continue;
     {
@@ -387,11 +367,10 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
     // A backend whose render failed, or that fell back to the CPU, is
     // synced by the next begin_frame() instead.
     if (flight_.errors[b] || !backends_[b]->traits().syncs_while_rendering) continue;
-    backends_[b]->sync(kernel_scene_, delta);
-    synced_ahead_[b] = true;
+    sync_backend(b);
   }
   prepared_commit_seconds_ = seconds_since(t);
-  prepared_delta_ = std::move(delta);
+  prepared_ = true;
   return true;
 }
 
@@ -405,8 +384,8 @@ void CoreTracer::complete_incomplete_renders() {
       // The backend stopped part-way and switched to the CPU; nothing
       // renders now, so it may read the host scene (which holds the next
       // frame's scene if prepare_next_frame() ran: this frame shows that).
-      backends_[b]->sync(kernel_scene_, SceneDelta::everything());
-      synced_ahead_[b] = true;  // it has everything the next frame needs
+      backends_[b]->sync(scene_sync_->kernel_scene(), SceneDelta::everything());
+      synced_generation_[b] = scene_sync_->generation();  // all the next frame needs
       ResumedTiles tiles(e.unfinished(), *f.sources[b]);
       RenderPass pass = f.pass;
       pass.host_scene_may_change = false;

@@ -1,11 +1,12 @@
 // The core tracer: Brigade's frame loop over any set of backends.
 //
-//   SyncScene      SceneCompiler turns the scene's dirty objects into kernel
-//                  array ranges (a SceneDelta)
-//   UpdateAccStruc AccelStructure rebuilds/refits BLAS and the TLAS (only
-//                  when some backend traverses Tandem's own BVH)
-//   SyncAccStruc   every backend commits the delta (the CUDA backend
-//                  uploads only the changed ranges, asynchronously)
+//   SyncScene      SceneSync compiles the scene's dirty objects into kernel
+//   UpdateAccStruc array ranges and rebuilds/refits BLAS and the TLAS (only
+//                  when some backend traverses Tandem's own BVH): a new
+//                  generation of the kernel arrays
+//   SyncAccStruc   every backend commits what changed since the generation
+//                  it last committed (the CUDA backend uploads only the
+//                  changed ranges, asynchronously)
 //   Render         all backends render concurrently, each pulling tiles of
 //                  the frame from the TileScheduler
 //   Combine        tiles land in one Film; pixels may change owner from one
@@ -33,10 +34,9 @@
 #include "core/world/kernel_scene.h"
 #include "core/world/motion_history.h"
 #include "core/world/scene.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
-
-class AccelStructure;
 
 struct TracerSettings {
   RenderSettings render;  // resolution, depth, seed, clamp
@@ -154,9 +154,10 @@ class CoreTracer {
  private:
   void apply_settings(const TracerSettings& settings);
   void refresh_traits();
-  // UpdateAccStruc of `delta` (as the compiler reported it) when a backend
-  // needs the BVH; returns it united with the BVH arrays' changes.
-  SceneDelta update_accstruc(const SceneDelta& delta);
+  // SyncScene and UpdateAccStruc for the next frame under `settings`.
+  const SceneSyncUpdate& update_scene(Scene& scene, const RenderSettings& settings);
+  // SyncAccStruc of backend b: what changed since the generation it has.
+  void sync_backend(size_t b);
   void choose_host_core_backends();
   void complete_incomplete_renders();
   void record_host_core_probe();
@@ -184,11 +185,12 @@ class CoreTracer {
   // prefers it, else binary.
   KBvhLayout bvh_layout() const;
   TracerSettings settings_;
-  SceneCompiler compiler_;
-  KernelScene kernel_scene_;
-  std::unique_ptr<AccelStructure> accel_;  // null when no backend needs it
-  // The deltas accel_ missed while no backend needed it (update_accstruc()).
-  std::optional<SceneDelta> accel_missed_;
+  // The kernel arrays; with Tandem's BVH when some backend traces it.
+  std::unique_ptr<SceneSync> scene_sync_;
+  // Per backend: the generation of the kernel arrays it has committed.
+  std::vector<uint64_t> synced_generation_;
+  // The generation the last frame rendered (its changes reset accumulation).
+  uint64_t frame_generation_ = 0;
   TileScheduler scheduler_;
   Film film_;
   FrameMetrics metrics_;
@@ -198,9 +200,8 @@ class CoreTracer {
   size_t probe_ = 0;
   std::vector<double> probe_rate_;
   uint64_t frames_since_probe_ = 0;
-  // What prepare_next_frame() compiled for the next frame.
-  std::optional<SceneDelta> prepared_delta_;
-  std::vector<bool> synced_ahead_;  // which backends prepare_next_frame() synced
+  // prepare_next_frame() updated the scene for the next frame.
+  bool prepared_ = false;
   double prepared_sync_seconds_ = 0.0, prepared_accstruc_seconds_ = 0.0;
   double prepared_commit_seconds_ = 0.0;
   Flight flight_;

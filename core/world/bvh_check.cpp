@@ -10,8 +10,9 @@ void check_bvh_present(const KernelScene& ks, const char* backend) {
   const size_t node_count = wide ? ks.bvh_wide_nodes.size() : ks.bvh_nodes.size();
   const char* layout = wide ? "wide" : "binary";
   auto fail = [&](const std::string& what) {
-    throw std::logic_error(std::string(backend) + ": " + what + " (" + layout +
-                           " layout); run AccelStructure::update() before sync()");
+    throw std::logic_error(
+        std::string(backend) + ": " + what + " (" + layout +
+        " layout); update the scene through a SceneSync that builds the BVH before sync()");
   };
   bool any_triangles = false;
   for (const KInstance& inst : ks.instances) {

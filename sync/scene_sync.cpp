@@ -1,0 +1,87 @@
+#include "sync/scene_sync.h"
+
+#include <chrono>
+#include <ctime>
+#include <stdexcept>
+#include <string>
+
+#include "core/util/activity.h"
+
+namespace tandem {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + double(ts.tv_nsec) * 1e-9;
+}
+
+}  // namespace
+
+SceneSync::SceneSync(SceneSyncSettings settings) : settings_(std::move(settings)) {
+  if (settings_.bvh) accel_ = std::make_unique<AccelStructure>(settings_.accel);
+}
+
+SceneSync::~SceneSync() = default;
+
+void SceneSync::set_bvh_layout(KBvhLayout layout) {
+  settings_.accel.layout = layout;
+  if (accel_) accel_->set_layout(layout);
+}
+
+const SceneSyncUpdate& SceneSync::update(Scene& scene, const RenderSettings& settings) {
+  // Out of memory in either stage names the stage and the scene's file.
+  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
+  SceneSyncUpdate up;
+  {
+    const ScopedActivity activity("compiling the materials, meshes and lights" + of);
+    const auto start = Clock::now();
+    const double cpu = process_cpu_seconds();
+    up.changes = compiler_.compile(scene, settings, kernel_scene_);
+    up.compile_seconds = seconds_since(start);
+    up.compile_cpu_seconds = process_cpu_seconds() - cpu;
+  }
+  if (accel_ && !bvh_needed_) {
+    if (!bvh_missed_) bvh_missed_.emplace();
+    bvh_missed_->merge(up.changes);
+  } else if (accel_) {
+    const ScopedActivity activity("building the acceleration structure" + of);
+    const auto start = Clock::now();
+    const double cpu = process_cpu_seconds();
+    if (bvh_missed_) {
+      SceneDelta missed = std::move(*bvh_missed_);
+      bvh_missed_.reset();
+      missed.merge(up.changes);
+      up.accel = accel_->update(kernel_scene_, missed);
+    } else {
+      up.accel = accel_->update(kernel_scene_, up.changes);
+    }
+    up.changes.merge(up.accel.delta);
+    up.accstruc_seconds = seconds_since(start);
+    up.accstruc_cpu_seconds = process_cpu_seconds() - cpu;
+  }
+  up.generation = ++generation_;
+  history_.push_back(up.changes);
+  if (history_.size() > kHistory) history_.pop_front();
+  last_ = std::move(up);
+  return last_;
+}
+
+SceneDelta SceneSync::changes_since(uint64_t since) const {
+  if (since > generation_)
+    throw std::logic_error("SceneSync::changes_since: generation " + std::to_string(since) +
+                           " is ahead of the scene's " + std::to_string(generation_));
+  if (since == 0 || generation_ - since > history_.size()) return SceneDelta::everything();
+  SceneDelta changes;
+  for (size_t i = history_.size() - size_t(generation_ - since); i < history_.size(); ++i)
+    changes.merge(history_[i]);
+  return changes;
+}
+
+}  // namespace tandem

@@ -1,0 +1,111 @@
+// SceneSync: the one way a Scene's edits reach the kernel arrays that every
+// backend reads (Brigade's SyncScene and UpdateAccStruc, in that order).
+//
+// It owns the SceneCompiler (scene arrays and constants), the AccelStructure
+// (Tandem's BVH arrays, when some consumer traces them) and the KernelScene
+// they fill. update() brings all three up to date with a Scene and returns
+// a new generation; every consumer (a backend, an MPI peer) remembers the
+// generation it last committed and asks changes_since(g) for what it has
+// not seen. So a caller never joins the compiler's and the BVH's changes by
+// hand, never keeps "what was compiled early" or "what the BVH missed", and
+// two consumers that commit at different times (one ahead during a render,
+// one after it) each get exactly their own backlog.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+
+#include "accstruc/accel_structure.h"
+#include "core/world/kernel_scene.h"
+#include "core/world/scene.h"
+
+namespace tandem {
+
+struct SceneSyncSettings {
+  // Build and keep Tandem's BVH (TANDEM_BVH_ARRAYS). Off for consumers that
+  // build their own (Embree) or need only the scene arrays.
+  bool bvh = true;
+  AccelSettings accel;
+  // The scene arrays alone, for consumers that build their own structures.
+  static SceneSyncSettings arrays_only() {
+    SceneSyncSettings s;
+    s.bvh = false;
+    return s;
+  }
+};
+
+// What one update() did.
+struct SceneSyncUpdate {
+  uint64_t generation = 0;
+  // The arrays this update rewrote: the compiler's and the BVH's together.
+  SceneDelta changes;
+  // The BVH's part (counts and timings); empty when the BVH was not updated.
+  AccelUpdate accel;
+  // Wall time of each stage, and the process's CPU time in it (all threads).
+  double compile_seconds = 0.0, accstruc_seconds = 0.0;
+  double compile_cpu_seconds = 0.0, accstruc_cpu_seconds = 0.0;
+};
+
+class SceneSync {
+ public:
+  explicit SceneSync(SceneSyncSettings settings = {});
+  ~SceneSync();
+  SceneSync(const SceneSync&) = delete;
+  SceneSync& operator=(const SceneSync&) = delete;
+
+  // Compiles `scene`'s dirty objects under `settings` (the first call, or
+  // an added or removed object, compiles everything), then updates the BVH
+  // when it is needed, and clears the scene's dirty flags. Returns what was
+  // done; its generation is the new generation() (one more than before,
+  // also when nothing changed). Out of memory names the stage and the
+  // scene's file (core/util/activity.h).
+  const SceneSyncUpdate& update(Scene& scene, const RenderSettings& settings);
+
+  // Generation of the last update(); 0 before the first.
+  uint64_t generation() const { return generation_; }
+  // What changed in the kernel arrays after generation `since`, up to
+  // generation(): the union of the updates in between. A consumer that has
+  // seen nothing (since 0), or whose generation is older than the kept
+  // history, gets everything.
+  SceneDelta changes_since(uint64_t since) const;
+
+  // Whether Tandem's BVH is kept up to date, and in which layout. While it
+  // is not needed (the GPU that traced it fell back to Embree) updates skip
+  // it; the first update after it is needed again brings it to what every
+  // update would have made of it. No effect without SceneSyncSettings::bvh.
+  void set_bvh_needed(bool needed) { bvh_needed_ = needed; }
+  // Takes effect at the next update() (kd.bvh.layout changes then).
+  void set_bvh_layout(KBvhLayout layout);
+  bool has_bvh() const { return accel_ != nullptr; }
+  // The BVH builder (per-mesh BLAS, the TLAS); null without SceneSyncSettings::bvh.
+  const AccelStructure* accel() const { return accel_.get(); }
+
+  const KernelScene& kernel_scene() const { return kernel_scene_; }
+  KernelData view() const { return kernel_scene_.view(); }
+  // The arrays a mesh deformer may write a mesh's new positions into
+  // between updates (SceneAnimator::pose_into): the next update() marks
+  // them changed without copying them from the Scene. Nothing else may
+  // write the arrays.
+  KernelScene& arrays_for_deformer() { return kernel_scene_; }
+
+ private:
+  // Updates kept for changes_since(): consumers commit every frame, so a
+  // few suffice; one further behind gets everything.
+  static constexpr size_t kHistory = 16;
+
+  SceneSyncSettings settings_;
+  SceneCompiler compiler_;
+  KernelScene kernel_scene_;
+  std::unique_ptr<AccelStructure> accel_;
+  bool bvh_needed_ = true;
+  // The compiler's changes the BVH has not seen while it was not needed.
+  std::optional<SceneDelta> bvh_missed_;
+  uint64_t generation_ = 0;
+  SceneSyncUpdate last_;
+  // changes of generations [generation_ - history_.size() + 1, generation_].
+  std::deque<SceneDelta> history_;
+};
+
+}  // namespace tandem
