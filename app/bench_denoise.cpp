@@ -24,7 +24,7 @@
 #include "app/render_denoise.h"
 #include "app/view/scripted_path.h"
 #include "backends/cpu/cpu_backend.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/util/errors.h"
 #include "core/world/motion_history.h"

@@ -22,10 +22,10 @@
 #include "app/view/scripted_path.h"
 #include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_cluster.h"
-#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "scenes/arena_scene.h"
 #include "scenes/scene_loader.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 

@@ -4,7 +4,7 @@
 #include <cstdio>
 
 #include "app/backend_list.h"
-#include "core/tracer/core_tracer.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 

@@ -32,7 +32,7 @@
 #include "backends/cpu/cpu_backend.h"
 #include "backends/cpu/embree_tracer.h"
 #include "core/kernel/integrator.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "core/util/errors.h"
 #include "sync/scene_sync.h"
 

@@ -23,13 +23,13 @@
 #include "app/scene_setup.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
-#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
 #include "core/util/log.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/scene_animator.h"
 #include "scenes/scene_loader.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 

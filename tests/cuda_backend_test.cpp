@@ -30,13 +30,13 @@
 #include "backends/cuda/cuda_backend.h"
 #include "core/image/image.h"
 #include "core/kernel/tone_map.h"
-#include "core/render/renderer.h"
-#include "core/tracer/core_tracer.h"
+#include "core/render/offline_render.h"
 #include "core/util/errors.h"
 #include "cuda_test_util.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/deforming_grid.h"
 #include "scenes/procedural_scenes.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 namespace {

@@ -16,7 +16,7 @@
 #include "backends/cuda/cuda_backend.h"
 #include "backends/cuda/sim_device.h"
 #include "core/kernel/bvh_traverse.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/scene_loader.h"
 

@@ -16,10 +16,10 @@
 #include "backends/cuda/device_faults.h"
 #include "backends/cuda/device_launch.h"
 #include "backends/cuda/sim_device.h"
-#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "core/world/motion_history.h"
 #include "cuda_test_util.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 namespace {

@@ -17,7 +17,7 @@
 #include "backends/backend_factory.h"
 #include "backends/cuda/cuda_backend.h"
 #include "core/image/image.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
 #include "sync/scene_sync.h"

@@ -25,7 +25,7 @@
 #include "backends/cpu/embree_tracer.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/camera.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
 #include "sync/scene_sync.h"

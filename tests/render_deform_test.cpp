@@ -12,7 +12,7 @@
 
 #include "accstruc/accel_structure.h"
 #include "backends/cpu/cpu_backend.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/deforming_grid.h"
 #include "sync/scene_sync.h"
 

@@ -10,7 +10,7 @@
 
 #include "accstruc/accel_structure.h"
 #include "backends/cpu/cpu_backend.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/world/motion_history.h"
 #include "scenes/builtin_scenes.h"

@@ -7,7 +7,7 @@
 #include <cstring>
 
 #include "backends/cpu/cpu_backend.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/builtin_scenes.h"
 #include "sync/scene_sync.h"
 

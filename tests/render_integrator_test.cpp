@@ -14,7 +14,7 @@
 #include "backends/cpu_loops/cpu_wavefront.h"
 #include "core/kernel/bvh_traverse.h"
 #include "core/kernel/integrator.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"

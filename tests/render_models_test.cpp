@@ -6,7 +6,7 @@
 #include <filesystem>
 
 #include "backends/cpu/cpu_backend.h"
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 #include "scenes/scene_loader.h"
 #include "sync/scene_sync.h"
 

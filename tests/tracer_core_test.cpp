@@ -9,10 +9,10 @@
 #include "backends/cpu/cpu_backend.h"
 #include "backends/cpu_loops/cpu_tile_loop.h"
 #include "core/kernel/bvh_traverse.h"
-#include "core/render/renderer.h"
-#include "core/tracer/core_tracer.h"
+#include "core/render/offline_render.h"
 #include "core/util/activity.h"
 #include "scenes/builtin_scenes.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 namespace {

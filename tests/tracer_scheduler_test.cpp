@@ -6,7 +6,7 @@
 #include <atomic>
 #include <thread>
 
-#include "core/tracer/tile_scheduler.h"
+#include "tracer/tile_scheduler.h"
 
 namespace tandem {
 namespace {

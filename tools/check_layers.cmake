@@ -1,37 +1,43 @@
 # Checks that every #include "..." in the source tree goes down the layer
-# table of DEVELOPERS.md ("Layers"), never up or sideways. Run as
+# table, never up or sideways. The table is read from DEVELOPERS.md
+# ("Layers"), the one place it is written: each row that starts with a floor
+# number names a folder in backquotes in its second column and the folders
+# it may include in its third. Run as
 #   cmake -DROOT=<source dir> -P tools/check_layers.cmake
 # (ctest runs it as `project_layers`). An include of a folder that the
 # including folder may not see fails with the file, the line and the rule.
 #
 cmake_minimum_required(VERSION 3.20)
 
-# Each rule: a folder, then the folders its files may include (its own is
-# always allowed). A file belongs to the longest folder that names it.
-set(TANDEM_LAYER_RULES
-  "core/util:"
-  "core/kernel:"
-  "core/image:core/kernel,core/util"
-  "core/world:core/kernel,core/image,core/util"
-  "core/render:core/world,core/kernel,core/image,core/util"
-  "accstruc:core/world,core/kernel,core/util"
-  "scenes:core/world,core/kernel,core/image,core/util"
-  "sync:accstruc,core/world,core/kernel,core/image,core/util"
-  "backends/cpu_loops:core/render,core/world,core/kernel,core/image,core/util"
-  "backends/cpu:backends,backends/cpu_loops,core/render,core/world,core/kernel,core/image,core/util"
-  "backends/cuda:backends,backends/cpu_loops,core/render,core/world,core/kernel,core/image,core/util"
-  "backends/mpi:backends,core/render,core/world,core/kernel,core/image,core/util"
-  "backends:backends/cpu,backends/cuda,core/render,core/world,core/kernel,core/image,core/util"
-  "core/tracer:sync,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "core/api:core/tracer,sync,backends,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "app/view:app,core/tracer,sync,backends,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-  "app:app/view,core/tracer,sync,backends,backends/cpu,backends/mpi,backends/cuda,scenes,accstruc,core/render,core/world,core/kernel,core/image,core/util"
-)
 # Folders whose files may include anything (they test or measure the rest).
 set(TANDEM_LAYER_FREE tests tools)
 
 if(NOT ROOT)
   message(FATAL_ERROR "usage: cmake -DROOT=<source dir> -P check_layers.cmake")
+endif()
+
+# TANDEM_LAYER_RULES: "folder:allowed,allowed,...", one per table row.
+file(STRINGS "${ROOT}/DEVELOPERS.md" table_rows REGEX "^\\| *[0-9]+ *\\|")
+set(TANDEM_LAYER_RULES "")
+foreach(row IN LISTS table_rows)
+  # Columns: "", floor, folder, may include, why.
+  string(REPLACE "|" ";" columns "${row}")
+  list(GET columns 2 folder_column)
+  list(GET columns 3 allowed_column)
+  string(REGEX MATCHALL "`[^`]+`" folder "${folder_column}")
+  list(LENGTH folder n)
+  if(NOT n EQUAL 1)
+    message(FATAL_ERROR "DEVELOPERS.md: a layer row must name one folder: ${row}")
+  endif()
+  string(REPLACE "`" "" folder "${folder}")
+  string(REGEX MATCHALL "`[^`]+`" allowed "${allowed_column}")
+  string(REPLACE "`" "" allowed "${allowed}")
+  string(REPLACE ";" "," allowed_csv "${allowed}")
+  list(APPEND TANDEM_LAYER_RULES "${folder}:${allowed_csv}")
+endforeach()
+list(LENGTH TANDEM_LAYER_RULES rule_count)
+if(rule_count LESS 10)
+  message(FATAL_ERROR "DEVELOPERS.md: the layer table has ${rule_count} rows; is it still there?")
 endif()
 
 set(rule_folders "")

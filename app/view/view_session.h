@@ -17,9 +17,9 @@
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
 #include "core/render/temporal_denoiser.h"
-#include "core/tracer/core_tracer.h"
 #include "core/world/motion_history.h"
 #include "scenes/scene_animator.h"
+#include "tracer/core_tracer.h"
 
 namespace tandem {
 

@@ -30,11 +30,11 @@
 #include <vector>
 
 #include "core/render/backend.h"
-#include "core/tracer/tile_scheduler.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/motion_history.h"
 #include "core/world/scene.h"
 #include "sync/scene_sync.h"
+#include "tracer/tile_scheduler.h"
 
 namespace tandem {
 

@@ -1,4 +1,4 @@
-#include "core/tracer/core_tracer.h"
+#include "tracer/core_tracer.h"
 
 #include <algorithm>
 #include <chrono>

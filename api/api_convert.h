@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "core/api/tandem/tandem.h"
+#include "api/tandem/tandem.h"
 #include "core/world/scene.h"
 
 namespace tandem::api_detail {

@@ -12,16 +12,16 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "api/api_convert.h"
+#include "api/tandem/tandem.h"
 #include "backends/backend_factory.h"
 #include "backends/cuda/device_ops.h"
-#include "core/api/api_convert.h"
-#include "core/api/tandem/tandem.h"
 #include "core/image/image.h"
-#include "core/tracer/core_tracer.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
 #include "core/world/scene_ranges.h"
 #include "scenes/gltf_loader.h"
+#include "tracer/core_tracer.h"
 
 #ifndef TANDEM_VERSION_STRING
 #define TANDEM_VERSION_STRING "0.0.0"

@@ -1,4 +1,4 @@
-#include "core/tracer/tile_scheduler.h"
+#include "tracer/tile_scheduler.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "core/render/renderer.h"
+#include "core/render/offline_render.h"
 
 #include <algorithm>
 #include <atomic>

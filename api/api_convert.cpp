@@ -1,4 +1,4 @@
-#include "core/api/api_convert.h"
+#include "api/api_convert.h"
 
 #include <algorithm>
 #include <cmath>
