@@ -14,6 +14,7 @@
 #include "core/kernel/camera.h"
 #include "core/kernel/sampling.h"
 #include "core/world/kernel_scene.h"
+#include "scenes/deforming_grid.h"
 #include "scenes/procedural_scenes.h"
 #include "scenes/scene_loader.h"
 #include "sync/scene_sync.h"
@@ -168,6 +169,53 @@ TEST(EmbreeLayout, AMovedInstanceTurnsTheSceneTwoLevel) {
   const SceneDelta again = c.sync.update(c.scene, c.settings).changes;
   embree.sync(c.ks, again);
   EXPECT_FALSE(embree.flat());
+}
+
+// A frame that deforms one mesh or moves one instance commits again only the
+// instances it touched (those of the refit mesh, or the moved one), and
+// traces like an Embree scene built for that frame.
+TEST(EmbreeLayout, AFrameCommitsOnlyTheInstancesItTouched) {
+  Scene scene;
+  scene.add_material(Material{});
+  WaveGrid g{.cells = 12, .size = 1.0f, .amplitude = 0.05f, .wavelength = 1.0f};
+  scene.add_mesh(make_wave_grid(g));  // 3 instances
+  scene.add_mesh(make_wave_grid(g));  // 5 instances
+  // Side by side in a row, each turned to face the camera (+z).
+  const glm::mat4 facing = glm::rotate(glm::mat4(1.0f), glm::radians(90.0f), glm::vec3(1, 0, 0));
+  for (uint32_t i = 0; i < 8; ++i) {
+    scene.add_instance(
+        {"grid", i < 3 ? 0u : 1u,
+         glm::translate(glm::mat4(1.0f), glm::vec3(1.1f * float(i % 4), 1.1f * float(i / 4), 0)) *
+             facing});
+  }
+  Camera close;  // the grids fill the frame
+  close.position = {1.65f, 0.55f, 2.5f};
+  scene.set_camera(close);
+  Compiled c(std::move(scene));
+  EmbreeScene embree;
+  embree.disallow_flat();
+  embree.sync(c.ks, c.delta);
+
+  g.amplitude = 0.2f;
+  deform_wave_grid(c.scene.edit_mesh_vertices(0), g, 0.3f);
+  const SceneDelta deformed = c.sync.update(c.scene, c.settings).changes;
+  ASSERT_EQ(deformed.meshes_refit, std::vector<uint32_t>{0});
+  embree.sync(c.ks, deformed);
+  EXPECT_EQ(embree.last_instance_commits(), 3u) << "the refit mesh's instances, once each";
+  EmbreeScene fresh;
+  fresh.disallow_flat();
+  fresh.sync(c.ks, SceneDelta::everything());
+  expect_same_answers(c.ks.view(), fresh, embree);
+
+  c.scene.set_instance_transform(
+      6, glm::translate(glm::mat4(1.0f), glm::vec3(2.3f, 1.2f, 0.3f)) * facing);
+  const SceneDelta moved = c.sync.update(c.scene, c.settings).changes;
+  embree.sync(c.ks, moved);
+  EXPECT_EQ(embree.last_instance_commits(), 1u);
+  EmbreeScene fresh_moved;
+  fresh_moved.disallow_flat();
+  fresh_moved.sync(c.ks, SceneDelta::everything());
+  expect_same_answers(c.ks.view(), fresh_moved, embree);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "backends/cpu/embree_tracer.h"
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -302,12 +303,17 @@ void EmbreeScene::build_two_level(const KernelScene& ks) {
     blas_[m] = build_blas(ks, uint32_t(m));
   top_ = rtcNewScene(device_);
   rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
-  for (size_t i = 0; i < ks.instances.size(); ++i)
+  mesh_instances_.assign(ks.meshes.size(), {});
+  for (size_t i = 0; i < ks.instances.size(); ++i) {
     attach_instance(ks.instances[i], unsigned(i));
+    if (ks.instances[i].mesh < ks.meshes.size())
+      mesh_instances_[ks.instances[i].mesh].push_back(uint32_t(i));
+  }
   rtcCommitScene(top_);
 }
 
 void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
+  last_instance_commits_ = 0;
   // Embree shares our vertex/index memory, so a reallocated array means the
   // BLAS must be rebuilt against the new storage.
   if (delta.full || !top_ || delta.positions.reallocated || delta.triangles.reallocated ||
@@ -343,20 +349,32 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
       rtcCommitGeometry(g);
       rtcCommitScene(blas_[m]);
     }
-    if (delta.instances_changed) {
-      for (uint32_t i = delta.instances.begin; i < delta.instances.end; ++i) {
-        RTCGeometry g = rtcGetGeometry(top_, i);
-        set_instance(g, ks.instances[i]);
-        rtcCommitGeometry(g);
-      }
-      // Refit BLAS changed their bounds, so the instances referencing them
-      // must be re-committed as well.
-      if (!delta.meshes_refit.empty()) {
-        for (size_t i = 0; i < ks.instances.size(); ++i)
-          rtcCommitGeometry(rtcGetGeometry(top_, unsigned(i)));
-      }
-      rtcCommitScene(top_);
+    // Committed again: the instances whose record changed (the exact list
+    // when the delta has one, else its ranges), and the instances of refit
+    // meshes, whose BLAS bounds changed; never the others, which a walk of
+    // the bounding range or of every instance would recommit in a scene of
+    // many instances where one mesh deforms.
+    std::vector<uint32_t> commit;
+    if (!delta.instances_moved.empty()) {
+      commit = delta.instances_moved;
+    } else {
+      delta.instances.for_each_range([&](uint32_t b, uint32_t e) {
+        for (uint32_t i = b; i < e; ++i)
+          commit.push_back(i);
+      });
     }
+    for (uint32_t i : commit)
+      set_instance(rtcGetGeometry(top_, i), ks.instances[i]);
+    for (uint32_t m : delta.meshes_refit) {
+      if (m < mesh_instances_.size())
+        commit.insert(commit.end(), mesh_instances_[m].begin(), mesh_instances_[m].end());
+    }
+    std::sort(commit.begin(), commit.end());
+    commit.erase(std::unique(commit.begin(), commit.end()), commit.end());
+    for (uint32_t i : commit)
+      rtcCommitGeometry(rtcGetGeometry(top_, i));
+    last_instance_commits_ = uint32_t(commit.size());
+    if (last_instance_commits_ > 0) rtcCommitScene(top_);
   }
 }
 

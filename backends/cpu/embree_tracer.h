@@ -46,6 +46,8 @@ class EmbreeScene {
   bool flat() const { return flat_; }
   // Never flatten (tests compare the two layouts).
   void disallow_flat() { dynamic_ = true; }
+  // Instances the last sync() committed again without a rebuild.
+  uint32_t last_instance_commits() const { return last_instance_commits_; }
 
  private:
   void release_scenes();
@@ -61,6 +63,8 @@ class EmbreeScene {
   std::vector<RTCScene> blas_;  // null for the meshes of a flat scene's identity instances
   bool flat_ = false;
   bool dynamic_ = false;  // an instance has moved or a mesh deformed: stay two-level
+  std::vector<std::vector<uint32_t>> mesh_instances_;  // two-level: the instances of each mesh
+  uint32_t last_instance_commits_ = 0;
 };
 
 // A triangle geometry over mesh `mesh` of `ks`, sharing its vertex and index
