@@ -40,7 +40,7 @@ struct AccelSettings {
   // (build_bvh_spatial) of up to as many extra references as triangles for
   // static meshes: on slivers and triangle soups (builtin:procedural's grass
   // and soup) they cut the triangle tests per ray by 40%, for a build 3-5x
-  // as long (docs/performance/host_traversal.md). The environment's
+  // as long (docs/performance/log/host_traversal.md). The environment's
   // TANDEM_BVH_SPATIAL_SPLITS=budget (0 to 4; 0: none) overrides the budget.
   // A BLAS that got split references cannot be refit (BlasRefit needs every
   // triangle in one leaf): a mesh marked as deforming (kMeshDeforms) is
@@ -52,8 +52,8 @@ struct AccelSettings {
   // of up to 8 triangles, split by the SAH only where a node costs as much
   // as four triangle tests. On a million-vertex skinned grid the binary
   // nodes fall from about 1 M to 250 K and the refit takes about half the
-  // time, for 1-3 % more render time (docs/performance/deforming_meshes.md,
-  // Round 12).
+  // time, for 1-3 % more render time (measured in
+  // docs/performance/log/deforming_meshes.md, "fewer nodes, each vertex once").
   BuildSettings deforming_blas = {.max_leaf_size = 8, .traversal_cost = 4.0f};
   // TLAS: one instance per leaf; fewer bins keep per-frame rebuilds cheap.
   BuildSettings tlas = {SplitMethod::kBinnedSah, 8, true, 1, 1.0f, 1.0f};

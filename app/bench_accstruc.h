@@ -50,12 +50,10 @@ double embree_kind_mrays(const CpuBackend& embree, const std::vector<Ray>& rays,
 // Prints BLAS build throughput (ours vs Embree's builder), the SAH cost of
 // our BLAS (vs a median-split build), and closest-hit / any-hit throughput
 // of our two layouts vs Embree for primary, diffuse and shadow rays, on one
-// thread and on `threads` threads. `scene_sync` holds `scene` compiled
-// under `render`, with its BVH; `embree` must be synced to it. The build is
-// timed on fresh updates of `scene`. Returns the printed figures for the
+// thread and on `threads` threads. `scene_sync` holds the scene with its
+// BVH; `embree` must be synced to it. Returns the printed figures for the
 // JSON report.
-JsonValue run_accstruc_bench(Scene& scene, const RenderSettings& render,
-                             const SceneSync& scene_sync, const CpuBackend& embree,
+JsonValue run_accstruc_bench(const SceneSync& scene_sync, const CpuBackend& embree,
                              const BenchRays& rays, int threads);
 
 }  // namespace tandem

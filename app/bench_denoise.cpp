@@ -131,9 +131,10 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
   const uint32_t frames = args.get_u32("path-frames", 60, 4, 1u << 20);
   const uint32_t ref_spp = args.get_u32("reference-spp", 1024, 8, 1u << 20);
   const uint32_t repeat = args.get_u32("repeat", 5, 1, 1000);
-  // For profiling the filter alone (docs/performance/denoiser.md, "Round
-  // 7"): TANDEM_DENOISE_DUMP=DIR writes the features and 1-spp radiance of
-  // the first TANDEM_DENOISE_DUMP_FRAMES frames (default 8) to DIR.
+  // For profiling the filter alone, without rendering (callgrind of a
+  // loop over dumped frames): TANDEM_DENOISE_DUMP=DIR writes the features
+  // and 1-spp radiance of the first TANDEM_DENOISE_DUMP_FRAMES frames
+  // (default 8) to DIR.
   std::optional<std::string> dump_dir;
   if (const char* d = std::getenv("TANDEM_DENOISE_DUMP")) dump_dir = d;
   uint32_t dump_frames = 8;

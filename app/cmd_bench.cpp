@@ -303,7 +303,7 @@ int run_bench(const std::vector<std::string>& argv) {
                  .set("path_tracing_cpu", json_number_list(pt_runs)));
 
   if (args.has("accstruc")) {
-    report.set("accstruc", run_accstruc_bench(scene, settings, scene_sync, backend, rays, workers));
+    report.set("accstruc", run_accstruc_bench(scene_sync, backend, rays, workers));
     // The same path tracing on the host backend: our BVH (in the layout the
     // host backend traces) under the same kernels.
     CpuBackend host{CpuTraversal::kTandemBvh};

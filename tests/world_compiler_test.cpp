@@ -317,8 +317,9 @@ TEST(HugePages, AdviceCoversTheWholeHugePagesInsideTheRange) {
 
 // Texture lookups land at random all over the texel array: the compiler
 // reserves it whole and advises huge pages before writing it, so a lookup
-// does not miss the TLB on every row (docs/performance/cpu_path_tracing.md,
-// round 13). Read back from the mapping's flags ("hg": huge page advice).
+// does not miss the TLB on every row (measured in
+// docs/performance/log/cpu_path_tracing.md). Read back from the mapping's
+// flags ("hg": huge page advice).
 TEST(SceneCompiler, TexelsLieInMemoryAdvisedForHugePages) {
   std::vector<char> probe(3 * kHugePageBytes);
   if (advise_huge_pages(probe.data(), probe.size()) == 0 || mapping_flags(probe.data()).empty()) {

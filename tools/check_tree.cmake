@@ -4,11 +4,15 @@
 #     every C++/CUDA source is formatted as the committed .clang-format says;
 #   cmake -DROOT=<source dir> -DCHECK=tracker -P tools/check_tree.cmake
 #     no source file, build file or doc names an issue-tracker number: they
-#     mean nothing to a reader of the code, a bench table or a log.
+#     mean nothing to a reader of the code, a bench table or a log;
+#   cmake -DROOT=<source dir> -DCHECK=links -P tools/check_tree.cmake
+#     every relative link of a Markdown file ([text](path) and images) names
+#     a file or folder that exists, so moving a document cannot leave its
+#     readers at a dead end (ctest `project_doc_links`).
 cmake_minimum_required(VERSION 3.20)
 
 if(NOT ROOT OR NOT CHECK)
-  message(FATAL_ERROR "usage: cmake -DROOT=<dir> -DCHECK=format|tracker [-DCLANG_FORMAT=<path>] -P check_tree.cmake")
+  message(FATAL_ERROR "usage: cmake -DROOT=<dir> -DCHECK=format|tracker|links [-DCLANG_FORMAT=<path>] -P check_tree.cmake")
 endif()
 
 function(tree_files out)
@@ -61,6 +65,33 @@ elseif(CHECK STREQUAL "tracker")
   endif()
   list(LENGTH files n)
   message(STATUS "tracker: ${n} files, no tracker numbers")
+elseif(CHECK STREQUAL "links")
+  tree_files(docs "${ROOT}/*.md")
+  set(bad 0)
+  set(links 0)
+  foreach(f IN LISTS docs)
+    get_filename_component(dir "${ROOT}/${f}" DIRECTORY)
+    file(STRINGS "${ROOT}/${f}" lines REGEX "\\]\\([^)]+\\)")
+    foreach(line IN LISTS lines)
+      string(REGEX MATCHALL "\\]\\([^) ]+\\)" found "${line}")
+      foreach(link IN LISTS found)
+        string(REGEX REPLACE "^\\]\\(([^)#]*).*\\)$" "\\1" target "${link}")
+        if(target STREQUAL "" OR target MATCHES "^[a-z]+:")
+          continue()  # an anchor in the same file, or a URL
+        endif()
+        math(EXPR links "${links} + 1")
+        if(NOT EXISTS "${dir}/${target}")
+          message(SEND_ERROR "${f}: links to ${target}, which does not exist")
+          math(EXPR bad "${bad} + 1")
+        endif()
+      endforeach()
+    endforeach()
+  endforeach()
+  if(bad GREATER 0)
+    message(FATAL_ERROR "${bad} dead link(s) in the Markdown files")
+  endif()
+  list(LENGTH docs n)
+  message(STATUS "links: ${n} Markdown files, ${links} relative links, none dead")
 else()
   message(FATAL_ERROR "unknown CHECK=${CHECK}")
 endif()

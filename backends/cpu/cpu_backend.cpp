@@ -23,7 +23,7 @@ std::string CpuBackend::name() const {
 
 BackendTraits CpuBackend::traits() const {
   // The host's wide loop (bvh_wide_host.h) beats its binary one on every
-  // measured scene (docs/performance/host_traversal.md).
+  // measured scene (docs/performance/log/host_traversal.md).
   return {.needs_bvh = traversal_ == CpuTraversal::kTandemBvh,
           .bvh_layout = kBvhLayoutWide,
           .uses_host_cores = true};

@@ -227,7 +227,7 @@ TANDEM_HD uint32_t path_alpha_key(const PathState& p) {
 // once for both the radiance and the MIS pdf (env_radiance and
 // environment_light_pdf would each derive them: four atan2f per miss
 // instead of two, 2% of FlightHelmet's instructions, where many paths end
-// in a miss; docs/performance/cpu_path_tracing_rounds_4_10.md, Round 8).
+// in a miss; docs/performance/log/cpu_path_tracing_rounds_4_10.md).
 TANDEM_HD void path_shade_miss(const KernelData& kd, PathState* p) {
   const Vec3 dir = p->ray.dir;
   const Vec2 uv = env_map_uv(kd, dir);

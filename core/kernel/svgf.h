@@ -82,7 +82,7 @@ TANDEM_HD SvgfParams svgf_default_params(uint32_t width, uint32_t height) {
   // than the frame-to-frame noise (0.0117 / 0.0196 / 0.0154 with 4 against
   // 0.0119 / 0.0196 / 0.0155 with 5 at frames 15 / 30 / 59; SSIM within
   // 0.001) and costs a fifth of the a-trous stage
-  // (docs/performance/denoiser.md, Round 7).
+  // (docs/performance/log/denoiser.md).
   p.iterations = 4;
   p.sigma_depth = 1.0f;
   p.sigma_normal = 128.0f;

@@ -46,7 +46,7 @@ inline ptrdiff_t avx2_opaque(ptrdiff_t j) {
 // transformation) and the 9 plane pointers stay in registers; the centre's
 // miss flag is folded into its per-pixel constants, and the normal stop's
 // sigma too. About half the instructions per pixel (profile in
-// docs/performance/denoiser.md, Round 7). The remainder (< 8 pixels)
+// docs/performance/log/denoiser.md). The remainder (< 8 pixels)
 // goes through the generic pixel function.
 TANDEM_SVGF_AVX2 void svgf_atrous_interior_r1_avx2(const SvgfParams& params,
                                                    const SvgfAtrousPlanes& in, uint32_t step, int y,

@@ -2,7 +2,7 @@
 // (plain and non-temporal stores) and y += x, over buffers far larger than
 // the caches, on 1 and 2 threads; the best of five passes. It tells how far
 // a per-frame pass that must stream N bytes can go (the deforming meshes'
-// floor in docs/performance/deforming_meshes_rounds_1_6.md). Not part of the build:
+// floor in docs/performance/log/deforming_meshes_rounds_1_6.md). Not part of the build:
 //   g++ -O2 -pthread tools/membw/membw.cpp -o /tmp/membw && /tmp/membw
 #include <emmintrin.h>
 
