@@ -38,27 +38,15 @@ class CpuFallbackBackend final : public Backend {
   }
 
   void sync(const KernelScene& scene, const SceneDelta& delta) override {
-    Backend* backend;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      scene_ = &scene;
-      if (!deferred_failure_.empty() && !rendering_) {
-        // A sync that failed while the previous frame rendered.
-        fall_back_and_sync_locked(deferred_failure_, scene);
-        return;
-      }
-      backend = active_.get();
-    }
-    try {
-      backend->sync(scene, delta);
-    } catch (const DeviceError& e) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (rendering_) {
-        deferred_failure_ = e.what();  // the render in flight still uses the device backend
-        return;
-      }
-      fall_back_and_sync_locked(e.what(), scene);
-    }
+    sync_active(scene, nullptr, [&](Backend& b) { b.sync(scene, delta); });
+  }
+  // Forwarded whole: the device backend keeps a generation per buffer set.
+  void sync_from(const KernelScene& scene, const KernelChangeLog& log) override {
+    sync_active(scene, &log, [&](Backend& b) { b.sync_from(scene, log); });
+  }
+  void forget_synced() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    active_->forget_synced();
   }
 
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
@@ -95,7 +83,7 @@ class CpuFallbackBackend final : public Backend {
         throw RenderIncomplete("the GPU failed while rendering: " + failure, std::move(unfinished),
                                finished);
       }
-      active_->sync(*scene_, SceneDelta::everything());
+      sync_whole_locked(*scene_);
       backend = active_.get();
     }
     ResumedTiles resumed(std::move(unfinished), tiles);
@@ -120,6 +108,45 @@ class CpuFallbackBackend final : public Backend {
   }
 
  private:
+  // One sync of the active backend: a device failure falls back to the CPU
+  // (at once, or after the render in flight, which still uses the device).
+  template <class Sync>
+  void sync_active(const KernelScene& scene, const KernelChangeLog* log, Sync&& sync) {
+    Backend* backend;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      scene_ = &scene;
+      log_ = log;
+      if (!deferred_failure_.empty() && !rendering_) {
+        // A sync that failed while the previous frame rendered.
+        fall_back_and_sync_locked(deferred_failure_, scene);
+        return;
+      }
+      backend = active_.get();
+    }
+    try {
+      sync(*backend);
+    } catch (const DeviceError& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (rendering_) {
+        deferred_failure_ = e.what();  // the render in flight still uses the device backend
+        return;
+      }
+      fall_back_and_sync_locked(e.what(), scene);
+    }
+  }
+
+  // The whole scene to the active backend, through the caller's log when it
+  // syncs from one (so that its next sync_from() sends only what is new).
+  void sync_whole_locked(const KernelScene& scene) {
+    if (log_) {
+      active_->forget_synced();
+      active_->sync_from(scene, *log_);
+    } else {
+      active_->sync(scene, SceneDelta::everything());
+    }
+  }
+
   // Replaces the device backend by a CPU backend that has seen nothing yet.
   // The device backend is kept, not destroyed: the other thread may still be
   // inside its sync().
@@ -135,13 +162,14 @@ class CpuFallbackBackend final : public Backend {
   // nothing renders from the device backend any more).
   void fall_back_and_sync_locked(const std::string& failure, const KernelScene& scene) {
     fall_back_locked(failure);
-    active_->sync(scene, SceneDelta::everything());
+    sync_whole_locked(scene);
   }
 
   mutable std::mutex mutex_;
   std::unique_ptr<Backend> retired_;  // the failed device backend (see fall_back_locked)
   std::unique_ptr<Backend> active_;
   const KernelScene* scene_ = nullptr;
+  const KernelChangeLog* log_ = nullptr;  // of the last sync, when it came from a log
   std::atomic<bool> fell_back_{false};
   bool rendering_ = false;
   std::string deferred_failure_;

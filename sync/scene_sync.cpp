@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <ctime>
-#include <stdexcept>
 #include <string>
 
 #include "core/util/activity.h"
@@ -66,22 +65,9 @@ const SceneSyncUpdate& SceneSync::update(Scene& scene, const RenderSettings& set
     up.accstruc_seconds = seconds_since(start);
     up.accstruc_cpu_seconds = process_cpu_seconds() - cpu;
   }
-  up.generation = ++generation_;
-  history_.push_back(up.changes);
-  if (history_.size() > kHistory) history_.pop_front();
+  up.generation = log_.append(up.changes);
   last_ = std::move(up);
   return last_;
-}
-
-SceneDelta SceneSync::changes_since(uint64_t since) const {
-  if (since > generation_)
-    throw std::logic_error("SceneSync::changes_since: generation " + std::to_string(since) +
-                           " is ahead of the scene's " + std::to_string(generation_));
-  if (since == 0 || generation_ - since > history_.size()) return SceneDelta::everything();
-  SceneDelta changes;
-  for (size_t i = history_.size() - size_t(generation_ - since); i < history_.size(); ++i)
-    changes.merge(history_[i]);
-  return changes;
 }
 
 }  // namespace tandem

@@ -13,11 +13,11 @@
 #pragma once
 
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <optional>
 
 #include "accstruc/accel_structure.h"
+#include "core/world/kernel_change_log.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/scene.h"
 
@@ -64,12 +64,15 @@ class SceneSync {
   const SceneSyncUpdate& update(Scene& scene, const RenderSettings& settings);
 
   // Generation of the last update(); 0 before the first.
-  uint64_t generation() const { return generation_; }
+  uint64_t generation() const { return log_.generation(); }
   // What changed in the kernel arrays after generation `since`, up to
   // generation(): the union of the updates in between. A consumer that has
   // seen nothing (since 0), or whose generation is older than the kept
   // history, gets everything.
-  SceneDelta changes_since(uint64_t since) const;
+  SceneDelta changes_since(uint64_t since) const { return log_.changes_since(since); }
+  // The log itself, for consumers that keep their own generation
+  // (Backend::sync_from()).
+  const KernelChangeLog& change_log() const { return log_; }
 
   // Whether Tandem's BVH is kept up to date, and in which layout. While it
   // is not needed (the GPU that traced it fell back to Embree) updates skip
@@ -91,10 +94,6 @@ class SceneSync {
   KernelScene& arrays_for_deformer() { return kernel_scene_; }
 
  private:
-  // Updates kept for changes_since(): consumers commit every frame, so a
-  // few suffice; one further behind gets everything.
-  static constexpr size_t kHistory = 16;
-
   SceneSyncSettings settings_;
   SceneCompiler compiler_;
   KernelScene kernel_scene_;
@@ -102,10 +101,8 @@ class SceneSync {
   bool bvh_needed_ = true;
   // The compiler's changes the BVH has not seen while it was not needed.
   std::optional<SceneDelta> bvh_missed_;
-  uint64_t generation_ = 0;
+  KernelChangeLog log_;
   SceneSyncUpdate last_;
-  // changes of generations [generation_ - history_.size() + 1, generation_].
-  std::deque<SceneDelta> history_;
 };
 
 }  // namespace tandem

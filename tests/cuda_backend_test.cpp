@@ -173,6 +173,42 @@ TEST(CudaCommit, FirstCommitsFillBothSetsThenNothingMoves) {
   EXPECT_FALSE(commits.pending(0) || commits.pending(1));
 }
 
+// Each buffer set holds a generation of the scene's change log: it gets
+// what it missed since then, and a log it has not seen (another scene, a
+// copy) makes it take everything.
+TEST(CudaCommit, EachSetHoldsAGenerationOfTheLog) {
+  FrameScene fs(make_procedural_scene(3000, 9), 32, 32);
+  const KernelChangeLog& log = fs.sync.change_log();
+  DoubleBufferedCommits commits;
+  fs.next_frame();
+  const CommitPlan a = commits.plan(fs.ks, 0, log);
+  commits.complete(a);
+  EXPECT_FALSE(commits.pending(0, log));
+  EXPECT_TRUE(commits.pending(1, log));
+  fs.scene.edit_material(0).base_color = glm::vec4(0.1f, 0.9f, 0.3f, 1.0f);
+  fs.next_frame();
+  fs.scene.edit_material(1).base_color = glm::vec4(0.9f, 0.1f, 0.3f, 1.0f);
+  fs.next_frame();
+  // Set 0 missed two generations: both materials, and far from everything.
+  const CommitPlan b = commits.plan(fs.ks, 0, log);
+  std::vector<bool> material_sent(fs.ks.materials.size(), false);
+  for (const ArrayCopy& c : b.copies) {
+    EXPECT_FALSE(c.resize) << kernel_array_name(c.array);
+    if (c.array != kArray_materials) continue;
+    for (uint32_t i = c.begin; i < c.end; ++i)
+      material_sent[i] = true;
+  }
+  EXPECT_TRUE(material_sent[0]) << "the first generation it missed";
+  EXPECT_TRUE(material_sent[1]) << "the second";
+  EXPECT_LT(b.array_bytes(), a.array_bytes() / 10);
+  EXPECT_EQ(b.generation, log.generation());
+  commits.complete(b);
+  EXPECT_FALSE(commits.pending(0, log));
+  const KernelChangeLog copy = log;
+  const CommitPlan c = commits.plan(fs.ks, 0, copy);
+  EXPECT_EQ(c.array_bytes(), a.array_bytes()) << "another log's generation: everything";
+}
+
 TEST(CudaCommit, ChangeReachesTheOtherSetOneFrameLater) {
   FrameScene fs(make_procedural_scene(3000, 6), 32, 32);
   DoubleBufferedCommits commits;

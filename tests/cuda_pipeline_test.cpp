@@ -220,8 +220,7 @@ TEST(CudaCommit, EveryChangeReachesEachSetExactlyOnce) {
     // that arrive after the prepared commit.
     const bool amend = commits.has_committed() && !claimed;
     target = amend ? commits.current_set() : (commits.current_set() + 1) % 2;
-    commits.add(delta);
-    const CommitPlan plan = commits.plan(fs.ks, target);
+    const CommitPlan plan = commits.plan(fs.ks, target, fs.sync.change_log());
     for (const ArrayCopy& c : plan.copies) {
       std::vector<uint32_t>& d = device[target][c.array];
       if (c.resize) d.assign(c.count, ~0u);

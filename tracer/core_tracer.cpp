@@ -44,7 +44,6 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
     : backends_(std::move(backends)), settings_(settings), scheduler_(settings.scheduler) {
   if (backends_.empty()) throw InputError("core tracer: no backend to render with");
   probe_rate_.assign(backends_.size(), 0.0);
-  synced_generation_.assign(backends_.size(), 0);
   refresh_traits();
   // Only at the start: a BVH built from some later frame on would need a
   // full build, and backends only ever lose the need (a GPU falling back).
@@ -87,9 +86,12 @@ const SceneSyncUpdate& CoreTracer::update_scene(Scene& scene, const RenderSettin
 // Called every frame, also when nothing changed: a backend with two copies
 // of the scene learns here which one the next render reads.
 void CoreTracer::sync_backend(size_t b) {
-  backends_[b]->sync(scene_sync_->kernel_scene(),
-                     scene_sync_->changes_since(synced_generation_[b]));
-  synced_generation_[b] = scene_sync_->generation();
+  backends_[b]->sync_from(scene_sync_->kernel_scene(), scene_sync_->change_log());
+}
+
+void CoreTracer::resync_backend(size_t b) {
+  backends_[b]->forget_synced();
+  sync_backend(b);
 }
 
 void CoreTracer::refresh_traits() {
@@ -207,10 +209,10 @@ void CoreTracer::begin_frame(Scene& scene) {
                                   (scene.source.empty() ? std::string("the scene") : scene.source) +
                                   " to the backends");
     const auto t = Clock::now();
-    for (size_t b = 0; b < backends_.size(); ++b) {
-      m.overlapped_commit = m.overlapped_commit || synced_generation_[b] > previous_frame;
+    for (size_t b = 0; b < backends_.size(); ++b)
       sync_backend(b);
-    }
+    m.overlapped_commit = committed_ahead_;
+    committed_ahead_ = false;
     m.sync_accstruc_seconds = seconds_since(t) + prepared_commit_seconds_;
     prepared_commit_seconds_ = 0.0;
   }
@@ -368,6 +370,7 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
     // synced by the next begin_frame() instead.
     if (flight_.errors[b] || !backends_[b]->traits().syncs_while_rendering) continue;
     sync_backend(b);
+    committed_ahead_ = true;
   }
   prepared_commit_seconds_ = seconds_since(t);
   prepared_ = true;
@@ -384,8 +387,8 @@ void CoreTracer::complete_incomplete_renders() {
       // The backend stopped part-way and switched to the CPU; nothing
       // renders now, so it may read the host scene (which holds the next
       // frame's scene if prepare_next_frame() ran: this frame shows that).
-      backends_[b]->sync(scene_sync_->kernel_scene(), SceneDelta::everything());
-      synced_generation_[b] = scene_sync_->generation();  // all the next frame needs
+      resync_backend(b);
+      committed_ahead_ = true;  // it has all the next frame needs
       ResumedTiles tiles(e.unfinished(), *f.sources[b]);
       RenderPass pass = f.pass;
       pass.host_scene_may_change = false;

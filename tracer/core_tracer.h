@@ -5,8 +5,8 @@
 //                  when some backend traverses Tandem's own BVH): a new
 //                  generation of the kernel arrays
 //   SyncAccStruc   every backend commits what changed since the generation
-//                  it last committed (the CUDA backend uploads only the
-//                  changed ranges, asynchronously)
+//                  it last committed (Backend::sync_from; the CUDA backend
+//                  uploads only the changed ranges, asynchronously)
 //   Render         all backends render concurrently, each pulling tiles of
 //                  the frame from the TileScheduler
 //   Combine        tiles land in one Film; pixels may change owner from one
@@ -158,6 +158,8 @@ class CoreTracer {
   const SceneSyncUpdate& update_scene(Scene& scene, const RenderSettings& settings);
   // SyncAccStruc of backend b: what changed since the generation it has.
   void sync_backend(size_t b);
+  // Backend b has lost its copy of the scene: it gets all of it.
+  void resync_backend(size_t b);
   void choose_host_core_backends();
   void complete_incomplete_renders();
   void record_host_core_probe();
@@ -187,8 +189,6 @@ class CoreTracer {
   TracerSettings settings_;
   // The kernel arrays; with Tandem's BVH when some backend traces it.
   std::unique_ptr<SceneSync> scene_sync_;
-  // Per backend: the generation of the kernel arrays it has committed.
-  std::vector<uint64_t> synced_generation_;
   // The generation the last frame rendered (its changes reset accumulation).
   uint64_t frame_generation_ = 0;
   TileScheduler scheduler_;
@@ -200,8 +200,9 @@ class CoreTracer {
   size_t probe_ = 0;
   std::vector<double> probe_rate_;
   uint64_t frames_since_probe_ = 0;
-  // prepare_next_frame() updated the scene for the next frame.
-  bool prepared_ = false;
+  // prepare_next_frame() updated the scene for the next frame, and
+  // committed it to some backend.
+  bool prepared_ = false, committed_ahead_ = false;
   double prepared_sync_seconds_ = 0.0, prepared_accstruc_seconds_ = 0.0;
   double prepared_commit_seconds_ = 0.0;
   Flight flight_;

@@ -15,47 +15,31 @@ size_t CommitPlan::total_bytes() const {
   return array_bytes() + (view_changed ? sizeof(KernelData) : 0);
 }
 
-bool DoubleBufferedCommits::pending(uint32_t set) const {
+bool DoubleBufferedCommits::pending(uint32_t set, const KernelChangeLog& log) const {
   const SetState& s = sets_[set];
-  if (s.constants_pending) return true;
-  for (const ArrayChange& c : s.pending)
-    if (c.any()) return true;
-  return false;
+  return s.log != log.id() || log.changes_since(s.generation).any();
 }
 
-void DoubleBufferedCommits::add_delta(SetState& s, const SceneDelta& delta) {
-  for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
-    const ArrayChange& c = kernel_array_change(delta, a);
-    ArrayChange& p = s.pending[a];
-    if (delta.full || c.reallocated) {
-      p.reallocated = true;
-    } else {
-      c.for_each_range([&](uint32_t b, uint32_t e) { p.mark(b, e); });
-    }
-  }
+CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, uint32_t target,
+                                       const KernelChangeLog& log) const {
+  const SetState& s = sets_[target];
+  const SceneDelta changes = log.changes_since(s.log == log.id() ? s.generation : 0);
+  CommitPlan plan;
+  plan.set = target;
+  plan.log = log.id();
+  plan.generation = log.generation();
   // KernelData carries both writers' constants by value (the compiler's
   // KernelConstants, the BVH's KBvhConstants), so a change of either means
   // re-sending it (a few hundred bytes).
-  s.constants_pending = s.constants_pending || delta.constants || delta.bvh_constants || delta.full;
-}
-
-void DoubleBufferedCommits::add(const SceneDelta& delta) {
-  for (SetState& s : sets_)
-    add_delta(s, delta);
-}
-
-CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, uint32_t target) const {
-  const SetState& s = sets_[target];
-  CommitPlan plan;
-  plan.set = target;
-  plan.view_changed = s.constants_pending || !s.view_uploaded;
+  plan.view_changed =
+      changes.constants || changes.bvh_constants || changes.full || !s.view_uploaded;
   for (uint32_t a = 0; a < kKernelArrayCount; ++a) {
     const size_t host_count = kernel_array_host_count(ks, a);
     const uint32_t n = uint32_t(host_count);
-    const ArrayChange& p = s.pending[a];
+    const ArrayChange& p = kernel_array_change(changes, a);
     // A size change the delta did not flag still needs the whole array:
     // never trust a range against a buffer of a different length.
-    const bool whole = p.reallocated || n != s.count[a];
+    const bool whole = changes.full || p.reallocated || n != s.count[a];
     if (whole) {
       ArrayCopy c;
       c.array = a;
@@ -71,7 +55,7 @@ CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, uint32_t target) c
       // Pushed even when empty: the copy also carries the new count.
       plan.copies.push_back(c);
     } else {
-      // One copy per pending range: the gaps between them stay on the device.
+      // One copy per changed range: the gaps between them stay on the device.
       p.for_each_range([&](uint32_t b, uint32_t e) {
         const uint32_t end = std::min(e, n);
         if (end <= b) return;
@@ -93,8 +77,8 @@ void DoubleBufferedCommits::complete(const CommitPlan& plan) {
     if (c.new_capacity) s.capacity[c.array] = c.new_capacity;
     if (c.resize) s.count[c.array] = c.count;
   }
-  s.pending.fill(ArrayChange{});
-  s.constants_pending = false;
+  s.log = plan.log;
+  s.generation = plan.generation;
   s.view_uploaded = true;
   current_ = plan.set;
   committed_ = true;
@@ -102,20 +86,23 @@ void DoubleBufferedCommits::complete(const CommitPlan& plan) {
 
 void DoubleBufferedCommits::invalidate(uint32_t set) {
   SetState& s = sets_[set];
-  for (ArrayChange& p : s.pending)
-    p.reallocated = true;
+  s.log = s.generation = 0;
   s.count.fill(0);
   s.capacity.fill(0);
-  s.constants_pending = true;
   s.view_uploaded = false;
   // A set that cannot be rendered from is not the current one any more; if
   // it was, nothing is ready until the next commit completes.
   if (current_ == set) committed_ = false;
 }
 
+void DoubleBufferedCommits::forget_generations() {
+  for (SetState& s : sets_)
+    s.log = s.generation = 0;
+}
+
 CommitPlan DoubleBufferedCommits::plan(const KernelScene& ks, const SceneDelta& delta) {
-  add(delta);
-  const CommitPlan p = plan(ks, (current_ + 1) % kSets);
+  own_log_.append(delta);
+  const CommitPlan p = plan(ks, (current_ + 1) % kSets, own_log_);
   complete(p);
   return p;
 }

@@ -57,6 +57,11 @@ struct CudaBackend::Impl {
   // caller sized its output for. sync() may run on another thread.
   std::mutex camera_mutex;
   uint32_t synced_width = 0, synced_height = 0;
+  void note_synced_camera(const KernelScene& ks) {
+    std::lock_guard<std::mutex> lock(camera_mutex);
+    synced_width = ks.constants.camera.width;
+    synced_height = ks.constants.camera.height;
+  }
 
   Impl(std::shared_ptr<DeviceOps> device, CudaKernelVariant v, LaunchLimits l)
       : dev(std::move(device)),
@@ -315,9 +320,17 @@ CudaBackend::~CudaBackend() = default;
 void CudaBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
   check_bvh_present(scene, "cuda backend");
   impl_->commit_bytes_since_render += impl_->scene.commit(scene, delta);
-  std::lock_guard<std::mutex> lock(impl_->camera_mutex);
-  impl_->synced_width = scene.constants.camera.width;
-  impl_->synced_height = scene.constants.camera.height;
+  impl_->note_synced_camera(scene);
+}
+
+void CudaBackend::sync_from(const KernelScene& scene, const KernelChangeLog& log) {
+  check_bvh_present(scene, "cuda backend");
+  impl_->commit_bytes_since_render += impl_->scene.commit(scene, log);
+  impl_->note_synced_camera(scene);
+}
+
+void CudaBackend::forget_synced() {
+  impl_->scene.forget_generations();
 }
 
 bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {

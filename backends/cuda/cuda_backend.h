@@ -80,6 +80,10 @@ class CudaBackend final : public Backend {
   }
   // Throws std::logic_error when the scene's BVH arrays are missing.
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
+  // One generation of `log` per device buffer set (each gets what it
+  // missed since it was last written).
+  void sync_from(const KernelScene& scene, const KernelChangeLog& log) override;
+  void forget_synced() override;
   // Throws DeviceRenderError when the device fails.
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
   // The feature pass on the device (the Features kernel of svgf_kernels.cu),

@@ -55,8 +55,23 @@ void DeviceScene::release_buffers(BufferSet& set) noexcept {
   set.view = KernelData{};
 }
 
+size_t DeviceScene::commit(const KernelScene& ks, const KernelChangeLog& log) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return commit_locked(ks, log);
+}
+
 size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
   std::lock_guard<std::mutex> lock(mutex_);
+  own_log_.append(delta);
+  return commit_locked(ks, own_log_);
+}
+
+void DeviceScene::forget_generations() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  commits_.forget_generations();
+}
+
+size_t DeviceScene::commit_locked(const KernelScene& ks, const KernelChangeLog& log) {
   const uint32_t newest = commits_.current_set();
   const bool amend = commits_.has_committed() && !sets_[newest].claimed;
   const uint32_t target = amend ? newest : (newest + 1) % DoubleBufferedCommits::kSets;
@@ -66,8 +81,7 @@ size_t DeviceScene::commit(const KernelScene& ks, const SceneDelta& delta) {
         "DeviceScene::commit: both buffer sets are being rendered from; at most one render may "
         "be in flight while committing");
   }
-  commits_.add(delta);
-  const CommitPlan plan = commits_.plan(ks, target);
+  const CommitPlan plan = commits_.plan(ks, target, log);
   try {
     upload(set, plan, ks);
   } catch (...) {

@@ -43,10 +43,16 @@ class DeviceScene {
   DeviceScene(const DeviceScene&) = delete;
   DeviceScene& operator=(const DeviceScene&) = delete;
 
-  // Uploads `delta` (and what the target set missed from earlier frames),
-  // asynchronously. `ks` is only read during the call. Returns the bytes
-  // sent. Thread-safe against a render in flight on another thread.
+  // Uploads what `log` records beyond the generation the target set holds
+  // (what it missed from earlier frames included), asynchronously. `ks` is
+  // only read during the call. Returns the bytes sent. Thread-safe against
+  // a render in flight on another thread.
+  size_t commit(const KernelScene& ks, const KernelChangeLog& log);
+  // The same with `delta` as the next generation of a log of this scene's
+  // own, for callers that sync deltas rather than a log.
   size_t commit(const KernelScene& ks, const SceneDelta& delta);
+  // Both sets' next commits send everything.
+  void forget_generations();
   size_t last_commit_bytes() const;
 
   // A render's hold on the newest set: `stream` waits for the set's upload,
@@ -105,7 +111,10 @@ class DeviceScene {
 
   DeviceOps& ops_;
   DeviceStreamOwner copy_stream_;
+  size_t commit_locked(const KernelScene& ks, const KernelChangeLog& log);
+
   DoubleBufferedCommits commits_;
+  KernelChangeLog own_log_;  // commit(ks, delta)'s
   std::array<BufferSet, DoubleBufferedCommits::kSets> sets_{};
   size_t last_commit_bytes_ = 0;
   mutable std::mutex mutex_;

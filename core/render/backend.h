@@ -11,6 +11,7 @@
 
 #include "core/render/film.h"
 #include "core/render/tiles.h"
+#include "core/world/kernel_change_log.h"
 #include "core/world/kernel_scene.h"
 
 namespace tandem {
@@ -87,10 +88,9 @@ class RenderIncomplete : public std::runtime_error {
 // cannot forget a new capability.
 struct BackendTraits {
   // Traces Tandem's own BVH (the kernel arrays bvh_nodes etc.) rather than
-  // building its own structure. The caller runs AccelStructure::update()
-  // on the KernelScene before sync() when any of its backends needs it, and
-  // syncs the union of its delta and the compiler's; the others never pay
-  // for the build.
+  // building its own structure. The caller's SceneSync builds it when any
+  // of its backends needs it (its changes are in the same delta or log as
+  // the compiler's); the others never pay for the build.
   bool needs_bvh = false;
   // With needs_bvh: the layout of Tandem's BVH this backend traces fastest.
   // The core tracer uses the wide one when every backend that needs the BVH
@@ -123,6 +123,16 @@ class Backend {
   // `scene` must outlive the next render() calls (backends may keep
   // pointers into it).
   virtual void sync(const KernelScene& scene, const SceneDelta& delta) = 0;
+  // The same with the changes taken from `log`: everything it records after
+  // the generation this backend last synced from it (all of the scene the
+  // first time, or after forget_synced()). How the core tracer syncs, so
+  // that no caller keeps track of what each backend has seen. By default
+  // one generation per backend; a backend with several copies of the scene
+  // keeps one per copy (the CUDA backend's buffer sets).
+  virtual void sync_from(const KernelScene& scene, const KernelChangeLog& log);
+  // The next sync_from() sends the whole scene (a backend that lost its
+  // copy: a device that fell back to the CPU).
+  virtual void forget_synced() { synced_log_ = 0; }
 
   // Renders tiles pulled from `tiles` until it is empty, adding every
   // pixel's samples to `film`.
@@ -134,6 +144,17 @@ class Backend {
   virtual bool render_features(const FeaturePass& /*pass*/, PixelFeatures* /*out*/) {
     return false;
   }
+
+ private:
+  // What the default sync_from() last synced: the log's id and generation.
+  uint64_t synced_log_ = 0, synced_generation_ = 0;
 };
+
+inline void Backend::sync_from(const KernelScene& scene, const KernelChangeLog& log) {
+  const uint64_t since = log.id() == synced_log_ ? synced_generation_ : 0;
+  sync(scene, log.changes_since(since));
+  synced_log_ = log.id();
+  synced_generation_ = log.generation();
+}
 
 }  // namespace tandem

@@ -1,0 +1,51 @@
+// What changed in the kernel arrays, generation by generation.
+//
+// Whoever brings the arrays up to date (SceneSync) appends one SceneDelta
+// per update and so makes a new generation; every consumer keeps the
+// generation it last committed and asks changes_since() for its backlog: a
+// backend that syncs every frame, one of the CUDA backend's two device
+// buffer sets that was last written two frames ago, an MPI worker. None of
+// them keeps lists of pending changes of its own.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+
+#include "core/world/kernel_scene.h"
+
+namespace tandem {
+
+class KernelChangeLog {
+ public:
+  KernelChangeLog();
+  // A copy is another log: its generations mean nothing to the consumers of
+  // this one (a new id()).
+  KernelChangeLog(const KernelChangeLog& other);
+  KernelChangeLog& operator=(const KernelChangeLog& other);
+
+  // Records the changes of a new generation and returns it (1, 2, ...).
+  uint64_t append(const SceneDelta& changes);
+  // The newest generation; 0 before the first append().
+  uint64_t generation() const { return generation_; }
+  // What changed after generation `since`, up to generation(): the union of
+  // the generations in between. A consumer that has seen nothing (since 0)
+  // or is further behind than the log keeps gets everything
+  // (SceneDelta::everything()). Throws std::logic_error for a generation
+  // this log has not reached.
+  SceneDelta changes_since(uint64_t since) const;
+  // Unique per log object in this process: a consumer that remembers a
+  // generation remembers the log's id with it, so it never applies another
+  // log's generation numbers.
+  uint64_t id() const { return id_; }
+
+  // Generations kept for changes_since(): consumers commit every frame or
+  // two, so a few suffice.
+  static constexpr size_t kKept = 16;
+
+ private:
+  uint64_t id_;
+  uint64_t generation_ = 0;
+  std::deque<SceneDelta> kept_;  // generations (generation_ - kept_.size(), generation_]
+};
+
+}  // namespace tandem
