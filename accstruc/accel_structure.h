@@ -17,8 +17,9 @@
 // TLAS, whose region is sized from the instance count alone, so a frame that
 // only moves instances rewrites only the TLAS region and a refit frame only
 // the refit meshes' regions. update() reports those element ranges in a
-// SceneDelta of its own (AccelUpdate::delta); backends commit the union
-// `scene_delta | update.delta`, so a GPU backend uploads just them.
+// SceneDelta of its own (AccelUpdate::delta); SceneSync records the union
+// of it and the compiler's delta as one generation, so a GPU backend
+// uploads just them.
 #pragma once
 
 #include <chrono>

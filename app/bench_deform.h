@@ -1,8 +1,8 @@
 // `tandem bench [SCENE...] --deform`: what deforming meshes cost per frame
 // on the CPU: the skinning and morphing itself (SceneAnimator::pose), then
-// SyncScene + UpdateAccStruc for the moved vertices (SceneCompiler::compile
-// + AccelStructure::update, the BLAS refits), and the bytes the frame's
-// delta would commit to a GPU.
+// SyncScene + UpdateAccStruc for the moved vertices (SceneSync::update: the
+// compile and the BLAS refits), and the bytes the frame's delta would
+// commit to a GPU.
 #pragma once
 
 #include <string>

@@ -1,5 +1,5 @@
 // The scene-update benchmark. Every case repeats one kind of edit and times
-// SceneCompiler::compile + AccelStructure::update for it; the edit itself
+// SceneSync::update (compile + BVH update) for it; the edit itself
 // (writing a transform, a colour) is outside the timed region. Moves
 // alternate between two poses so the TLAS refit never drifts far from the
 // built tree, as in a game where bodies move a little per frame.

@@ -521,7 +521,10 @@ struct Updated {
   AccelUpdate update(Scene& scene, SceneDelta* out = nullptr) {
     SceneDelta delta = compiler.compile(scene, settings, ks);
     const AccelUpdate up = accel.update(ks, delta);
-    if (out) *out = delta | up.delta;
+    if (out) {
+      *out = delta;
+      out->merge(up.delta);
+    }
     return up;
   }
 };

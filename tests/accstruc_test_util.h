@@ -51,14 +51,14 @@ struct TracedScene {
     settings.width = 256;
     settings.height = 256;
     SceneDelta delta = compiler.compile(scene, settings, ks);
-    delta = delta | accel.update(ks, delta).delta;
+    delta.merge(accel.update(ks, delta).delta);
     embree.sync(ks, delta);
   }
   // Applies the scene's edits to both structures; returns what our side did.
   AccelUpdate recompile(SceneDelta* delta_out = nullptr) {
     SceneDelta delta = compiler.compile(scene, settings, ks);
     const AccelUpdate up = accel.update(ks, delta);
-    delta = delta | up.delta;
+    delta.merge(up.delta);
     embree.sync(ks, delta);
     if (delta_out) *delta_out = delta;
     return up;

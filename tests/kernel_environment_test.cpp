@@ -14,6 +14,7 @@
 #include "core/world/kernel_scene.h"
 #include "core/world/light_tables.h"
 #include "kernel_light_test_scenes.h"
+#include "sync/scene_sync.h"
 #include "test_stats.h"
 
 namespace tandem {
@@ -176,10 +177,9 @@ TEST(KernelEnvironment, CompiledRotationTurnsLikeRotateYBitForBit) {
     e.rotation = angle;
     RenderSettings settings;
     settings.width = settings.height = 8;
-    SceneCompiler compiler;
-    KernelScene ks;
-    compiler.compile(scene, settings, ks);
-    const KernelData kd = ks.view();
+    SceneSync sync(SceneSyncSettings::arrays_only());
+    sync.update(scene, settings);
+    const KernelData kd = sync.view();
     ASSERT_EQ(kd.constants.environment.has_map, 1u);
     EXPECT_EQ(kd.constants.environment.rotation, angle);
     TestRng rng(250);

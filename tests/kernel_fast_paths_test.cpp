@@ -14,6 +14,7 @@
 #include "core/kernel/rng.h"
 #include "core/kernel/texture.h"
 #include "core/world/kernel_scene.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {
@@ -150,11 +151,11 @@ Scene attribute_scene() {
 
 TEST(KernelFastPaths, IdentityInstancesShadeAsTransformedOnes) {
   Scene scene = attribute_scene();
-  KernelScene ks;
-  SceneCompiler compiler;
+  SceneSync sync(SceneSyncSettings::arrays_only());
   RenderSettings settings;
   settings.width = settings.height = 8;
-  compiler.compile(scene, settings, ks);
+  sync.update(scene, settings);
+  const KernelScene& ks = sync.kernel_scene();
   ASSERT_EQ(ks.instances.size(), 2u);
   EXPECT_NE(ks.instances[0].flags & kInstanceIdentity, 0u);
   EXPECT_EQ(ks.instances[1].flags & kInstanceIdentity, 0u);

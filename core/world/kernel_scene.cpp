@@ -65,11 +65,6 @@ void SceneDelta::merge(const SceneDelta& later) {
   instances_moved = std::move(moved);
 }
 
-SceneDelta operator|(SceneDelta scene, const SceneDelta& bvh) {
-  scene.merge(bvh);
-  return scene;
-}
-
 void ArrayChange::mark(uint32_t b, uint32_t e) {
   if (e <= b) return;
   if (end <= begin) {

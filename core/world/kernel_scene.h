@@ -111,10 +111,6 @@ struct SceneDelta {
   size_t bytes(const KernelScene& ks) const;
 };
 
-// The union of two deltas: what a backend commits after the compiler
-// (`scene`) and the BVH updater (`bvh`) each reported their own arrays.
-SceneDelta operator|(SceneDelta scene, const SceneDelta& bvh);
-
 // Per-frame render parameters that end up in KernelConstants.
 struct RenderSettings {
   uint32_t width = 1280, height = 720;
