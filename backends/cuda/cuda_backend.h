@@ -30,23 +30,6 @@
 
 namespace tandem {
 
-// Thrown by CudaBackend::render() when a device operation failed part-way.
-// The film then holds exactly the sums of the batches that completed;
-// `unfinished()` lists the tiles taken from the source whose sums never
-// reached it, so a fallback can render just those (and finish the frame with
-// the image a CPU-only run would give).
-class DeviceRenderError : public DeviceError {
- public:
-  DeviceRenderError(const DeviceError& cause, std::vector<Tile> unfinished, BackendStats finished)
-      : DeviceError(cause), unfinished_(std::move(unfinished)), finished_(finished) {}
-  const std::vector<Tile>& unfinished() const { return unfinished_; }
-  const BackendStats& finished() const { return finished_; }
-
- private:
-  std::vector<Tile> unfinished_;
-  BackendStats finished_;
-};
-
 // Whether the CUDA backend has a device (a GPU, or the simulated one under
 // TANDEM_DEVICE=sim); otherwise `reason` says why (no driver, driver too
 // old, no device, no kernel image for the device's architecture, ...).

@@ -20,31 +20,9 @@
 #include <vector>
 
 #include "backends/cuda/device_kernel_ids.h"
+#include "core/render/device_error.h"
 
 namespace tandem {
-
-// What went wrong on a device, as far as the caller's recovery cares.
-enum class DeviceFault : uint8_t {
-  kOutOfMemory,     // an allocation failed; the device is still usable
-  kLaunchFailure,   // a kernel could not be launched or aborted
-  kIllegalAddress,  // a kernel faulted; the context is unusable from now on
-  kDeviceLost,      // the device fell off the bus / the driver reset it
-  kOther,
-};
-const char* device_fault_name(DeviceFault fault);
-
-// Any failure of a device operation. The backend factory catches it under
-// `--backend auto` and in backend lists and falls back to the CPU; with
-// `--backend cuda` it reaches the user (exit 1) with the message.
-class DeviceError : public std::runtime_error {
- public:
-  DeviceError(DeviceFault fault, const std::string& what)
-      : std::runtime_error(what), fault_(fault) {}
-  DeviceFault fault() const { return fault_; }
-
- private:
-  DeviceFault fault_;
-};
 
 // What the launch geometry depends on: the device's multiprocessors and
 // how many threads each holds at once.
