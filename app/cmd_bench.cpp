@@ -4,9 +4,9 @@
 // tracer casts (recorded from one sample per pixel) and over the first
 // bounce's ray mix, so the ratio shows what shading and sampling cost on top
 // of Embree itself. With --accstruc it also measures Tandem's own
-// BVH against Embree (app/bench_accstruc.h) and path traces on the host
+// BVH against Embree (app/bench/bench_accstruc.h) and path traces on the host
 // backend. With --gpu it measures the CUDA backend on the device instead
-// (app/bench_gpu.h). Every mode can write its figures as JSON (--json).
+// (app/bench/bench_gpu.h). Every mode can write its figures as JSON (--json).
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -16,12 +16,12 @@
 #include <cstdio>
 
 #include "app/backend_list.h"
-#include "app/bench_accstruc.h"
-#include "app/bench_deform.h"
-#include "app/bench_denoise.h"
-#include "app/bench_hetero.h"
-#include "app/bench_report.h"
-#include "app/bench_scene_update.h"
+#include "app/bench/bench_accstruc.h"
+#include "app/bench/bench_deform.h"
+#include "app/bench/bench_denoise.h"
+#include "app/bench/bench_hetero.h"
+#include "app/bench/bench_report.h"
+#include "app/bench/bench_scene_update.h"
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/commands.h"
@@ -36,7 +36,7 @@
 #include "core/util/errors.h"
 #include "sync/scene_sync.h"
 
-#include "app/bench_gpu.h"
+#include "app/bench/bench_gpu.h"
 
 namespace tandem {
 

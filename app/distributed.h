@@ -30,7 +30,7 @@ void add_distributed_peers(std::vector<std::unique_ptr<Backend>>& backends);
 // On rank 0 after the output is written: ends the run on every rank.
 void finish_distributed();
 
-// `tandem bench --distributed ...` (app/bench_distributed.cpp).
+// `tandem bench --distributed ...` (app/bench/bench_distributed.cpp).
 int run_distributed_bench(const std::vector<std::string>& args);
 
 }  // namespace tandem

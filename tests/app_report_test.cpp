@@ -10,8 +10,8 @@
 #include <fstream>
 #include <limits>
 
-#include "app/bench_gpu_report.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_gpu_report.h"
+#include "app/bench/bench_report.h"
 #include "app/json_writer.h"
 #include "core/util/errors.h"
 #include "tests/json_test_parser.h"

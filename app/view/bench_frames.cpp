@@ -13,7 +13,7 @@
 #include <optional>
 
 #include "app/backend_list.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/scene_setup.h"

@@ -1,10 +1,10 @@
-#include "app/bench_gpu.h"
+#include "app/bench/bench_gpu.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 
-#include "app/bench_report.h"
+#include "app/bench/bench_report.h"
 #include "backends/cuda/cuda_backend.h"
 #include "core/render/film.h"
 #include "core/render/tiles.h"

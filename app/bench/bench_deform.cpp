@@ -3,7 +3,7 @@
 // palettes, skinning; for the built-ins: their procedural rigs), then runs
 // the per-frame update path on the result. The first frame is untimed (it
 // builds everything); the figures are medians over the timed frames.
-#include "app/bench_deform.h"
+#include "app/bench/bench_deform.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,8 +12,8 @@
 #include <memory>
 #include <optional>
 
-#include "app/bench_mode.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_mode.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "backends/cpu/cpu_backend.h"
 #include "core/util/errors.h"

@@ -1,4 +1,4 @@
-#include "app/bench_hetero.h"
+#include "app/bench/bench_hetero.h"
 
 #include <algorithm>
 #include <cstdio>

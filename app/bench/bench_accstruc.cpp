@@ -1,4 +1,4 @@
-#include "app/bench_accstruc.h"
+#include "app/bench/bench_accstruc.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/global_control.h>

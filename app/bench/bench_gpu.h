@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "app/bench_accstruc.h"
-#include "app/bench_gpu_report.h"
+#include "app/bench/bench_accstruc.h"
+#include "app/bench/bench_gpu_report.h"
 #include "backends/kernel_variant.h"
 #include "core/world/kernel_scene.h"
 #include "core/world/scene.h"

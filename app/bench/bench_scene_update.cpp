@@ -3,7 +3,7 @@
 // (writing a transform, a colour) is outside the timed region. Moves
 // alternate between two poses so the TLAS refit never drifts far from the
 // built tree, as in a game where bodies move a little per frame.
-#include "app/bench_scene_update.h"
+#include "app/bench/bench_scene_update.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,8 +13,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "app/bench_mode.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_mode.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "core/util/errors.h"
 #include "core/world/kernel_scene.h"

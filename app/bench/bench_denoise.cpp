@@ -5,7 +5,7 @@
 // and rendered again at 8 spp and at the reference sample count; the table
 // (and --json) compare raw 1 spp, raw 8 spp and the denoised 1 spp frame
 // (which has the history of the path so far) with that reference.
-#include "app/bench_denoise.h"
+#include "app/bench/bench_denoise.h"
 
 #include <algorithm>
 #include <cctype>
@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "app/bench_mode.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_mode.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "app/json_writer.h"
 #include "app/render_denoise.h"

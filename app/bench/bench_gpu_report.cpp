@@ -1,8 +1,8 @@
-#include "app/bench_gpu_report.h"
+#include "app/bench/bench_gpu_report.h"
 
 #include <cstdio>
 
-#include "app/bench_report.h"
+#include "app/bench/bench_report.h"
 
 namespace tandem {
 

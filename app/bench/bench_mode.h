@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "app/bench_report.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 
 namespace tandem {

@@ -14,8 +14,8 @@
 #include <optional>
 
 #include "app/backend_list.h"
-#include "app/bench_mode.h"
-#include "app/bench_report.h"
+#include "app/bench/bench_mode.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "app/distributed.h"
 #include "app/render_frames.h"
