@@ -634,7 +634,7 @@ AccelUpdate AccelStructure::update(KernelScene& ks, const SceneDelta& delta) {
   t0 = Clock::now();
   // Moved instances (and refit BLAS, whose bounds changed) only need the
   // TLAS refit, as long as its quality holds; anything else rebuilds it.
-  if (relayout || delta.instances_changed || !refit.empty()) {
+  if (relayout || delta.instances_changed() || !refit.empty()) {
     // Moved instances alone (no BLAS refit, whose bounds every instance of
     // the mesh sees): refit only their paths.
     const std::vector<uint32_t>* moved =

@@ -59,7 +59,6 @@ struct CachedBuild {
   CachedBuild(const KernelScene& from, const fs::path& dir) : ks(from), accel(cache_settings(dir)) {
     SceneDelta full;
     full.full = true;
-    full.instances_changed = true;
     up = accel.update(ks, full);
   }
   KernelData kd() const { return ks.view(); }
@@ -153,7 +152,6 @@ TEST(BvhCache, SecondRunLoadsTheSameHierarchy) {
   KernelScene ks = s.ks;
   SceneDelta full;
   full.full = true;
-  full.instances_changed = true;
   EXPECT_EQ(small.update(ks, full).blas_loaded, 0u);
   EXPECT_TRUE(cache_files(empty.path()).empty());
 }

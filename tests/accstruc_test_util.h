@@ -85,7 +85,6 @@ struct FreshBuild {
   explicit FreshBuild(const KernelScene& from) : ks(from) {
     SceneDelta full;
     full.full = true;
-    full.instances_changed = true;
     accel.update(ks, full);
   }
 };

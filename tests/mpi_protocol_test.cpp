@@ -56,7 +56,7 @@ TEST(MpiProtocol, SceneArrivesWholeThenAsDeltas) {
   const SceneDelta got2 = decode_scene(r2, receiver);
   EXPECT_FALSE(got2.full);
   EXPECT_TRUE(got2.instances.any());
-  EXPECT_EQ(got2.instances_changed, delta.instances_changed);
+  EXPECT_EQ(got2.instances_changed(), delta.instances_changed());
   EXPECT_EQ(got2.meshes_refit, delta.meshes_refit);
   expect_same_arrays(sender, receiver);
 }

@@ -15,7 +15,6 @@ namespace {
 SceneDelta instance_moved(uint32_t i) {
   SceneDelta d;
   d.instances.mark(i, i + 1);
-  d.instances_changed = true;
   d.instances_moved = {i};
   return d;
 }

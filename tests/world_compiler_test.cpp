@@ -83,7 +83,7 @@ TEST(SceneCompiler, MovingAnEmissiveInstanceRigidlyKeepsTheLightArrays) {
                                       glm::normalize(glm::vec3(1, 1, 0)));
   t.scene.set_instance_transform(t.lamp_instance, moved);
   const SceneDelta d = c.compile(t.scene);
-  EXPECT_TRUE(d.instances_changed);
+  EXPECT_TRUE(d.instances_changed());
   EXPECT_EQ(d.instances.begin, t.lamp_instance);
   EXPECT_EQ(d.instances.end, t.lamp_instance + 1);
   EXPECT_FALSE(d.lights.any());
@@ -115,7 +115,7 @@ TEST(SceneCompiler, MaterialEditTouchesOnlyThatMaterial) {
   const SceneDelta d = c.compile(t.scene);
   EXPECT_EQ(d.materials.begin, 0u);
   EXPECT_EQ(d.materials.end, 1u);
-  EXPECT_FALSE(d.instances_changed);
+  EXPECT_FALSE(d.instances_changed());
   EXPECT_FALSE(d.lights.any());
   EXPECT_NEAR(c.ks.materials[0].base_color.y, 0.3f, 1e-6f);
 }
@@ -186,7 +186,7 @@ TEST(SceneCompiler, AnInstanceScaledToZeroIsHiddenUntilItIsScaledBack) {
     t.scene.set_instance_transform(t.floor_instance,
                                    glm::scale(glm::mat4(1.0f), glm::vec3(1e-12f)));
     const SceneDelta hidden = c.compile(t.scene);
-    EXPECT_TRUE(hidden.instances_changed);
+    EXPECT_TRUE(hidden.instances_changed());
     for (uint32_t i : {t.lamp_instance, t.floor_instance}) {
       EXPECT_TRUE(c.ks.instances[i].flags & kInstanceHidden) << i;
       for (const Vec4& row : c.ks.instances[i].world_to_object.rows)
@@ -221,7 +221,7 @@ TEST(SceneCompiler, AMeshDeformedOutOfFloatIsHiddenUntilItIsFiniteAgain) {
   testing::internal::CaptureStderr();
   t.scene.edit_mesh_vertices(lamp_mesh).positions[0].x = std::numeric_limits<float>::infinity();
   SceneDelta d = c.compile(t.scene);
-  EXPECT_TRUE(d.instances_changed);
+  EXPECT_TRUE(d.instances_changed());
   EXPECT_TRUE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
   EXPECT_FALSE(c.ks.instances[t.floor_instance].flags & kInstanceHidden);
   EXPECT_TRUE(t.scene.bounds().finite);
@@ -231,7 +231,7 @@ TEST(SceneCompiler, AMeshDeformedOutOfFloatIsHiddenUntilItIsFiniteAgain) {
   EXPECT_TRUE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
   t.scene.edit_mesh_vertices(lamp_mesh).positions[0] = before;
   d = c.compile(t.scene);
-  EXPECT_TRUE(d.instances_changed);
+  EXPECT_TRUE(d.instances_changed());
   EXPECT_FALSE(c.ks.instances[t.lamp_instance].flags & kInstanceHidden);
   const std::string log = testing::internal::GetCapturedStderr();
   EXPECT_NE(log.find("instance 1 ('lamp') of mesh 1 ('lamp') has positions that are not finite"),

@@ -71,7 +71,7 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   EXPECT_FALSE(d.tangents.any() || d.uv1.any() || d.triangles.any() || d.meshes.any() ||
                d.instances.any() || d.lights.any() || d.light_alias.any());
   ASSERT_EQ(d.meshes_refit, std::vector<uint32_t>{0});
-  EXPECT_TRUE(d.instances_changed);
+  EXPECT_TRUE(d.instances_changed());
   // What an upload of the delta moves: the range of three arrays and the
   // constants (the scene's bounds may have changed).
   EXPECT_EQ(d.bytes(ks), size_t(count) * (sizeof(Vec3) + sizeof(Vec3) + sizeof(Vec2)) +

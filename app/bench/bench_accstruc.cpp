@@ -63,7 +63,6 @@ double our_blas_seconds(const KernelScene& compiled, const AccelSettings& settin
     AccelStructure accel(s);
     SceneDelta full;
     full.full = true;
-    full.instances_changed = true;
     accel.update(ks, full);
   });
 }

@@ -322,7 +322,7 @@ void EmbreeScene::sync(const KernelScene& ks, const SceneDelta& delta) {
   } else if (flat_) {
     // The flat layout has no cheap update: switch to the two-level one,
     // which refits and moves instances, for good.
-    if (delta.instances_changed || !delta.meshes_refit.empty()) {
+    if (delta.instances_changed()) {
       dynamic_ = true;
       build_all(ks);
     }

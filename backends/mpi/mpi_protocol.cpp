@@ -95,7 +95,6 @@ void encode_scene(const KernelScene& ks, const SceneDelta& delta, ArrayCounts& r
   w.put(uint8_t(delta.full));
   w.put(uint8_t(delta.constants || delta.full));
   w.put(uint8_t(delta.bvh_constants || delta.full));
-  w.put(uint8_t(delta.instances_changed));
   put_indices(w, delta.meshes_rebuilt);
   put_indices(w, delta.meshes_refit);
   put_indices(w, delta.instances_moved);
@@ -116,7 +115,6 @@ SceneDelta decode_scene(WireReader& r, KernelScene& ks) {
   delta.full = r.get<uint8_t>() != 0;
   delta.constants = r.get<uint8_t>() != 0;
   delta.bvh_constants = r.get<uint8_t>() != 0;
-  delta.instances_changed = r.get<uint8_t>() != 0;
   delta.meshes_rebuilt = get_indices(r);
   delta.meshes_refit = get_indices(r);
   delta.instances_moved = get_indices(r);

@@ -30,7 +30,7 @@ class WireError : public std::runtime_error {
 
 // Bumped whenever a message layout changes; the handshake also compares the
 // kernel arrays' element sizes (build_fingerprint()).
-inline constexpr uint32_t kProtocolVersion = 3;
+inline constexpr uint32_t kProtocolVersion = 4;
 
 enum Tag : int {
   kTagHello = 1,     // worker -> 0: fingerprint, its backends

@@ -112,7 +112,6 @@ void SceneCompiler::update_instances(const Scene& scene, KernelScene& out, Scene
     const KInstance before = out.instances[i];
     out.instances[i] = compile_instance(scene, i);
     delta.instances.mark(i, i + 1);
-    delta.instances_changed = true;
     delta.instances_moved.push_back(i);
     // Triangle lights are stored as (instance, prim): moving an emissive
     // instance rigidly changes neither the light list nor any light's

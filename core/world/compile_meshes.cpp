@@ -191,8 +191,7 @@ void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& de
     if (!out.tangents.empty()) delta.tangents.mark(b, e);
     if (!out.uv0.empty()) delta.uv0.mark(b, e);
     if (!out.uv1.empty()) delta.uv1.mark(b, e);
-    delta.meshes_refit.push_back(i);
-    delta.instances_changed = true;  // TLAS bounds change with the BLAS
+    delta.meshes_refit.push_back(i);  // the TLAS follows (instances_changed())
     if (mesh_emissive_[i]) needs.emissive_deformed.push_back(i);
   }
 }

@@ -34,7 +34,7 @@ size_t KernelScene::byte_size() const {
 
 SceneDelta SceneDelta::everything() {
   SceneDelta all;
-  all.full = all.constants = all.bvh_constants = all.instances_changed = true;
+  all.full = all.constants = all.bvh_constants = true;
 #define TANDEM_MARK_REALLOCATED(T, name) all.name.reallocated = true;
   TANDEM_KERNEL_ARRAYS(TANDEM_MARK_REALLOCATED)
 #undef TANDEM_MARK_REALLOCATED
@@ -50,7 +50,6 @@ void SceneDelta::merge(const SceneDelta& later) {
   full = full || later.full;
   constants = constants || later.constants;
   bvh_constants = bvh_constants || later.bvh_constants;
-  instances_changed = instances_changed || later.instances_changed;
   auto add_unique = [](std::vector<uint32_t>& to, const std::vector<uint32_t>& from) {
     for (uint32_t m : from) {
       if (std::find(to.begin(), to.end(), m) == to.end()) to.push_back(m);
@@ -122,7 +121,7 @@ bool SceneDelta::any() const {
 #define TANDEM_ANY_CHANGE(T, name) any_array = any_array || name.any();
   TANDEM_KERNEL_ARRAYS(TANDEM_ANY_CHANGE)
 #undef TANDEM_ANY_CHANGE
-  return any_array || full || constants || bvh_constants || instances_changed;
+  return any_array || full || constants || bvh_constants || !meshes_refit.empty();
 }
 
 size_t SceneDelta::bytes(const KernelScene& ks) const {

@@ -91,7 +91,6 @@ struct SceneDelta {
   bool full = false;                     // everything was rebuilt
   bool constants = false;                // camera / environment / integrator scalars
   bool bvh_constants = false;            // KernelScene::bvh (TLAS roots, layout)
-  bool instances_changed = false;        // TLAS must be rebuilt
   std::vector<uint32_t> meshes_rebuilt;  // BLAS to rebuild (new topology)
   std::vector<uint32_t> meshes_refit;    // BLAS to refit (vertices moved)
   // Ascending: the instances whose transform changed. When non-empty the
@@ -100,6 +99,11 @@ struct SceneDelta {
   std::vector<uint32_t> instances_moved;
 
   bool any() const;
+  // The TLAS must follow: instance records changed, or BLAS whose bounds
+  // the instances see were refit (everything, after a full build).
+  bool instances_changed() const {
+    return full || instances.any() || !meshes_refit.empty();
+  }
   // What a backend that has seen nothing of the scene needs: every array
   // reallocated, the constants, the instances.
   static SceneDelta everything();

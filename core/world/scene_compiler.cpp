@@ -34,7 +34,6 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
   compile_lights(scene, out, delta);
 
   delta.full = true;
-  delta.instances_changed = true;
 #define TANDEM_MARK_ALL(T, name) delta.name.reallocated = true;
   TANDEM_SCENE_ARRAYS(TANDEM_MARK_ALL)
 #undef TANDEM_MARK_ALL
@@ -59,7 +58,7 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
     }
     // Punctual lights, and the scene's size that directional powers scale with.
     needs.light_powers =
-        !scene.dirty_lights().empty() || (delta.instances_changed && scene_size_changed(scene));
+        !scene.dirty_lights().empty() || (delta.instances_changed() && scene_size_changed(scene));
     // Lights last: every step above may change a light's power.
     if (needs.full) {
       delta = SceneDelta{};
