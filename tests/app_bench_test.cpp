@@ -149,13 +149,30 @@ TEST_F(BenchJson, FrameLoopMode) {
   expect_run_facts(n, "frames");
   expect_keys(n,
               {"backend", "kernel", "first_frame_ms", "frames_measured", "frame_ms_p50",
-               "frame_ms_p99", "fps", "scene_delta_kib_per_frame", "mrays_per_second", "backends"},
+               "frame_ms_p99", "fps", "scene_delta_kib_per_frame", "pose_ms_p50",
+               "sync_scene_ms_p50", "update_accstruc_ms_p50", "sync_accstruc_ms_p50",
+               "mrays_per_second", "backends"},
               "frames");
   EXPECT_EQ(n["frames_measured"].number, 2.0);
   EXPECT_EQ(n["backend"].string, "host");
   EXPECT_EQ(n["kernel"].string, "megakernel");
   ASSERT_EQ(n["backends"].items.size(), 1u);
   EXPECT_EQ(n["backends"][0]["name"].string, "host");
+}
+
+// A moving scene's own work per frame is reported stage by stage: the
+// arena's walkers are skinned (pose) and the host backend's BVH refit.
+TEST_F(BenchJson, FrameLoopReportsTheSceneWorkOfAMovingScene) {
+  const fs::path out = file("arena.json");
+  const RunResult r = run_tandem(
+      "bench --frames 4 --scene builtin:arena --width 16 --height 16 --backend host --json " +
+      shell_quote(out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("scene work per frame p50:  pose "), std::string::npos) << r.output;
+  const Node n = read_json(out);
+  EXPECT_GT(n["pose_ms_p50"].number, 0.0);
+  EXPECT_GT(n["sync_scene_ms_p50"].number, 0.0);
+  EXPECT_GT(n["update_accstruc_ms_p50"].number, 0.0);
 }
 
 TEST_F(BenchJson, GpuModeWritesJsonOrSaysWhyNot) {

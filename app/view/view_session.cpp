@@ -60,7 +60,10 @@ TracerSettings ViewSession::tracer_settings() const {
 
 bool ViewSession::advance_scene(double t) {
   if (paused || !has_motion()) return false;
+  const auto start = std::chrono::steady_clock::now();
   animator_->pose(t, scene_);
+  last_pose_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   scene_time_ = t;
   scene_posed_ = true;
   return true;

@@ -60,6 +60,9 @@ class ViewSession {
   // Poses the scene for time t (seconds) now; returns whether it has moving
   // content to pose (false for static scenes or when paused).
   bool advance_scene(double t);
+  // Wall time of the last advance_scene() that posed anything (its
+  // skinning and morphing included), in seconds.
+  double last_pose_seconds() const { return last_pose_seconds_; }
   double scene_time() const { return scene_time_; }
 
   Scene& scene() { return scene_; }
@@ -154,6 +157,7 @@ class ViewSession {
   Camera initial_camera_;
   double scene_time_ = 0.0;
   bool scene_posed_ = false;  // posed since the last rendered frame
+  double last_pose_seconds_ = 0.0;
   bool last_moving_ = true;
   bool restart_pending_ = false;  // a setting changed that the next frame applies
   std::unique_ptr<CoreTracer> tracer_;
