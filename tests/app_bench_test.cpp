@@ -147,12 +147,12 @@ TEST_F(BenchJson, FrameLoopMode) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const Node n = read_json(out);
   expect_run_facts(n, "frames");
-  expect_keys(n,
-              {"backend", "kernel", "first_frame_ms", "frames_measured", "frame_ms_p50",
-               "frame_ms_p99", "fps", "scene_delta_kib_per_frame", "pose_ms_p50",
-               "sync_scene_ms_p50", "update_accstruc_ms_p50", "sync_accstruc_ms_p50",
-               "mrays_per_second", "backends"},
-              "frames");
+  expect_keys(
+      n,
+      {"backend", "kernel", "first_frame_ms", "frames_measured", "frame_ms_p50", "frame_ms_p99",
+       "fps", "scene_delta_kib_per_frame", "pose_ms_p50", "sync_scene_ms_p50",
+       "update_accstruc_ms_p50", "sync_accstruc_ms_p50", "mrays_per_second", "backends"},
+      "frames");
   EXPECT_EQ(n["frames_measured"].number, 2.0);
   EXPECT_EQ(n["backend"].string, "host");
   EXPECT_EQ(n["kernel"].string, "megakernel");
