@@ -1,10 +1,10 @@
 #include "sync/scene_sync.h"
 
 #include <chrono>
-#include <ctime>
 #include <string>
 
 #include "core/util/activity.h"
+#include "core/util/cpu_time.h"
 
 namespace tandem {
 
@@ -13,12 +13,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + double(ts.tv_nsec) * 1e-9;
 }
 
 }  // namespace
@@ -36,7 +30,7 @@ void SceneSync::set_bvh_layout(KBvhLayout layout) {
 
 const SceneSyncUpdate& SceneSync::update(Scene& scene, const RenderSettings& settings) {
   // Out of memory in either stage names the stage and the scene's file.
-  const std::string of = " of " + (scene.source.empty() ? std::string("the scene") : scene.source);
+  const std::string of = " of " + scene.source_name();
   SceneSyncUpdate up;
   {
     const ScopedActivity activity("compiling the materials, meshes and lights" + of);

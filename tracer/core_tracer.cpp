@@ -50,15 +50,20 @@ CoreTracer::CoreTracer(std::vector<std::unique_ptr<Backend>> backends, TracerSet
   // Every backend traces the layout kd.bvh.layout names, so refit frames
   // keep only that one.
   SceneSyncSettings sync;
-  sync.bvh = false;
-  for (const BackendTraits& t : traits_)
-    sync.bvh = sync.bvh || t.needs_bvh;
+  sync.bvh = bvh_needed();
   sync.accel.refit_unused_layout = false;
   sync.accel.layout = bvh_layout();
   // The wide layout is chosen only when the host's loops alone trace it:
   // deforming meshes can then be refit in the binary layout alone.
   sync.accel.deforming_binary_only = true;
   scene_sync_ = std::make_unique<SceneSync>(sync);
+}
+
+bool CoreTracer::bvh_needed() const {
+  for (const BackendTraits& t : traits_) {
+    if (t.needs_bvh) return true;
+  }
+  return false;
 }
 
 KBvhLayout CoreTracer::bvh_layout() const {
@@ -75,9 +80,7 @@ KBvhLayout CoreTracer::bvh_layout() const {
 // Embree), nobody reads it: SceneSync leaves it alone until a backend needs
 // it again. The layout follows the backends that trace it.
 const SceneSyncUpdate& CoreTracer::update_scene(Scene& scene, const RenderSettings& settings) {
-  bool needed = false;
-  for (const BackendTraits& t : traits_)
-    needed = needed || t.needs_bvh;
+  const bool needed = bvh_needed();
   scene_sync_->set_bvh_needed(needed);
   if (needed) scene_sync_->set_bvh_layout(bvh_layout());
   return scene_sync_->update(scene, settings);
@@ -205,8 +208,7 @@ void CoreTracer::begin_frame(Scene& scene) {
   // Backends that prepare_next_frame() synced already get only the late
   // edits.
   {
-    const ScopedActivity activity("copying the scene of " +
-                                  (scene.source.empty() ? std::string("the scene") : scene.source) +
+    const ScopedActivity activity("copying the scene of " + scene.source_name() +
                                   " to the backends");
     const auto t = Clock::now();
     for (size_t b = 0; b < backends_.size(); ++b)
@@ -334,9 +336,7 @@ void CoreTracer::sync_scene(Scene& scene) {
   update_scene(scene, settings_.render);
   const bool changed = scene_sync_->changes_since(frame_generation_).any();
   frame_generation_ = scene_sync_->generation();
-  const ScopedActivity activity("copying the scene of " +
-                                (scene.source.empty() ? std::string("the scene") : scene.source) +
-                                " to the backends");
+  const ScopedActivity activity("copying the scene of " + scene.source_name() + " to the backends");
   for (size_t b = 0; b < backends_.size(); ++b)
     sync_backend(b);
   if (changed) reset_pending_ = true;
@@ -350,8 +350,7 @@ bool CoreTracer::prepare_next_frame(Scene& scene) {
   }
   // The settings the next frame will use (a pending change applies then).
   const RenderSettings& next = pending_settings_ ? pending_settings_->render : settings_.render;
-  const ScopedActivity activity("preparing the next frame of " +
-                                (scene.source.empty() ? std::string("the scene") : scene.source));
+  const ScopedActivity activity("preparing the next frame of " + scene.source_name());
   const SceneSyncUpdate& up = update_scene(scene, next);
   prepared_sync_seconds_ = up.compile_seconds;
   prepared_accstruc_seconds_ = up.accstruc_seconds;

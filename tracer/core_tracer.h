@@ -183,6 +183,8 @@ class CoreTracer {
 
   std::vector<std::unique_ptr<Backend>> backends_;
   std::vector<BackendTraits> traits_;  // as of the last begin_frame()
+  // Whether some backend of traits_ traces Tandem's BVH.
+  bool bvh_needed() const;
   // The BVH layout for traits_: wide when every backend that traces the BVH
   // prefers it, else binary.
   KBvhLayout bvh_layout() const;

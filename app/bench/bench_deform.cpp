@@ -16,6 +16,7 @@
 #include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "backends/cpu/cpu_backend.h"
+#include "core/util/cpu_time.h"
 #include "core/util/errors.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/gltf_animation.h"
@@ -53,9 +54,7 @@ double ms_since(Clock::time_point t) {
 // CPU time of all the process's threads: on a machine shared with other
 // work the wall time overstates what the code costs, so both are reported.
 double cpu_ms_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+  return process_cpu_seconds() * 1e3;
 }
 
 // Which structures a frame keeps for its backends, as CoreTracer does:

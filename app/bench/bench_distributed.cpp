@@ -20,8 +20,8 @@
 #include "app/distributed.h"
 #include "app/render_frames.h"
 #include "app/view/scripted_path.h"
-#include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_cluster.h"
+#include "core/util/cpu_time.h"
 #include "core/util/errors.h"
 #include "scenes/arena_scene.h"
 #include "scenes/scene_loader.h"
@@ -96,9 +96,9 @@ class TimedBackend final : public Backend {
   }
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override {
     RecordingTiles recording(tiles);
-    const double cpu_start = mpi::thread_cpu_seconds();
+    const double cpu_start = tandem::thread_cpu_seconds();
     const BackendStats stats = inner_->render(pass, recording, film);
-    thread_cpu_s_ = mpi::thread_cpu_seconds() - cpu_start;
+    thread_cpu_s_ = tandem::thread_cpu_seconds() - cpu_start;
     tiles_.clear();
     for (uint32_t i : recording.taken())
       tiles_.emplace_back(i, pass.tile_seconds ? pass.tile_seconds[i] : -1.0);
@@ -296,14 +296,14 @@ int run_distributed_bench(const std::vector<std::string>& argv) {
       MovingScene& ms = run == &ref ? ref_scene : dist_scene;
       run->tracer->set_settings(now);
       const auto t = Clock::now();
-      const double cpu_start = mpi::process_cpu_seconds();
+      const double cpu_start = process_cpu_seconds();
       // Brigade's overlap, as in `bench --frames`: the scene moves on to the
       // next frame while this one renders.
       run->tracer->begin_frame(ms.scene);
       if (loop) ms.pose(double(f + 1) * kScriptedFrameStep);
       const FrameMetrics& m = run->tracer->end_frame();
       run->total_s += seconds_since(t);
-      const double cpu_s = mpi::process_cpu_seconds() - cpu_start;
+      const double cpu_s = process_cpu_seconds() - cpu_start;
       if (run == &ref) {
         alone_tile_s.clear();
         for (const TimedBackend* b : ref.timed) {

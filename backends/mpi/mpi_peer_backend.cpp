@@ -5,8 +5,8 @@
 #include <cstring>
 #include <map>
 
-#include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_channel.h"
+#include "core/util/cpu_time.h"
 
 namespace tandem::mpi {
 

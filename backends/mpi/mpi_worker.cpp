@@ -6,12 +6,12 @@
 #include <new>
 #include <thread>
 
-#include "backends/mpi/cpu_time.h"
 #include "backends/mpi/mpi_channel.h"
 #include "backends/mpi/mpi_cluster.h"
 #include "backends/mpi/mpi_protocol.h"
 #include "core/render/backend.h"
 #include "core/render/film.h"
+#include "core/util/cpu_time.h"
 
 namespace tandem::mpi {
 

@@ -16,8 +16,7 @@ void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& 
   // refused here, whatever brought it.
   const std::string problem = camera_problem(c);
   if (!problem.empty()) {
-    throw InputError((scene.source.empty() ? std::string("the scene") : scene.source) +
-                     ": the camera cannot be rendered: " + problem);
+    throw InputError(scene.source_name() + ": the camera cannot be rendered: " + problem);
   }
   KCamera& k = out.constants.camera;
   k.type = c.type == CameraType::kOrthographic ? kCameraOrthographic : kCameraPerspective;

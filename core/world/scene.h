@@ -265,6 +265,8 @@ class Scene {
 
   // Optional description for `tandem info` (e.g. glTF generator, file name).
   std::string source;
+  // The scene as messages name it: its source, or "the scene".
+  std::string source_name() const { return source.empty() ? std::string("the scene") : source; }
 
  private:
   std::vector<Texture> textures_;

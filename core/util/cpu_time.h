@@ -1,13 +1,13 @@
 // CPU time of this process and of the calling thread, in seconds. The
-// distributed bench reports them next to the wall time of each rank: on a
-// machine shared with other work wall time swells, CPU time does not, and a
-// rank whose CPU time exceeds its rendering time is spending cores on
-// something else (waiting that spins, packing, copying).
+// benches report them next to wall time: on a machine shared with other
+// work wall time swells, CPU time does not (and an MPI rank whose CPU time
+// exceeds its rendering time is spending cores on something else: waiting
+// that spins, packing, copying).
 #pragma once
 
 #include <time.h>
 
-namespace tandem::mpi {
+namespace tandem {
 
 inline double cpu_clock_seconds(clockid_t clock) {
   timespec ts{};
@@ -21,4 +21,4 @@ inline double thread_cpu_seconds() {
   return cpu_clock_seconds(CLOCK_THREAD_CPUTIME_ID);
 }
 
-}  // namespace tandem::mpi
+}  // namespace tandem
