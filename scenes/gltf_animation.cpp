@@ -128,7 +128,7 @@ size_t deform_gltf_meshes(const GltfAnimations& anims, const std::vector<GltfAni
   std::vector<JointMatrix> palette;
   size_t written = 0;
   for (const GltfDeformedMesh& dm : anims.deformed) {
-    const MeshDeformation& d = dm.deformation;
+    const MeshDeformation& d = *dm.deformation;
     palette.clear();
     if (dm.skin >= 0) {
       // The palette once per mesh and frame; per vertex only blends of it.
@@ -139,7 +139,7 @@ size_t deform_gltf_meshes(const GltfAnimations& anims, const std::vector<GltfAni
     }
     const std::vector<float>& weights = local[dm.node].weights;
     if (deform_scene_mesh(
-            d, palette.empty() ? nullptr : palette.data(),
+            dm.deformation, palette.empty() ? nullptr : palette.data(),
             weights.size() == d.targets && !weights.empty() ? weights.data() : nullptr, scene,
             dm.last)) {
       ++written;

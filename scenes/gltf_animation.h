@@ -91,7 +91,8 @@ struct GltfSkin {
 struct GltfDeformedMesh {
   uint32_t node = 0;  // glTF node with the mesh (and skin)
   int skin = -1;      // index into GltfAnimations::skins, -1: morph only
-  MeshDeformation deformation;
+  // Shared with the poses the Scene holds (deform_scene_mesh()).
+  std::shared_ptr<const MeshDeformation> deformation;
   mutable DeformedPose last;  // an unchanged pose is not deformed again
 };
 

@@ -678,7 +678,7 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
   // Meshes that the animations will deform every frame.
   if (options.animations != nullptr) {
     for (const GltfDeformedMesh& d : animations.deformed)
-      scene.set_mesh_deforms(d.deformation.mesh);
+      scene.set_mesh_deforms(d.deformation->mesh);
   }
   for (const Instance& i : builder.instances())
     scene.add_instance(i);

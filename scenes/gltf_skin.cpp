@@ -191,7 +191,8 @@ void load_deformers(Context& ctx, AccessorCache& cache, const std::vector<Deform
     const Mesh& mesh = scene_meshes[dn.scene_mesh];
     GltfDeformedMesh dm;
     dm.node = uint32_t(dn.node);
-    MeshDeformation& d = dm.deformation;
+    auto deformation = std::make_shared<MeshDeformation>();
+    MeshDeformation& d = *deformation;
     d.mesh = dn.scene_mesh;
     d.base_positions = mesh.positions;
     d.base_normals = mesh.normals;
@@ -234,6 +235,7 @@ void load_deformers(Context& ctx, AccessorCache& cache, const std::vector<Deform
     }
     if (!m.meshes[size_t(node.mesh)].primitives.front().targets.empty())
       decode_targets(ctx, cache, node.mesh, d);
+    dm.deformation = std::move(deformation);
     out.deformed.push_back(std::move(dm));
   }
 }

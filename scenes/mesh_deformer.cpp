@@ -1,7 +1,8 @@
 #include "scenes/mesh_deformer.h"
 
 #include "core/kernel/host_isa.h"
-#include "core/world/kernel_scene.h"
+#include "core/kernel/math.h"
+#include "core/world/mesh_pose.h"
 #include "core/world/running_box.h"
 
 #include <tbb/blocked_range.h>
@@ -558,19 +559,12 @@ BlockFn pick(bool normals, bool tangents, uint32_t influences) {
 
 namespace {
 
-// Where a mesh's vertices lie in a KernelScene's arrays.
-struct KernelTarget {
-  Vec3* positions = nullptr;
-  Vec3* normals = nullptr;
-  Vec4* tangents = nullptr;
-};
-
 // deform_mesh() into `out` (when not null) and into `kernel` (when not
 // null: then also returning their box in `box`); false when nothing was
 // written or a position is not finite. With both, the attributes written
 // are those `out` has.
 bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const float* morph_weights,
-                 Mesh* out, const KernelTarget* kernel, SceneBounds* box) {
+                 Mesh* out, const MeshVertexTarget* kernel, SceneBounds* box) {
   const size_t vertices = d.vertex_count();
   bool normals = false, tangents = false;
   if (out != nullptr) {
@@ -578,8 +572,9 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
     normals = !d.base_normals.empty() && out->normals.size() == vertices;
     tangents = !d.base_tangents.empty() && out->tangents.size() == vertices;
   } else if (kernel != nullptr) {
-    normals = kernel->normals != nullptr;
-    tangents = kernel->tangents != nullptr;
+    if (kernel->vertex_count != vertices || kernel->positions == nullptr) return false;
+    normals = !d.base_normals.empty() && kernel->normals != nullptr;
+    tangents = !d.base_tangents.empty() && kernel->tangents != nullptr;
   } else {
     return false;
   }
@@ -648,73 +643,39 @@ bool deform_into(const MeshDeformation& d, const JointMatrix* palette, const flo
   return true;
 }
 
-// The mesh's place in `ks`, when ks holds it as compiled with every array
-// the deformation writes (the mesh's flags there say which it has: the
-// Scene's arrays are not looked at, their copy may be deferred).
-bool kernel_target(KernelScene& ks, const MeshDeformation& d, size_t scene_vertices,
-                   KernelTarget* out) {
-  if (d.mesh >= ks.meshes.size() || ks.vertices_written.size() != ks.meshes.size()) return false;
-  const KMesh& km = ks.meshes[d.mesh];
-  const size_t n = d.vertex_count(), first = km.vertex_offset;
-  if (km.vertex_count != n || scene_vertices != n || first + n > ks.positions.size()) return false;
-  out->positions = ks.positions.data() + first;
-  if (!d.base_normals.empty() && (km.flags & kMeshHasNormals)) {
-    if (first + n > ks.normals.size()) return false;
-    out->normals = ks.normals.data() + first;
+// A pose of one deformation: what the Scene holds for the mesh until the
+// compiler writes it into the kernel arrays or something reads the Scene's
+// copy. It holds the deformation, so the animator may go first.
+class DeformedMeshPose final : public MeshPose {
+ public:
+  DeformedMeshPose(std::shared_ptr<const MeshDeformation> d, const JointMatrix* palette,
+                   const float* morph_weights)
+      : d_(std::move(d)) {
+    if (d_->skinned() && palette != nullptr) palette_.assign(palette, palette + d_->palette_size);
+    if (morph_weights != nullptr) morph_weights_.assign(morph_weights, morph_weights + d_->targets);
   }
-  if (!d.base_tangents.empty() && (km.flags & kMeshHasTangents)) {
-    if (first + n > ks.tangents.size()) return false;
-    out->tangents = ks.tangents.data() + first;
+  size_t vertex_count() const override { return d_->vertex_count(); }
+  void write(Mesh& out) const override {
+    deform_into(*d_, palette(), weights(), &out, nullptr, nullptr);
   }
-  return true;
-}
+  bool write(const MeshVertexTarget& target, SceneBounds* box) const override {
+    return deform_into(*d_, palette(), weights(), nullptr, &target, box);
+  }
 
-// The Scene's copy of a pose written only into the kernel arrays: the same
-// deformation again, run when something reads the Scene mesh (most frames
-// nothing does). It holds the deformation, so the animator may go first.
-struct DeferredPose {
-  std::shared_ptr<const MeshDeformation> d;
-  std::vector<JointMatrix> palette;  // empty: not skinned
-  std::vector<float> morph_weights;  // empty: none given
-  void operator()(Mesh& out) const {
-    deform_mesh(*d, palette.empty() ? nullptr : palette.data(),
-                morph_weights.empty() ? nullptr : morph_weights.data(), out);
-  }
+ private:
+  const JointMatrix* palette() const { return palette_.empty() ? nullptr : palette_.data(); }
+  const float* weights() const { return morph_weights_.empty() ? nullptr : morph_weights_.data(); }
+  std::shared_ptr<const MeshDeformation> d_;
+  std::vector<JointMatrix> palette_;  // empty: not skinned
+  std::vector<float> morph_weights_;  // empty: none given
 };
 
-// Writes the pose into the Scene mesh (marked edited; the compiler copies
-// it), or, with `shared` and `kernel`, where the kernel arrays hold the mesh
-// as compiled and no other edit of its vertices is pending, into the
-// kernel arrays alone: their box goes to the scene's bounds cache,
-// KernelScene::vertices_written is set, and the Scene's copy is left to a
-// DeferredPose (Scene::defer_mesh_vertices()). d.mesh is a Scene mesh
-// (write_new_pose() checked).
-void write_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
-                const JointMatrix* palette, const float* morph_weights, Scene& scene,
-                KernelScene* kernel) {
-  const bool clean = !(scene.mesh_dirty()[d.mesh] & kDirtyVertices);
-  KernelTarget target;
-  SceneBounds box;
-  if (shared == nullptr || kernel == nullptr || !clean ||
-      !kernel_target(*kernel, d, scene.mesh_vertex_count(d.mesh), &target) ||
-      !deform_into(d, palette, morph_weights, nullptr, &target, &box)) {
-    // (Also where a position came out not finite: the compiler's copy then
-    // decides, as for any edit, what the kernel arrays get.)
-    deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
-    return;
-  }
-  DeferredPose pose{*shared, {}, {}};
-  if (d.skinned() && palette != nullptr) pose.palette.assign(palette, palette + d.palette_size);
-  if (morph_weights != nullptr) pose.morph_weights.assign(morph_weights, morph_weights + d.targets);
-  scene.defer_mesh_vertices(d.mesh, std::move(pose));
-  scene.note_mesh_vertex_bounds(d.mesh, box);
-  kernel->vertices_written[d.mesh] = scene.mesh_vertex_version(d.mesh);
-}
-
-// The DeformedPose check around write_pose().
+// The DeformedPose check, then the pose: given to the Scene as a pose
+// (Scene::pose_mesh) with `shared`, else written through
+// Scene::edit_mesh_vertices.
 bool write_new_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDeformation>* shared,
                     const JointMatrix* palette, const float* morph_weights, Scene& scene,
-                    DeformedPose& last, KernelScene* kernel) {
+                    DeformedPose& last) {
   if (d.mesh >= scene.mesh_count()) return false;
   const size_t joints = d.skinned() && palette != nullptr ? d.palette_size : 0;
   const size_t targets = morph_weights != nullptr ? d.targets : 0;
@@ -726,7 +687,11 @@ bool write_new_pose(const MeshDeformation& d, const std::shared_ptr<const MeshDe
       (targets == 0 ||
        std::memcmp(last.morph_weights.data(), morph_weights, targets * sizeof(float)) == 0);
   if (same_pose) return false;
-  write_pose(d, shared, palette, morph_weights, scene, kernel);
+  if (shared != nullptr && d.vertex_count() == scene.mesh_vertex_count(d.mesh)) {
+    scene.pose_mesh(d.mesh, std::make_shared<DeformedMeshPose>(*shared, palette, morph_weights));
+  } else {
+    deform_mesh(d, palette, morph_weights, scene.edit_mesh_vertices(d.mesh));
+  }
   last.palette.assign(palette, palette + joints);
   last.morph_weights.assign(morph_weights, morph_weights + targets);
   last.vertex_version = scene.mesh_vertex_version(d.mesh);
@@ -742,14 +707,13 @@ void deform_mesh(const MeshDeformation& d, const JointMatrix* palette, const flo
 
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene, DeformedPose& last) {
-  return write_new_pose(d, nullptr, palette, morph_weights, scene, last, nullptr);
+  return write_new_pose(d, nullptr, palette, morph_weights, scene, last);
 }
 
 bool deform_scene_mesh(const std::shared_ptr<const MeshDeformation>& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, DeformedPose& last,
-                       KernelScene* kernel) {
+                       const float* morph_weights, Scene& scene, DeformedPose& last) {
   if (d == nullptr) return false;
-  return write_new_pose(*d, &d, palette, morph_weights, scene, last, kernel);
+  return write_new_pose(*d, &d, palette, morph_weights, scene, last);
 }
 
 }  // namespace tandem

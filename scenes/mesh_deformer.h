@@ -1,9 +1,10 @@
 // CPU mesh deformation: morph targets, then linear blend skinning (the
-// order glTF prescribes), evaluated every frame into the Scene's vertex
-// arrays through Scene::edit_mesh_vertices, so the compiler sees a
-// kDirtyVertices mesh and the BVH refits it (topology never changes); or,
-// in a frame loop, straight into the compiled arrays, the Scene's copy
-// deferred until something reads it.
+// order glTF prescribes), evaluated every frame. A deforming mesh is handed
+// to the Scene as a pose (Scene::pose_mesh, core/world/mesh_pose.h): the
+// compiler writes it straight into the kernel arrays the renderers read,
+// and the Scene's own copy is written only if something reads it. Either
+// way the compiler sees a kDirtyVertices mesh and the BVH refits it
+// (topology never changes).
 //
 // A MeshDeformation holds what one deforming Scene mesh needs: its base
 // (bind-pose, unmorphed) vertices, per-vertex joint influences and the
@@ -29,8 +30,6 @@
 #include "core/world/scene.h"
 
 namespace tandem {
-
-class KernelScene;
 
 // One joint's skinning matrix, the top three rows of an affine 4x4 matrix
 // stored row by row (m[4 * r + c]): 12 floats, so that blending four of
@@ -92,28 +91,16 @@ struct DeformedPose {
   uint64_t vertex_version = 0;       // Scene::mesh_vertex_version() after the write; 0: none
 };
 
-// deform_mesh() into the Scene mesh d.mesh through Scene::edit_mesh_vertices,
-// so the mesh is marked kDirtyVertices and the compiler copies it, unless
+// Poses the Scene mesh d->mesh (Scene::pose_mesh: the compiler writes the
+// pose into the kernel arrays, the Scene's copy waits until read), unless
 // the mesh still holds (its vertex version is last's) the same pose (bit
 // for bit the same palette and weights); then it is left alone, not marked
-// dirty. Returns whether it deformed; updates last.
+// dirty. Returns whether it posed; updates last. The pose keeps `d` alive.
+bool deform_scene_mesh(const std::shared_ptr<const MeshDeformation>& d, const JointMatrix* palette,
+                       const float* morph_weights, Scene& scene, DeformedPose& last);
+// The same, written into the Scene mesh at once through
+// Scene::edit_mesh_vertices, for a deformation that is not shared.
 bool deform_scene_mesh(const MeshDeformation& d, const JointMatrix* palette,
                        const float* morph_weights, Scene& scene, DeformedPose& last);
-
-// The same, and with `kernel` (the KernelScene the last
-// SceneCompiler::compile() of this scene wrote) the deformed vertices go
-// straight into its arrays instead: their box is handed to the scene's
-// bounds cache and KernelScene::vertices_written set, so the next compile
-// marks the ranges in the delta without copying the mesh (bit for bit the
-// arrays and the delta a copy would give). The Scene mesh's own copy is
-// then not written but deferred (Scene::defer_mesh_vertices()): the same
-// deformation, kept alive by `d`, runs again when something reads the
-// Scene's vertices, which in a frame loop nothing does. Only when the mesh
-// has no vertex edit pending and `kernel` holds it as compiled; otherwise
-// as without it. The caller must not let anything read `kernel`
-// meanwhile (a frame still rendering from it).
-bool deform_scene_mesh(const std::shared_ptr<const MeshDeformation>& d, const JointMatrix* palette,
-                       const float* morph_weights, Scene& scene, DeformedPose& last,
-                       KernelScene* kernel);
 
 }  // namespace tandem

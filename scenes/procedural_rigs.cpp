@@ -324,7 +324,7 @@ size_t ProceduralRigPlayer::vertex_count() const {
   return n;
 }
 
-void ProceduralRigPlayer::pose(double t, Scene& scene, KernelScene* kernel) const {
+void ProceduralRigPlayer::pose(double t, Scene& scene) const {
   JointMatrix palette[std::max(kWalkerJoints, kGridJoints)];
   for (const Rig& r : rigs_) {
     if (r.walker >= 0) {
@@ -332,7 +332,7 @@ void ProceduralRigPlayer::pose(double t, Scene& scene, KernelScene* kernel) cons
     } else {
       skinned_grid_palette(t, palette);
     }
-    deform_scene_mesh(r.deformation, palette, nullptr, scene, r.last, kernel);
+    deform_scene_mesh(r.deformation, palette, nullptr, scene, r.last);
   }
 }
 

@@ -56,13 +56,13 @@ class ProceduralRigPlayer {
   bool empty() const { return rigs_.empty(); }
   size_t rig_count() const { return rigs_.size(); }
   size_t vertex_count() const;
-  // Deforms every rig's mesh for time t (marking those meshes dirty); with
-  // `kernel`, straight into its arrays too (deform_scene_mesh()).
-  void pose(double t, Scene& scene, KernelScene* kernel = nullptr) const;
+  // Poses every rig's mesh for time t (marking those meshes dirty;
+  // deform_scene_mesh()).
+  void pose(double t, Scene& scene) const;
 
  private:
   struct Rig {
-    // Shared with the Scene copies' deferred writers (deform_scene_mesh()).
+    // Shared with the poses the Scene holds (deform_scene_mesh()).
     std::shared_ptr<const MeshDeformation> deformation;
     int walker = -1;            // index into arena_walker_paths(), -1: the grid
     mutable DeformedPose last;  // an unchanged pose is not deformed again

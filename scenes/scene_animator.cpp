@@ -21,10 +21,9 @@ class ArenaAnimator final : public SceneAnimator {
  public:
   explicit ArenaAnimator(const Scene& scene) : simulation_(scene), rigs_(scene) {}
   bool animated() const override { return true; }
-  void pose(double t, Scene& scene) override { pose_into(t, scene, nullptr); }
-  void pose_into(double t, Scene& scene, KernelScene* kernel) override {
+  void pose(double t, Scene& scene) override {
     simulation_.advance_to(std::max(t, 0.0), scene);
-    rigs_.pose(std::max(t, 0.0), scene, kernel);
+    rigs_.pose(std::max(t, 0.0), scene);
   }
   double duration() const override { return 0.0; }
 
@@ -39,9 +38,6 @@ class ProceduralRigAnimator final : public SceneAnimator {
   explicit ProceduralRigAnimator(ProceduralRigPlayer rigs) : rigs_(std::move(rigs)) {}
   bool animated() const override { return true; }
   void pose(double t, Scene& scene) override { rigs_.pose(std::max(t, 0.0), scene); }
-  void pose_into(double t, Scene& scene, KernelScene* kernel) override {
-    rigs_.pose(std::max(t, 0.0), scene, kernel);
-  }
   double duration() const override { return 0.0; }
 
  private:

@@ -12,25 +12,17 @@
 
 namespace tandem {
 
-class KernelScene;
-
 class SceneAnimator {
  public:
   virtual ~SceneAnimator() = default;
   // Whether pose() moves anything (false for static scenes).
   virtual bool animated() const = 0;
   // Poses the scene for time t (seconds, >= 0): writes the transforms of the
-  // moving instances (marking only those dirty). A pure function of t: the
-  // same t gives the same scene whatever was posed before.
+  // moving instances and the poses of the deforming meshes (marking only
+  // those dirty; a posed mesh reaches the kernel arrays without a copy in
+  // the Scene, core/world/mesh_pose.h). A pure function of t: the same t
+  // gives the same scene whatever was posed before.
   virtual void pose(double t, Scene& scene) = 0;
-  // pose(), the deforming meshes that can be written straight into
-  // `kernel` (the KernelScene the last compile of this scene wrote, which
-  // nothing may read meanwhile) written there too, so the next compile does
-  // not copy them (deform_scene_mesh()). By default plain pose().
-  virtual void pose_into(double t, Scene& scene, KernelScene* kernel) {
-    (void)kernel;
-    pose(t, scene);
-  }
   // Length of one loop of the motion in seconds; 0 when it has no end (a
   // simulation) or no motion at all.
   virtual double duration() const = 0;

@@ -37,6 +37,7 @@ const SceneSyncUpdate& SceneSync::update(Scene& scene, const RenderSettings& set
     const auto start = Clock::now();
     const double cpu = process_cpu_seconds();
     up.changes = compiler_.compile(scene, settings, kernel_scene_);
+    scene.clear_dirty();  // the changes are this object's now
     up.compile_seconds = seconds_since(start);
     up.compile_cpu_seconds = process_cpu_seconds() - cpu;
   }

@@ -87,11 +87,6 @@ class SceneSync {
 
   const KernelScene& kernel_scene() const { return kernel_scene_; }
   KernelData view() const { return kernel_scene_.view(); }
-  // The arrays a mesh deformer may write a mesh's new positions into
-  // between updates (SceneAnimator::pose_into): the next update() marks
-  // them changed without copying them from the Scene. Nothing else may
-  // write the arrays.
-  KernelScene& arrays_for_deformer() { return kernel_scene_; }
 
  private:
   SceneSyncSettings settings_;

@@ -13,6 +13,7 @@
 #include "accstruc/wide_bvh.h"
 #include "accstruc_test_util.h"
 #include "scenes/deforming_grid.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -519,7 +520,7 @@ struct Updated {
   AccelStructure accel;
   explicit Updated(AccelSettings a) : accel(a) {}
   AccelUpdate update(Scene& scene, SceneDelta* out = nullptr) {
-    SceneDelta delta = compiler.compile(scene, settings, ks);
+    SceneDelta delta = compile_taking_changes(compiler, scene, settings, ks);
     const AccelUpdate up = accel.update(ks, delta);
     if (out) {
       *out = delta;

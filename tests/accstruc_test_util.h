@@ -24,6 +24,7 @@
 #include "core/kernel/sampling.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/scene_loader.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem::accstruc_test {
 
@@ -50,13 +51,13 @@ struct TracedScene {
     if (!scene.has_camera()) scene.set_camera(frame_bounds_camera(bounds, 0.7f, 1.0f));
     settings.width = 256;
     settings.height = 256;
-    SceneDelta delta = compiler.compile(scene, settings, ks);
+    SceneDelta delta = compile_taking_changes(compiler, scene, settings, ks);
     delta.merge(accel.update(ks, delta).delta);
     embree.sync(ks, delta);
   }
   // Applies the scene's edits to both structures; returns what our side did.
   AccelUpdate recompile(SceneDelta* delta_out = nullptr) {
-    SceneDelta delta = compiler.compile(scene, settings, ks);
+    SceneDelta delta = compile_taking_changes(compiler, scene, settings, ks);
     const AccelUpdate up = accel.update(ks, delta);
     delta.merge(up.delta);
     embree.sync(ks, delta);

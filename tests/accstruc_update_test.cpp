@@ -9,6 +9,7 @@
 #include "accstruc_test_util.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/procedural_scenes.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -277,8 +278,9 @@ TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
   SceneCompiler partial_compiler, full_compiler;
   KernelScene partial_ks, full_ks;
   AccelStructure partial_accel, full_accel;
-  partial_accel.update(partial_ks, partial_compiler.compile(scene, settings, partial_ks));
-  full_accel.update(full_ks, full_compiler.compile(full_scene, settings, full_ks));
+  partial_accel.update(partial_ks,
+                       compile_taking_changes(partial_compiler, scene, settings, partial_ks));
+  full_accel.update(full_ks, compile_taking_changes(full_compiler, full_scene, settings, full_ks));
   for (int frame = 0; frame < 40; ++frame) {
     const bool scatter = frame == 30;
     const uint32_t moves = scatter ? 700 : 1 + uint32_t(rng.uniform() * 60.0f);
@@ -291,8 +293,9 @@ TEST(AccelUpdate, PartialTlasRefitEqualsTheFullRefit) {
       scene.set_instance_transform(i, t);
       full_scene.set_instance_transform(i, t);
     }
-    const SceneDelta partial_delta = partial_compiler.compile(scene, settings, partial_ks);
-    SceneDelta full_delta = full_compiler.compile(full_scene, settings, full_ks);
+    const SceneDelta partial_delta =
+        compile_taking_changes(partial_compiler, scene, settings, partial_ks);
+    SceneDelta full_delta = compile_taking_changes(full_compiler, full_scene, settings, full_ks);
     ASSERT_FALSE(partial_delta.instances_moved.empty());
     full_delta.instances_moved.clear();  // the updater then refits every instance
     const AccelUpdate p = partial_accel.update(partial_ks, partial_delta);

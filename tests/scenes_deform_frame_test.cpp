@@ -1,7 +1,7 @@
 // The deformer in a frame loop: an unchanged pose is neither skinned nor
-// refit again, and skinning straight into the compiled arrays (the deform
-// bench's path) gives the compiler's copy bit for bit while the Scene's own
-// copy waits, deferred, for a reader.
+// refit again, and a pose skinned by the compiler straight into the kernel
+// arrays gives the compiler's copy bit for bit while the Scene's own copy
+// waits for a reader.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -16,6 +16,7 @@
 #include "scenes/mesh_deformer.h"
 #include "scenes/procedural_rigs.h"
 #include "scenes/scene_animator.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -26,42 +27,45 @@ TEST(MeshDeformer, AnUnchangedPoseIsNeitherSkinnedNorRefitAgain) {
   KernelScene ks;
   SceneCompiler compiler;
   const RenderSettings settings;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   animator->pose(0.5, scene);
   ASSERT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   const uint64_t version = scene.mesh_vertex_version(0);
-  EXPECT_EQ(compiler.compile(scene, settings, ks).meshes_refit.size(), 1u);
+  EXPECT_EQ(compile_taking_changes(compiler, scene, settings, ks).meshes_refit.size(), 1u);
   // The same time again: the palette is bit for bit the last one and the
   // mesh holds what it wrote, so nothing is skinned, marked or refit.
   animator->pose(0.5, scene);
   EXPECT_TRUE(scene.dirty_meshes().empty());
   EXPECT_EQ(scene.mesh_vertex_version(0), version);
-  const SceneDelta same = compiler.compile(scene, settings, ks);
+  const SceneDelta same = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_TRUE(same.meshes_refit.empty());
   EXPECT_FALSE(same.positions.any());
   // Someone else writes the mesh: the same pose is then written again.
   const std::vector<glm::vec3> posed = scene.meshes()[0].positions;
   scene.edit_mesh_vertices(0, 7, 1).positions[7].y += 1.0f;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   animator->pose(0.5, scene);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   EXPECT_EQ(scene.meshes()[0].positions, posed);
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   // Another time moves it as before.
   animator->pose(0.6, scene);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   EXPECT_NE(scene.meshes()[0].positions, posed);
   // A copy of the scene holds the pose too: not written again there.
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   Scene copy = scene;
   animator->pose(0.6, copy);
   EXPECT_TRUE(copy.dirty_meshes().empty());
 }
 
-// Skinning straight into the kernel arrays (pose_into with the KernelScene)
-// gives bit for bit the arrays, the delta and the bounds of the compiler's
-// copy, and falls back to the copy when the mesh has another edit pending.
-TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
+// A posed mesh (Scene::pose_mesh, the animators' path) is skinned by the
+// compiler straight into the kernel arrays, giving bit for bit the arrays,
+// the delta and the bounds of the compiler's copy of the same vertices
+// written into the Scene, while the Scene's own copy waits for a reader;
+// and the copy is taken when the mesh had another edit since the last
+// compile.
+TEST(MeshDeformer, APoseSkinnedIntoTheKernelArraysEqualsTheCompilersCopy) {
   const DeformIsaChoice saved = deform_isa;
   for (const bool avx2 : {false, true})
     for (const char* name : {"skinned-grid", "arena"}) {
@@ -80,7 +84,7 @@ TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
       KernelScene ka, kb;
       SceneCompiler ca, cb;
       const RenderSettings settings;
-      size_t written = 0;
+      size_t direct = 0;
       for (int f = 0; f < 6; ++f) {
         const double t = 0.1 + 0.23 * f;
         if (f == 3) {  // an edit before the pose: the copy path
@@ -88,18 +92,25 @@ TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
             s->edit_mesh_vertices(rig, 5, 2).positions[5].x += 0.25f;
         }
         anim_a->pose(t, a);
-        anim_b->pose_into(t, b, &kb);
-        for (uint32_t m = 0; m < b.mesh_count() && f > 0; ++m) {
-          if (m < kb.vertices_written.size() && kb.vertices_written[m] != 0 &&
-              kb.vertices_written[m] == b.mesh_vertex_version(m)) {
-            ++written;
-            EXPECT_FALSE(f == 3 && m == rig) << "the mesh had an edit pending";
-            // The Scene's copy is left to its deferred writer, run when
-            // b.meshes() is read below.
-            EXPECT_TRUE(b.mesh_vertices_deferred(m)) << m;
-          }
+        anim_b->pose(t, b);
+        // Scene a: every posed mesh written into the Scene (an edit of the
+        // whole mesh writes the pose), so its compiler copies them.
+        for (uint32_t m : std::vector<uint32_t>(a.dirty_meshes())) {
+          if (a.mesh_pose_unwritten(m)) a.edit_mesh_vertices(m);
         }
-        const SceneDelta da = ca.compile(a, settings, ka), db = cb.compile(b, settings, kb);
+        std::vector<uint32_t> posed;
+        for (uint32_t m = 0; m < b.mesh_count() && f > 0; ++m) {
+          if (b.compiled_pose(m) == nullptr) continue;
+          EXPECT_FALSE(f == 3 && m == rig) << "the mesh had another edit";
+          posed.push_back(m);
+        }
+        const SceneDelta da = compile_taking_changes(ca, a, settings, ka);
+        const SceneDelta db = compile_taking_changes(cb, b, settings, kb);
+        for (uint32_t m : posed) {
+          ++direct;
+          // The compile did not write the Scene's copy.
+          EXPECT_TRUE(b.mesh_pose_unwritten(m)) << m;
+        }
         auto same_bytes = [](const auto& x, const auto& y) {
           // (memcmp of an empty vector's null data() is undefined.)
           return x.size() == y.size() &&
@@ -120,30 +131,35 @@ TEST(MeshDeformer, SkinningIntoTheKernelArraysEqualsTheCompilersCopy) {
         EXPECT_TRUE(same_change(da.tangents, db.tangents)) << f;
         EXPECT_EQ(da.meshes_refit, db.meshes_refit) << f;
         EXPECT_EQ(da.bytes(ka), db.bytes(kb)) << f;
+        // The compiler's bounds (the constants) from the boxes it took.
+        EXPECT_EQ(std::memcmp(&ka.constants, &kb.constants, sizeof ka.constants), 0) << f;
         const SceneBounds ba = a.bounds(), bb = b.bounds();
         EXPECT_EQ(std::memcmp(&ba.lo, &bb.lo, sizeof(ba.lo)), 0) << f;
         EXPECT_EQ(std::memcmp(&ba.hi, &bb.hi, sizeof(ba.hi)), 0) << f;
         for (uint32_t m = 0; m < a.meshes().size(); ++m)
           EXPECT_EQ(a.meshes()[m].positions, b.meshes()[m].positions) << m;
       }
-      EXPECT_GT(written, 0u) << "the direct path was never taken";
+      EXPECT_GT(direct, 0u) << "the direct path was never taken";
     }
   deform_isa = saved;
 }
 
-// The Scene's deferred copy of a pose written into the kernel arrays holds
-// what it needs: read after the animator that posed it is gone, it is the
-// pose, bit for bit that of a scene posed without the kernel arrays.
-TEST(MeshDeformer, TheDeferredSceneCopyOutlivesItsAnimator) {
+// The Scene's unwritten copy of a pose holds what it needs: read after the
+// animator that posed it is gone, it is the pose, bit for bit that of a
+// scene whose pose was written at once.
+TEST(MeshDeformer, TheScenesCopyOfAPoseOutlivesItsAnimator) {
   Scene a = make_skinned_grid_scene(50), b = make_skinned_grid_scene(50);
   KernelScene kb;
   SceneCompiler cb;
-  cb.compile(b, RenderSettings{}, kb);
+  compile_taking_changes(cb, b, RenderSettings{}, kb);
   make_scene_animator(a)->pose(0.7, a);
-  make_scene_animator(b)->pose_into(0.7, b, &kb);
-  ASSERT_TRUE(b.mesh_vertices_deferred(0));
+  a.meshes();
+  make_scene_animator(b)->pose(0.7, b);
+  compile_taking_changes(cb, b, RenderSettings{}, kb);
+  ASSERT_TRUE(b.mesh_pose_unwritten(0));
   EXPECT_EQ(a.meshes()[0].positions, b.meshes()[0].positions);
   EXPECT_EQ(a.meshes()[0].normals, b.meshes()[0].normals);
+  EXPECT_FALSE(b.mesh_pose_unwritten(0));
   EXPECT_NE(b.meshes()[0].positions, make_skinned_grid_scene(50).meshes()[0].positions)
       << "not the bind pose";
 }

@@ -301,7 +301,7 @@ TEST(GltfSkinning, PosingMovesTheSkinnedMeshAndMarksItDirty) {
   Scene scene = load_gltf(skinned("RiggedSimple"), options);
   ASSERT_EQ(anims.deformed.size(), 1u);
   EXPECT_EQ(anims.deformed[0].skin, 0);
-  const uint32_t mesh = anims.deformed[0].deformation.mesh;
+  const uint32_t mesh = anims.deformed[0].deformation->mesh;
   auto animator = make_scene_animator(scene, std::move(anims));
   scene.clear_dirty();
   animator->pose(0.0, scene);

@@ -12,6 +12,7 @@
 
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -103,7 +104,7 @@ TEST(SceneBoundsCache, BoxesFromTheCompilersVertexCopyEqualTheTriangleWalk) {
   KernelScene ks;
   SceneCompiler compiler;
   const RenderSettings settings;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   const auto same_bits = [](const SceneBounds& a, const SceneBounds& b) {
     return a.empty == b.empty && std::memcmp(&a.lo, &b.lo, sizeof(a.lo)) == 0 &&
            std::memcmp(&a.hi, &b.hi, sizeof(a.hi)) == 0;
@@ -118,22 +119,34 @@ TEST(SceneBoundsCache, BoxesFromTheCompilersVertexCopyEqualTheTriangleWalk) {
       if (frame == 10) mesh.positions.back().y = 50.0f;
     }
     // The compile copies every vertex of both meshes; its constants read
-    // the bounds.
-    compiler.compile(scene, settings, ks);
+    // its own bounds, from the boxes it took as it copied.
+    compile_taking_changes(compiler, scene, settings, ks);
     const SceneBounds cached = scene.bounds();
     const SceneBounds full = compute_scene_bounds(scene.meshes(), scene.instances());
     ASSERT_TRUE(same_bits(cached, full)) << "frame " << frame;
+    ASSERT_EQ(ks.constants.scene_radius, full.radius()) << "frame " << frame;
+    ASSERT_EQ(ks.constants.scene_center.x, full.center().x) << "frame " << frame;
   }
   // A box handed over and then outdated by another edit is not used; nor
   // is one for a mesh with unused vertices.
   const SceneBounds bogus{glm::vec3(-1000.0f), glm::vec3(1000.0f), false};
+  SceneBoundsCache cache;
+  for (uint32_t m = 0; m < 2; ++m)
+    cache.mesh_added();
+  for (const Instance& inst : scene.instances())
+    cache.instance_added(inst.mesh);
+  cache.bounds(scene.meshes(), scene.instances());  // learns which vertices are used
   scene.edit_mesh_vertices(0).positions[0] = glm::vec3(9.0f);
-  scene.note_mesh_vertex_bounds(0, bogus);
+  cache.mesh_changed(0);
+  cache.mesh_vertex_bounds(0, bogus);
   scene.edit_mesh_vertices(0).positions[1] = glm::vec3(-9.0f);
+  cache.mesh_changed(0);
   scene.edit_mesh_vertices(1).positions[0] = glm::vec3(8.0f);
-  scene.note_mesh_vertex_bounds(1, bogus);
-  EXPECT_TRUE(same_bits(scene.bounds(), compute_scene_bounds(scene.meshes(), scene.instances())));
-  EXPECT_LT(scene.bounds().hi.y, 1000.0f);
+  cache.mesh_changed(1);
+  cache.mesh_vertex_bounds(1, bogus);
+  const SceneBounds cached = cache.bounds(scene.meshes(), scene.instances());
+  EXPECT_TRUE(same_bits(cached, compute_scene_bounds(scene.meshes(), scene.instances())));
+  EXPECT_LT(cached.hi.y, 1000.0f);
 }
 
 TEST(SceneDirtyLists, ListEachMarkedObjectOnceAndClearWithTheMasks) {
@@ -192,7 +205,7 @@ TEST(SceneCompilerIncremental, LightAndMaterialEditsGiveWhatAFreshCompileGives) 
   settings.width = settings.height = 64;
   SceneCompiler incremental;
   KernelScene ks;
-  incremental.compile(scene, settings, ks);
+  compile_taking_changes(incremental, scene, settings, ks);
   std::uniform_real_distribution<float> u(0.1f, 2.0f);
   for (int step = 0; step < 60; ++step) {
     const uint32_t what = rng() % 4;
@@ -206,12 +219,12 @@ TEST(SceneCompilerIncremental, LightAndMaterialEditsGiveWhatAFreshCompileGives) 
     } else {
       scene.edit_environment().intensity = u(rng);
     }
-    const SceneDelta delta = incremental.compile(scene, settings, ks);
+    const SceneDelta delta = compile_taking_changes(incremental, scene, settings, ks);
     EXPECT_FALSE(delta.full) << step;
     Scene copy = scene;
     SceneCompiler fresh;
     KernelScene fresh_ks;
-    fresh.compile(copy, settings, fresh_ks);
+    compile_taking_changes(fresh, copy, settings, fresh_ks);
     expect_same_scene_arrays(ks, fresh_ks, step);
     if (::testing::Test::HasFailure()) return;
   }

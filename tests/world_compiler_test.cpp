@@ -18,6 +18,7 @@
 #include "core/util/log.h"
 #include "core/world/kernel_scene.h"
 #include "scenes/builtin_scenes.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -61,7 +62,7 @@ struct Compiled {
   SceneCompiler compiler;
   KernelScene ks;
   RenderSettings settings;
-  SceneDelta compile(Scene& s) { return compiler.compile(s, settings, ks); }
+  SceneDelta compile(Scene& s) { return compile_taking_changes(compiler, s, settings, ks); }
 };
 
 TEST(SceneCompiler, FirstCompileIsFullAndAnUnchangedSceneGivesAnEmptyDelta) {

@@ -6,10 +6,13 @@
 
 #include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
+#include <memory>
 #include <stdexcept>
 
 #include "core/world/kernel_scene.h"
+#include "core/world/mesh_pose.h"
 #include "scenes/deforming_grid.h"
+#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -51,7 +54,7 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   SceneCompiler compiler;
   KernelScene ks;
   RenderSettings settings;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   const KMesh km = ks.meshes[0];
   const KernelScene before = ks;
 
@@ -59,7 +62,7 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   const uint32_t first = 1000, count = 75;
   Mesh& mesh = scene.edit_mesh_vertices(0, first, count);
   deform_wave_grid(mesh, kGrid, 0.37f, first, count);
-  const SceneDelta d = compiler.compile(scene, settings, ks);
+  const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
 
   const uint32_t b = km.vertex_offset + first, e = b + count;
   for (const ArrayChange* c : {&d.positions, &d.normals, &d.uv0}) {
@@ -95,20 +98,20 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   deform_wave_grid(scene.edit_mesh_vertices(0, 2000, 5), kGrid, 0.5f, 2000, 5);
   deform_wave_grid(scene.edit_mesh_vertices(0, 40, 10), kGrid, 0.5f, 40, 10);
   scene.edit_mesh_vertices(0, 45, 0);  // marks nothing
-  const SceneDelta d2 = compiler.compile(scene, settings, ks);
+  const SceneDelta d2 = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_EQ(d2.positions.begin, km.vertex_offset + 40);
   EXPECT_EQ(d2.positions.end, km.vertex_offset + 2005);
   Scene copy = scene;
   KernelScene fresh;
   SceneCompiler fresh_compiler;
-  fresh_compiler.compile(copy, settings, fresh);
+  compile_taking_changes(fresh_compiler, copy, settings, fresh);
   EXPECT_TRUE(same_bytes(ks.positions, fresh.positions));
   EXPECT_TRUE(same_bytes(ks.normals, fresh.normals));
   EXPECT_TRUE(same_bytes(ks.uv0, fresh.uv0));
 
   // The whole-mesh form still means every vertex; a bad range is refused.
   scene.edit_mesh_vertices(0);
-  const SceneDelta d3 = compiler.compile(scene, settings, ks);
+  const SceneDelta d3 = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_EQ(d3.positions.begin, km.vertex_offset);
   EXPECT_EQ(d3.positions.end, km.vertex_offset + km.vertex_count);
   EXPECT_THROW(scene.edit_mesh_vertices(0, kGrid.vertex_count() - 2, 3), std::out_of_range);
@@ -127,7 +130,7 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
   SceneCompiler compiler;
   KernelScene ks;
   RenderSettings settings;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   const std::vector<KAliasEntry> alias_before = ks.light_alias;
   const size_t light_count = ks.lights.size();
   ASSERT_GT(light_count, 2u * 2 * 48 * 48);  // every grid triangle of both instances
@@ -137,7 +140,7 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
     WaveGrid g = kGrid;
     g.amplitude = 0.2f + 0.15f * float(frame);
     deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
-    const SceneDelta d = compiler.compile(scene, settings, ks);
+    const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
     // Updated in place: the light list keeps its size and order, the
     // deformed lights' cached vertices and normals and the alias table are
     // rewritten.
@@ -149,7 +152,7 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
     Scene copy = scene;
     KernelScene fresh;
     SceneCompiler fresh_compiler;
-    fresh_compiler.compile(copy, settings, fresh);
+    compile_taking_changes(fresh_compiler, copy, settings, fresh);
     expect_same_light_tables(ks, fresh, "deformed");
   }
   EXPECT_FALSE(same_bytes(alias_before, ks.light_alias));  // the test saw a change
@@ -158,18 +161,18 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
   // are then rebuilt, and still equal a fresh compile.
   Mesh& m = scene.edit_mesh_vertices(0, 0, 2);
   m.positions[1] = m.positions[0];
-  const SceneDelta d = compiler.compile(scene, settings, ks);
+  const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_TRUE(d.lights.any());
   EXPECT_LT(ks.lights.size(), light_count);
   Scene copy = scene;
   KernelScene fresh;
   SceneCompiler fresh_compiler;
-  fresh_compiler.compile(copy, settings, fresh);
+  compile_taking_changes(fresh_compiler, copy, settings, fresh);
   expect_same_light_tables(ks, fresh, "collapsed triangle");
 
   // A non-emissive mesh's deformation leaves the light tables alone.
   deform_wave_grid(scene.edit_mesh_vertices(1), WaveGrid{.cells = 4, .size = 1.0f}, 0.3f);
-  const SceneDelta d4 = compiler.compile(scene, settings, ks);
+  const SceneDelta d4 = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_TRUE(d4.positions.any());
   EXPECT_FALSE(d4.lights.any() || d4.light_alias.any());
 }
@@ -215,77 +218,148 @@ TEST(SceneDeform, ArrayChangeKeepsRangesApartAndMergesTheClosest) {
   EXPECT_EQ(a.bytes(ks), 20u * sizeof(Vec3));
 }
 
-// Scene::defer_mesh_vertices(): the mesh reads as written the moment it is
-// deferred, whoever reads it (meshes(), an edit, bounds(), the compiler, a
-// copy of the scene), and the writer runs once, only when something does.
-TEST(SceneDeform, DeferredVerticesAreWrittenOnceBeforeAnythingReadsThem) {
+// A wave-grid pose for Scene::pose_mesh, counting its writes: into the
+// Scene's mesh, and into the kernel arrays (converted as the compiler
+// converts a Mesh). `fail_kernel_write` makes the latter refuse, as a pose
+// with a position that is not finite does.
+class WaveGridPose final : public MeshPose {
+ public:
+  WaveGridPose(Mesh rest, float t, int* mesh_writes, int* kernel_writes,
+               bool fail_kernel_write = false)
+      : rest_(std::move(rest)),
+        t_(t),
+        mesh_writes_(mesh_writes),
+        kernel_writes_(kernel_writes),
+        fail_(fail_kernel_write) {}
+  size_t vertex_count() const override { return rest_.positions.size(); }
+  void write(Mesh& out) const override {
+    ++*mesh_writes_;
+    deform_wave_grid(out, kGrid, t_);
+  }
+  bool write(const MeshVertexTarget& target, SceneBounds* box) const override {
+    ++*kernel_writes_;
+    if (fail_) return false;
+    Mesh posed = rest_;
+    deform_wave_grid(posed, kGrid, t_);
+    bool finite = true;
+    *box = vertex_bounds(posed.positions.data(), posed.positions.size(), &finite);
+    for (size_t v = 0; v < target.vertex_count; ++v) {
+      target.positions[v] = {posed.positions[v].x, posed.positions[v].y, posed.positions[v].z};
+      if (target.normals != nullptr)
+        target.normals[v] = {posed.normals[v].x, posed.normals[v].y, posed.normals[v].z};
+    }
+    return finite;
+  }
+
+ private:
+  Mesh rest_;
+  float t_;
+  int *mesh_writes_, *kernel_writes_;
+  bool fail_;
+};
+
+// Scene::pose_mesh(): the compiler writes the pose straight into the kernel
+// arrays (bit for bit the copy of the written mesh, its bounds included)
+// and the Scene's copy is written once, only when something reads it
+// (meshes(), an edit, bounds(), a copy of the scene); after another edit
+// since the last compile, or a pose the kernel arrays cannot take, the
+// compiler copies the written mesh instead.
+TEST(SceneDeform, APoseIsWrittenIntoTheKernelArraysAndTheScenesCopyOnlyWhenRead) {
   Scene scene = grid_scene(false);
   SceneCompiler compiler;
   KernelScene ks;
   const RenderSettings settings;
-  compiler.compile(scene, settings, ks);
+  compile_taking_changes(compiler, scene, settings, ks);
   scene.bounds();  // the cache knows every vertex of the grid is used
-  Mesh expected = scene.meshes()[0];
+  const Mesh rest = scene.meshes()[0];
+  Mesh expected = rest;
   deform_wave_grid(expected, kGrid, 0.4f);
-  int runs = 0;
-  auto writer = [&runs](float t) {
-    return [&runs, t](Mesh& m) {
-      ++runs;
-      deform_wave_grid(m, kGrid, t);
-    };
+  int mesh_writes = 0, kernel_writes = 0;
+  auto pose = [&](float t, bool fail = false) {
+    return std::make_shared<WaveGridPose>(rest, t, &mesh_writes, &kernel_writes, fail);
   };
 
   const uint64_t version = scene.mesh_vertex_version(0);
-  scene.defer_mesh_vertices(0, writer(0.9f));
-  scene.defer_mesh_vertices(0, writer(0.4f));  // replaces the first
-  EXPECT_TRUE(scene.mesh_vertices_deferred(0));
+  scene.pose_mesh(0, pose(0.9f));
+  scene.pose_mesh(0, pose(0.4f));  // replaces the first
+  EXPECT_TRUE(scene.mesh_pose_unwritten(0));
+  EXPECT_NE(scene.compiled_pose(0), nullptr);
   EXPECT_NE(scene.mesh_vertex_version(0), version);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   EXPECT_EQ(scene.mesh_dirty_vertices(0).end, scene.mesh_vertex_count(0));
   EXPECT_EQ(scene.mesh_count(), 2u);
-  EXPECT_EQ(runs, 0) << "nothing read the vertices yet";
+  EXPECT_EQ(mesh_writes, 0) << "nothing read the vertices yet";
+  EXPECT_THROW(scene.pose_mesh(1, pose(0.4f)), std::invalid_argument) << "another vertex count";
 
-  // A copy holds the deferred vertices too, written on its own.
+  // A copy holds the unwritten pose too, written on its own.
   Scene copy = scene;
-  // The compiler reads them (nothing wrote them into `ks`).
-  compiler.compile(scene, settings, ks);
-  EXPECT_EQ(runs, 1);
-  EXPECT_FALSE(scene.mesh_vertices_deferred(0));
-  EXPECT_TRUE(same_bytes(scene.meshes()[0].positions, expected.positions));
-  EXPECT_TRUE(same_bytes(scene.meshes()[0].normals, expected.normals));
+  // The compiler writes the pose into `ks`, not into the Scene.
+  const SceneDelta posed = compile_taking_changes(compiler, scene, settings, ks);
+  EXPECT_EQ(kernel_writes, 1);
+  EXPECT_EQ(mesh_writes, 0);
+  EXPECT_TRUE(scene.mesh_pose_unwritten(0));
+  EXPECT_EQ(scene.compiled_pose(0), nullptr) << "taken by the compile";
+  EXPECT_EQ(posed.meshes_refit, std::vector<uint32_t>{0});
   const KMesh& km = ks.meshes[0];
   EXPECT_EQ(std::memcmp(&ks.positions[km.vertex_offset + 7], &expected.positions[7], sizeof(Vec3)),
             0);
-  EXPECT_EQ(runs, 1) << "written once";
-  EXPECT_TRUE(copy.mesh_vertices_deferred(0));
+  // Bit for bit a fresh compile of the written mesh, bounds (constants)
+  // included, though the compiler never looked at the Scene's copy.
+  {
+    Scene written = copy;
+    written.meshes();
+    SceneCompiler fresh_compiler;
+    KernelScene fresh;
+    compile_taking_changes(fresh_compiler, written, settings, fresh);
+    EXPECT_TRUE(same_bytes(ks.positions, fresh.positions));
+    EXPECT_TRUE(same_bytes(ks.normals, fresh.normals));
+    EXPECT_EQ(std::memcmp(&ks.constants, &fresh.constants, sizeof ks.constants), 0);
+  }
+  EXPECT_EQ(mesh_writes, 1) << "the copy's pose";
+  EXPECT_TRUE(same_bytes(scene.meshes()[0].positions, expected.positions));
+  EXPECT_TRUE(same_bytes(scene.meshes()[0].normals, expected.normals));
+  EXPECT_EQ(mesh_writes, 2) << "written once";
+  scene.meshes();
+  EXPECT_EQ(mesh_writes, 2);
+  EXPECT_TRUE(copy.mesh_pose_unwritten(0));
   EXPECT_TRUE(same_bytes(copy.meshes()[0].positions, expected.positions));
-  EXPECT_EQ(runs, 2);
+  EXPECT_EQ(mesh_writes, 3);
 
-  // An edit of a few vertices starts from the deferred ones.
-  scene.defer_mesh_vertices(0, writer(0.4f));
+  // An edit of a few vertices starts from the posed ones; the compile then
+  // copies the mesh, and so does it for a pose after such an edit.
+  scene.pose_mesh(0, pose(0.4f));
   scene.edit_mesh_vertices(0, 3, 1).positions[3].y += 1.0f;
-  EXPECT_EQ(runs, 3);
+  EXPECT_EQ(mesh_writes, 4);
+  EXPECT_EQ(scene.compiled_pose(0), nullptr);
   EXPECT_EQ(scene.meshes()[0].positions[3].y, expected.positions[3].y + 1.0f);
   EXPECT_EQ(scene.meshes()[0].positions[4], expected.positions[4]);
-  scene.defer_mesh_vertices(0, writer(0.4f));
+  scene.pose_mesh(0, pose(0.4f));
+  EXPECT_EQ(scene.compiled_pose(0), nullptr) << "another edit since the last compile";
+  compile_taking_changes(compiler, scene, settings, ks);
+  EXPECT_EQ(kernel_writes, 1);
+  EXPECT_EQ(mesh_writes, 5);
+  EXPECT_EQ(std::memcmp(&ks.positions[km.vertex_offset + 3], &expected.positions[3], sizeof(Vec3)),
+            0);
+  scene.pose_mesh(0, pose(0.4f));
   EXPECT_EQ(scene.edit_mesh_vertices(0).positions[3], expected.positions[3]);  // the whole mesh
-  EXPECT_EQ(runs, 4);
+  EXPECT_EQ(mesh_writes, 6);
+  compile_taking_changes(compiler, scene, settings, ks);
 
-  // bounds() takes a box it was given and reads nothing; without one it
-  // reads the deferred vertices.
-  scene.defer_mesh_vertices(0, writer(0.4f));
-  SceneBounds box;
-  box.extend(glm::vec3(-50.0f));
-  box.extend(glm::vec3(50.0f));
-  scene.note_mesh_vertex_bounds(0, box);
-  EXPECT_EQ(scene.bounds().hi.x, 50.0f);
-  EXPECT_EQ(runs, 4);
-  EXPECT_TRUE(scene.mesh_vertices_deferred(0));
-  scene.defer_mesh_vertices(0, writer(0.4f));
+  // A pose the kernel arrays refuse: the compiler copies the written mesh.
+  scene.pose_mesh(0, pose(0.9f, /*fail=*/true));
+  compile_taking_changes(compiler, scene, settings, ks);
+  EXPECT_EQ(kernel_writes, 2);
+  EXPECT_EQ(mesh_writes, 7);
+  EXPECT_EQ(std::memcmp(&ks.positions[km.vertex_offset + 7], &scene.meshes()[0].positions[7],
+                        sizeof(Vec3)),
+            0);
+
+  // bounds() reads an unwritten pose.
+  scene.pose_mesh(0, pose(0.4f));
   const SceneBounds b = scene.bounds();
-  EXPECT_EQ(runs, 5);
-  EXPECT_LT(b.hi.x, 50.0f);
-  EXPECT_FALSE(scene.mesh_vertices_deferred(0));
+  EXPECT_EQ(mesh_writes, 8);
+  EXPECT_FALSE(scene.mesh_pose_unwritten(0));
+  EXPECT_FALSE(b.empty);
 }
 
 }  // namespace

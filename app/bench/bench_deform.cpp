@@ -1,7 +1,8 @@
 // The deformation benchmark. Every frame poses the scene at t = frame / 30 s
-// through its SceneAnimator (for a skinned glTF file: node animations, joint
-// palettes, skinning; for the built-ins: their procedural rigs), then runs
-// the per-frame update path on the result. The first frame is untimed (it
+// through its SceneAnimator (for a skinned glTF file: node animations and
+// joint palettes; for the built-ins: their procedural rigs), then runs the
+// per-frame update path on the result: SceneSync's update skins the posed
+// meshes straight into the kernel arrays (SyncScene), then refits. The first frame is untimed (it
 // builds everything); the figures are medians over the timed frames.
 #include "app/bench/bench_deform.h"
 
@@ -96,7 +97,7 @@ size_t deformed_vertices(const Scene& scene) {
 
 struct DeformFigures {
   size_t vertices = 0;
-  double skin = 0, skin_cpu = 0, update = 0, update_cpu = 0, sync = 0, sync_cpu = 0;
+  double pose = 0, pose_cpu = 0, update = 0, update_cpu = 0, sync = 0, sync_cpu = 0;
   double accstruc = 0, accstruc_cpu = 0, embree = 0, embree_cpu = 0, total = 0;
   double delta_bytes = 0, upload_bytes = 0;
 };
@@ -126,15 +127,15 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
   std::unique_ptr<CpuBackend> cpu;
   if (embree) cpu = std::make_unique<CpuBackend>(CpuTraversal::kEmbree);
   RenderSettings settings;
-  std::vector<double> skin_ms, update_ms, total_ms, bytes, uploaded, skin_cpu, update_cpu, sync_ms,
+  std::vector<double> pose_ms, update_ms, total_ms, bytes, uploaded, pose_cpu, update_cpu, sync_ms,
       accstruc_ms, sync_cpu, accstruc_cpu, embree_ms, embree_cpu;
   DeformFigures out;
   for (uint32_t f = 0; f <= frames; ++f) {
     const double c0 = cpu_ms_now();
     const auto t0 = Clock::now();
-    // Nothing reads the arrays between frames here: the skinning writes
-    // into them.
-    animator->pose_into(double(f) / 30.0, scene, &scene_sync.arrays_for_deformer());
+    // The pose only: the skinning itself runs in the update (SyncScene),
+    // straight into the kernel arrays.
+    animator->pose(double(f) / 30.0, scene);
     const double pose = ms_since(t0);
     const double c1 = cpu_ms_now();
     out.vertices = std::max(out.vertices, deformed_vertices(scene));
@@ -149,7 +150,7 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
     const double c2 = cpu_ms_now();
     const size_t frame_bytes = up.changes.bytes(ks);
     if (f == 0) continue;  // the first frame builds everything
-    skin_ms.push_back(pose);
+    pose_ms.push_back(pose);
     update_ms.push_back(compile + refit + commit);
     sync_ms.push_back(compile);
     accstruc_ms.push_back(refit);
@@ -157,14 +158,14 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
     total_ms.push_back(pose + compile + refit + commit);
     bytes.push_back(double(frame_bytes));
     uploaded.push_back(upload ? double(frame_bytes) : 0.0);
-    skin_cpu.push_back(c1 - c0);
+    pose_cpu.push_back(c1 - c0);
     update_cpu.push_back(c2 - c1);
     sync_cpu.push_back(up.compile_cpu_seconds * 1e3);
     accstruc_cpu.push_back(up.accstruc_cpu_seconds * 1e3);
     embree_cpu.push_back(c2 - c_refit);
   }
-  out.skin = median(skin_ms);
-  out.skin_cpu = median(skin_cpu);
+  out.pose = median(pose_ms);
+  out.pose_cpu = median(pose_cpu);
   out.update = median(update_ms);
   out.update_cpu = median(update_cpu);
   out.sync = median(sync_ms);
@@ -181,7 +182,7 @@ DeformFigures run_config(const std::string& spec, DeformConfig config, uint32_t 
 
 JsonValue figures_json(const DeformFigures& d) {
   return JsonValue::object()
-      .set("skinning_ms", d.skin)
+      .set("pose_ms", d.pose)
       .set("update_ms", d.update)
       .set("sync_scene_ms", d.sync)
       .set("update_accstruc_ms", d.accstruc)
@@ -189,7 +190,7 @@ JsonValue figures_json(const DeformFigures& d) {
       .set("total_ms", d.total)
       .set("delta_bytes", d.delta_bytes)
       .set("upload_bytes", d.upload_bytes)
-      .set("skinning_cpu_ms", d.skin_cpu)
+      .set("pose_cpu_ms", d.pose_cpu)
       .set("update_cpu_ms", d.update_cpu)
       .set("sync_scene_cpu_ms", d.sync_cpu)
       .set("update_accstruc_cpu_ms", d.accstruc_cpu)
@@ -238,8 +239,7 @@ int run_deform_bench(const std::vector<std::string>& argv) {
   report.set("frames", uint64_t(frames));
   JsonValue list = JsonValue::array();
   std::printf("%-28s %-13s %10s %12s %12s %12s %14s %14s %18s\n", "scene", "backends", "vertices",
-              "skinning ms", "update ms", "total ms", "delta bytes", "upload bytes",
-              "cpu ms skin/upd");
+              "pose ms", "update ms", "total ms", "delta bytes", "upload bytes", "cpu ms pose/upd");
   for (const std::string& spec : specs) {
     // The scene's figures are those of the first configuration measured
     // (host by default: the Tandem BVH's update path); every configuration
@@ -249,8 +249,8 @@ int run_deform_bench(const std::vector<std::string>& argv) {
     for (const DeformConfig c : configs) {
       const DeformFigures d = run_config(spec, c, frames);
       std::printf("%-28s %-13s %10zu %12.3f %12.3f %12.3f %14.0f %14.0f %9.3f/%.3f\n", spec.c_str(),
-                  config_name(c), d.vertices, d.skin, d.update, d.total, d.delta_bytes,
-                  d.upload_bytes, d.skin_cpu, d.update_cpu);
+                  config_name(c), d.vertices, d.pose, d.update, d.total, d.delta_bytes,
+                  d.upload_bytes, d.pose_cpu, d.update_cpu);
       measured.push(figures_json(d).set("backends", std::string(config_name(c))));
       if (c == configs.front()) {
         entry = figures_json(d)

@@ -36,8 +36,8 @@ void SceneCompiler::compile_constants(const Scene& scene, const RenderSettings& 
   ip.rr_start_depth = s.rr_start_depth;
   ip.radiance_clamp = s.radiance_clamp;
   ip.seed = s.seed;
-  // O(edits since the last call): the scene caches its bounds.
-  const SceneBounds b = scene.bounds();
+  // O(edits since the last call): the compiler caches its bounds.
+  const SceneBounds b = scene_bounds(scene);
   out.constants.scene_center = to_vec3(b.center());
   out.constants.scene_radius = b.radius();
   // From the mesh flags the traversals test, so the two always agree.

@@ -41,7 +41,7 @@ KInstance SceneCompiler::compile_instance(const Scene& scene, uint32_t index) {
   k.mesh = inst.mesh;
   k.handedness = 1.0f;
   const InstanceState state = inst.mesh < scene.mesh_count()
-                                  ? classify_instance(inst.transform, scene.mesh_bounds(inst.mesh))
+                                  ? classify_instance(inst.transform, mesh_box(scene, inst.mesh))
                                   : InstanceState::kVisible;
   if (state != InstanceState::kVisible) {
     // Not drawn: out of the TLAS, disabled in Embree, and its zero
@@ -63,7 +63,7 @@ void SceneCompiler::note_hidden(const Scene& scene, uint32_t index, InstanceStat
   hidden_noted_[index] = state;
   const Instance& inst = scene.instances()[index];
   const std::string mesh_name =
-      inst.mesh < scene.mesh_count() ? scene.meshes()[inst.mesh].name.substr(0, 80) : "";
+      inst.mesh < scene.mesh_count() ? scene.mesh_name(inst.mesh).substr(0, 80) : "";
   const std::string what = "instance " + std::to_string(index) +
                            (inst.name.empty() ? "" : " ('" + inst.name.substr(0, 80) + "')") +
                            " of mesh " + std::to_string(inst.mesh) +
@@ -92,6 +92,8 @@ void SceneCompiler::compile_instances(const Scene& scene, KernelScene& out) {
 void SceneCompiler::update_instances(const Scene& scene, KernelScene& out, SceneDelta& delta,
                                      Needs& needs) {
   std::vector<uint32_t> dirty = scene.dirty_instances();
+  for (uint32_t i : dirty)
+    bounds_.instance_changed(i);
   // Instances of meshes whose vertices changed: recompiled, and counted as
   // changed only if they did (a mesh that starts or stops being drawable).
   std::vector<uint32_t> recheck;

@@ -92,8 +92,8 @@ double environment_power(float env_lum, float radius) {
   return kPi * kPi * radius * radius * env_lum;
 }
 
-float light_radius(const Scene& scene) {
-  return std::max(scene.bounds().radius(), 1e-3f);
+float light_radius(const SceneBounds& bounds) {
+  return std::max(bounds.radius(), 1e-3f);
 }
 
 void finish_light_tables(const std::vector<double>& power, KernelScene& out, SceneDelta& delta) {
@@ -123,7 +123,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   out.lights.clear();
   std::vector<double>& power = light_power_;
   power.clear();
-  const float radius = light_radius(scene);
+  const float radius = light_radius(scene_bounds(scene));
   lights_radius_ = radius;
   triangle_powers_stale_ = false;
 
@@ -177,7 +177,7 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
 }
 
 void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta) {
-  const float radius = light_radius(scene);
+  const float radius = light_radius(scene_bounds(scene));
   lights_radius_ = radius;
   std::vector<uint32_t> dirty = scene.dirty_lights();
   std::sort(dirty.begin(), dirty.end());
@@ -257,8 +257,8 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
 // steer light selection (the alias table and total_light_power are rebuilt
 // together, so pdfs stay consistent), so they are refreshed only when the
 // size changed by more than 10%.
-bool SceneCompiler::scene_size_changed(const Scene& scene) const {
-  return std::fabs(light_radius(scene) - lights_radius_) > 0.1f * lights_radius_;
+bool SceneCompiler::scene_size_changed(const Scene& scene) {
+  return std::fabs(light_radius(scene_bounds(scene)) - lights_radius_) > 0.1f * lights_radius_;
 }
 
 }  // namespace tandem

@@ -10,6 +10,7 @@
 #include <vector>
 #include "core/world/kernel_conversions.h"
 #include "core/world/kernel_scene.h"
+#include "core/world/mesh_pose.h"
 #include "core/world/running_box.h"
 
 namespace tandem {
@@ -52,10 +53,14 @@ void SceneCompiler::compile_meshes(const Scene& scene, KernelScene& out, SceneDe
   out.uv0.assign(any_uv0 ? vertex_total : 0, Vec2{0, 0});
   out.uv1.assign(any_uv1 ? vertex_total : 0, Vec2{0, 0});
   out.triangles.resize(triangle_total);
-  out.vertices_written.assign(scene.meshes().size(), 0);
+  // The bounds anew, each mesh's box taken as its vertices are copied.
+  bounds_ = SceneBoundsCache{};
   for (size_t i = 0; i < scene.meshes().size(); ++i) {
     const Mesh& m = scene.meshes()[i];
-    write_mesh_vertices(m, uint32_t(i), out, 0, out.meshes[i].vertex_count);
+    bounds_.mesh_added();
+    SceneBounds box;
+    if (write_mesh_vertices(m, uint32_t(i), out, 0, out.meshes[i].vertex_count, &box))
+      bounds_.mesh_vertex_bounds(uint32_t(i), box);
     const uint32_t toff = out.meshes[i].triangle_offset;
     for (size_t t = 0; t < m.triangles.size(); ++t) {
       const uint32_t mat = t < m.triangle_materials.size() ? m.triangle_materials[t] : 0u;
@@ -162,7 +167,29 @@ bool SceneCompiler::write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, K
   return box != nullptr && all.finite;
 }
 
-void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs) {
+namespace {
+
+// Where a posed mesh's vertices go in `out`, when it is compiled with the
+// pose's vertex count.
+bool pose_target(KernelScene& out, uint32_t mesh, const MeshPose& pose, MeshVertexTarget* target) {
+  const KMesh& km = out.meshes[mesh];
+  const size_t n = km.vertex_count, first = km.vertex_offset;
+  if (pose.vertex_count() != n || first + n > out.positions.size()) return false;
+  target->positions = out.positions.data() + first;
+  target->normals = (km.flags & kMeshHasNormals) && first + n <= out.normals.size()
+                        ? out.normals.data() + first
+                        : nullptr;
+  target->tangents = (km.flags & kMeshHasTangents) && first + n <= out.tangents.size()
+                         ? out.tangents.data() + first
+                         : nullptr;
+  target->vertex_count = n;
+  return true;
+}
+
+}  // namespace
+
+void SceneCompiler::update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta,
+                                  Needs& needs) {
   std::vector<uint32_t> dirty = scene.dirty_meshes();
   std::sort(dirty.begin(), dirty.end());
   for (uint32_t i : dirty) {
@@ -175,16 +202,19 @@ void SceneCompiler::update_meshes(Scene& scene, KernelScene& out, SceneDelta& de
     const uint32_t end = std::min({r.end, km.vertex_count, uint32_t(count)});
     if (end <= r.begin) continue;
     const bool whole = r.begin == 0 && end == count;
-    // A deformer wrote this version of the vertices into `out` itself (and
-    // gave the bounds cache their box): only the delta is left to do, and
-    // the Scene's copy, which it may have left to a deferred writer, is
-    // not read.
-    const bool written = whole && i < out.vertices_written.size() && out.vertices_written[i] != 0 &&
-                         out.vertices_written[i] == scene.mesh_vertex_version(i);
+    // A mesh only posed since the last compile: the pose goes straight
+    // into `out` (the attributes it does not write are as compiled), and
+    // the Scene's copy is neither written nor read. Otherwise (or where a
+    // posed position is not finite) the copy is converted.
+    const MeshPose* pose = whole ? scene.compiled_pose(i) : nullptr;
+    MeshVertexTarget target;
     SceneBounds box;
-    if (!written &&
-        write_mesh_vertices(scene.meshes()[i], i, out, r.begin, end, whole ? &box : nullptr))
-      scene.note_mesh_vertex_bounds(i, box);
+    const bool boxed =
+        pose != nullptr && pose_target(out, i, *pose, &target) && pose->write(target, &box)
+            ? true
+            : write_mesh_vertices(scene.mesh(i), i, out, r.begin, end, whole ? &box : nullptr);
+    bounds_.mesh_changed(i);
+    if (boxed) bounds_.mesh_vertex_bounds(i, box);
     const uint32_t b = km.vertex_offset + r.begin, e = km.vertex_offset + end;
     delta.positions.mark(b, e);
     if (!out.normals.empty()) delta.normals.mark(b, e);

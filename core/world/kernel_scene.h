@@ -29,11 +29,6 @@ class KernelScene {
 #undef TANDEM_DECLARE_VECTOR
   KernelConstants constants{};  // written by SceneCompiler
   KBvhConstants bvh{};          // written by AccelStructure
-  // Per mesh: the Scene::mesh_vertex_version() whose vertices a deformer
-  // has written into the arrays above itself, beside the Scene mesh
-  // (deform_scene_mesh() with a KernelScene), so the compiler marks them in
-  // the delta without copying them; 0: it copies. Reset by a full compile.
-  std::vector<uint64_t> vertices_written;
 
   // Pointers into the vectors above; valid until the next compile.
   KernelData view() const;
@@ -130,11 +125,14 @@ struct RenderSettings {
 class SceneCompiler {
  public:
   // Brings `out`'s scene arrays and constants up to date with `scene` and
-  // `settings`, then clears the scene's dirty flags. The first call (or any
-  // added/removed object) does a full build. Costs O(what changed): the
-  // dirty lists are walked, never the whole scene (light tables excepted,
-  // whose alias table is rebuilt, O(lights), when a light's power changes).
-  SceneDelta compile(Scene& scene, const RenderSettings& settings, KernelScene& out);
+  // `settings`. The first call (or any added/removed object) does a full
+  // build. Costs O(what changed): the dirty lists are walked, never the
+  // whole scene (light tables excepted, whose alias table is rebuilt,
+  // O(lights), when a light's power changes). The scene is only read: its
+  // owner (SceneSync) clears its dirty flags once the changes are taken.
+  // A posed mesh (Scene::pose_mesh) is written from its pose straight into
+  // `out`, without writing the Scene's copy.
+  SceneDelta compile(const Scene& scene, const RenderSettings& settings, KernelScene& out);
 
  private:
   // What the edits of one incremental compile require downstream.
@@ -167,8 +165,15 @@ class SceneCompiler {
   // `box`, also the box of those positions (false when one is not finite).
   bool write_mesh_vertices(const Mesh& mesh, uint32_t mesh_index, KernelScene& out, uint32_t begin,
                            uint32_t end, SceneBounds* box = nullptr);
-  // Hands the scene's bounds cache the box of each whole mesh it copies.
-  void update_meshes(Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // A mesh's new vertices: its pose written into `out` when the Scene
+  // holds one (Scene::compiled_pose), else the Scene's copy converted. The
+  // box of each whole mesh written goes to bounds_.
+  void update_meshes(const Scene& scene, KernelScene& out, SceneDelta& delta, Needs& needs);
+  // The scene's bounds and a mesh's object-space box as compiled: from the
+  // boxes taken while the vertices were written (a posed mesh's are never
+  // in the Scene), O(edits) like the Scene's own cache.
+  SceneBounds scene_bounds(const Scene& scene);
+  const SceneBounds& mesh_box(const Scene& scene, uint32_t mesh);
   // compile_instances.cpp
   // An instance the tracers cannot take (scene_ranges.h) is compiled hidden:
   // zero transforms, kInstanceHidden, with one notice.
@@ -189,12 +194,13 @@ class SceneCompiler {
   // compile_lights() handles.
   bool update_triangle_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta,
                                     const std::vector<uint32_t>& meshes, bool punctual_too);
-  bool scene_size_changed(const Scene& scene) const;
+  bool scene_size_changed(const Scene& scene);
   // compile_constants.cpp
   void compile_constants(const Scene& scene, const RenderSettings& settings, KernelScene& out);
 
   bool compiled_once_ = false;
-  size_t counts_[5] = {};  // textures, materials, meshes, instances, lights at last compile
+  SceneBoundsCache bounds_;  // scene_bounds()
+  size_t counts_[5] = {};    // textures, materials, meshes, instances, lights at last compile
   std::map<uint64_t, uint32_t> texture_slots_;  // (texture, srgb) -> KTexture index
   std::vector<uint32_t> texture_texel_offset_;
   std::vector<float> texture_mean_luminance_;  // texture_mean_luminance(); < 0: not yet

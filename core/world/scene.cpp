@@ -51,7 +51,8 @@ uint32_t Scene::add_mesh(Mesh m) {
   mesh_vertex_ranges_.push_back({0, uint32_t(meshes_.back().positions.size())});
   mesh_vertex_versions_.push_back(next_vertex_version());
   mesh_deforms_.push_back(0);
-  deferred_writers_.emplace_back();
+  unwritten_poses_.emplace_back();
+  poses_since_clear_.emplace_back();
   return meshes_dirty_.add(kDirtyCreated | kDirtyParams | kDirtyTopology | kDirtyVertices);
 }
 uint32_t Scene::add_instance(Instance i) {
@@ -112,8 +113,9 @@ void Scene::mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end) {
 
 Mesh& Scene::edit_mesh_vertices(uint32_t mesh) {
   Mesh& m = meshes_.at(mesh);
-  write_deferred_vertices(mesh);  // the caller may read what it does not write
+  write_unwritten_pose(mesh);  // the caller may read what it does not write
   mark_vertices(mesh, 0, uint32_t(m.positions.size()));
+  poses_since_clear_[mesh] = nullptr;
   return m;
 }
 
@@ -125,33 +127,45 @@ Mesh& Scene::edit_mesh_vertices(uint32_t mesh, uint32_t first_vertex, uint32_t c
                             std::to_string(mesh) + " (\"" + m.name + "\"), which has " +
                             std::to_string(m.positions.size()));
   }
-  write_deferred_vertices(mesh);
-  if (count > 0) mark_vertices(mesh, first_vertex, first_vertex + count);
+  write_unwritten_pose(mesh);
+  if (count > 0) {
+    mark_vertices(mesh, first_vertex, first_vertex + count);
+    poses_since_clear_[mesh] = nullptr;
+  }
   return m;
 }
 
-void Scene::defer_mesh_vertices(uint32_t mesh, MeshVertexWriter writer) {
+void Scene::pose_mesh(uint32_t mesh, std::shared_ptr<const MeshPose> pose) {
   const Mesh& m = meshes_.at(mesh);
-  MeshVertexWriter& slot = deferred_writers_[mesh];
-  if (slot == nullptr && writer != nullptr) ++deferred_count_;
-  if (slot != nullptr && writer == nullptr) --deferred_count_;
-  slot = std::move(writer);
+  if (pose == nullptr) throw std::invalid_argument("pose_mesh: no pose for mesh " + m.name);
+  if (pose->vertex_count() != m.positions.size()) {
+    throw std::invalid_argument("pose_mesh: a pose of " + std::to_string(pose->vertex_count()) +
+                                " vertices for mesh " + std::to_string(mesh) + " (\"" + m.name +
+                                "\"), which has " + std::to_string(m.positions.size()));
+  }
+  // Another kind of edit since the consumer last took the changes: it must
+  // copy the mesh, whatever poses follow.
+  const bool other_edit = (meshes_dirty_.mask[mesh] & kDirtyVertices) && !poses_since_clear_[mesh];
+  std::shared_ptr<const MeshPose>& slot = unwritten_poses_[mesh];
+  if (slot == nullptr) ++unwritten_count_;
+  slot = pose;
   mark_vertices(mesh, 0, uint32_t(m.positions.size()));
+  poses_since_clear_[mesh] = other_edit ? nullptr : std::move(pose);
 }
 
-void Scene::write_deferred_vertices(uint32_t mesh) const {
-  if (mesh >= deferred_writers_.size() || deferred_writers_[mesh] == nullptr) return;
-  // Out of the slot first: a writer that throws is not run again on
+void Scene::write_unwritten_pose(uint32_t mesh) const {
+  if (mesh >= unwritten_poses_.size() || unwritten_poses_[mesh] == nullptr) return;
+  // Out of the slot first: a pose that throws is not written again over
   // half-written vertices.
-  const MeshVertexWriter writer = std::move(deferred_writers_[mesh]);
-  deferred_writers_[mesh] = nullptr;
-  --deferred_count_;
-  writer(meshes_[mesh]);
+  const std::shared_ptr<const MeshPose> pose = std::move(unwritten_poses_[mesh]);
+  unwritten_poses_[mesh] = nullptr;
+  --unwritten_count_;
+  pose->write(meshes_[mesh]);
 }
 
-void Scene::write_deferred_vertices() const {
-  for (uint32_t m = 0; m < deferred_writers_.size() && deferred_count_ != 0; ++m)
-    write_deferred_vertices(m);
+void Scene::write_unwritten_poses() const {
+  for (uint32_t m = 0; m < unwritten_poses_.size() && unwritten_count_ != 0; ++m)
+    write_unwritten_pose(m);
 }
 
 Scene::VertexRange Scene::mesh_dirty_vertices(uint32_t mesh) const {
@@ -185,12 +199,12 @@ size_t Scene::triangle_count_instanced() const {
 }
 
 SceneBounds Scene::bounds() const {
-  // A deferred mesh whose box the cache was not given is read. Only the
-  // cache's changed meshes can be (a deferred mesh was marked changed), so
-  // the walk stays O(edits) like the cache's own.
-  if (deferred_count_ != 0) {
+  // A posed mesh the cache reads is written first. Only the cache's
+  // changed meshes can be (a posed mesh was marked changed), so the walk
+  // stays O(edits) like the cache's own.
+  if (unwritten_count_ != 0) {
     for (uint32_t m : bounds_cache_.stale_meshes()) {
-      if (bounds_cache_.reads_vertices(m)) write_deferred_vertices(m);
+      if (bounds_cache_.reads_vertices(m)) write_unwritten_pose(m);
     }
   }
   return bounds_cache_.bounds(meshes_, instances_);
@@ -208,6 +222,9 @@ bool Scene::any_dirty() const {
 }
 
 void Scene::clear_dirty() {
+  // Every posed mesh is on the dirty list (kDirtyVertices).
+  for (uint32_t m : meshes_dirty_.list)
+    poses_since_clear_[m] = nullptr;
   for (DirtySet* d :
        {&textures_dirty_, &materials_dirty_, &meshes_dirty_, &instances_dirty_, &lights_dirty_})
     d->clear();

@@ -8,13 +8,14 @@
 #pragma once
 
 #include <cstdint>
-#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "core/world/mesh_pose.h"
 #include "core/world/scene_bounds.h"
 
 namespace tandem {
@@ -175,34 +176,44 @@ class Scene {
   // BLAS (kDirtyTopology).
   void set_mesh_deforms(uint32_t mesh, bool deforms = true);
 
-  // A write of all of a mesh's vertices that its writer can repeat exactly
-  // (a deformation of fixed base vertices at a given pose). A deformer that
-  // wrote the new vertices straight into the compiled arrays (KernelScene)
-  // hands the Scene this instead of writing the Scene's copy too: a million
-  // skinned vertices a frame that nothing but a reader on demand looks at.
-  using MeshVertexWriter = std::function<void(Mesh&)>;
-  // Marks the whole of the mesh's vertices edited, as edit_mesh_vertices(mesh)
-  // does, and leaves writing them to `writer`, run before anything reads or
-  // edits the mesh's vertices through this Scene (meshes(),
-  // edit_mesh_vertices(), bounds() where its cache has no box of them), once.
-  // The mesh then reads as if written now. A later defer replaces a writer
-  // not yet run. The vertex count must stay as it is.
-  void defer_mesh_vertices(uint32_t mesh, MeshVertexWriter writer);
-  bool mesh_vertices_deferred(uint32_t mesh) const {
-    return mesh < deferred_writers_.size() && deferred_writers_[mesh] != nullptr;
+  // Sets all of a mesh's vertices to `pose` (core/world/mesh_pose.h; its
+  // vertex count is the mesh's), marking them edited as
+  // edit_mesh_vertices(mesh) does. The Scene's own copy is written from the
+  // pose only when something reads or edits the mesh's vertices through
+  // this Scene (meshes(), mesh(), edit_mesh_vertices(), bounds()), once;
+  // until then the compiler writes the pose straight into the kernel
+  // arrays (compiled_pose()). A later pose replaces one not yet written.
+  void pose_mesh(uint32_t mesh, std::shared_ptr<const MeshPose> pose);
+  // Whether the mesh's copy still waits for its pose to be written.
+  bool mesh_pose_unwritten(uint32_t mesh) const {
+    return mesh < unwritten_poses_.size() && unwritten_poses_[mesh] != nullptr;
+  }
+  // The pose the mesh's vertices were last set to, when every vertex edit
+  // since the last clear_dirty() was a pose_mesh(): the attributes a pose
+  // does not write are then as the consumer of the dirty flags last took
+  // them, so it may write this pose instead of copying the mesh. Null
+  // otherwise.
+  const MeshPose* compiled_pose(uint32_t mesh) const {
+    return mesh < poses_since_clear_.size() ? poses_since_clear_[mesh].get() : nullptr;
   }
 
   // --- reading -------------------------------------------------------------
   const std::vector<Texture>& textures() const { return textures_; }
   const std::vector<Material>& materials() const { return materials_; }
-  // Runs the deferred vertex writers first (defer_mesh_vertices()), so
-  // even this const reader must not run concurrently with another call.
+  // Writes the unwritten poses first (pose_mesh()), so even these const
+  // readers must not run concurrently with another call. mesh() writes
+  // only that mesh's.
   const std::vector<Mesh>& meshes() const {
-    if (deferred_count_ != 0) write_deferred_vertices();
+    if (unwritten_count_ != 0) write_unwritten_poses();
     return meshes_;
   }
-  // What needs no vertex data: these never run a deferred writer.
+  const Mesh& mesh(uint32_t mesh) const {
+    write_unwritten_pose(mesh);
+    return meshes_.at(mesh);
+  }
+  // What needs no vertex data: these never write a pose.
   size_t mesh_count() const { return meshes_.size(); }
+  const std::string& mesh_name(uint32_t mesh) const { return meshes_.at(mesh).name; }
   size_t mesh_vertex_count(uint32_t mesh) const { return meshes_.at(mesh).positions.size(); }
   const std::vector<Instance>& instances() const { return instances_; }
   const std::vector<Light>& lights() const { return lights_; }
@@ -223,12 +234,6 @@ class Scene {
   // Mesh `mesh`'s object-space box (finite says whether all its vertices
   // are), brought up to date as bounds() does.
   SceneBounds mesh_bounds(uint32_t mesh) const;
-  // The box of all of an edited mesh's positions as they are now, from code
-  // that read them all anyway (the compiler's vertex copy), so bounds() needs
-  // no pass of its own over them (SceneBoundsCache::mesh_vertex_bounds).
-  void note_mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_vertices) {
-    bounds_cache_.mesh_vertex_bounds(mesh, all_vertices);
-  }
 
   // --- change tracking -------------------------------------------------------
   const std::vector<uint32_t>& texture_dirty() const { return textures_dirty_.mask; }
@@ -271,8 +276,8 @@ class Scene {
  private:
   std::vector<Texture> textures_;
   std::vector<Material> materials_;
-  // Mutable for the deferred writers only: they bring into memory what the
-  // mesh already holds as far as any reader can tell.
+  // Mutable for the unwritten poses only: writing one brings into memory
+  // what the mesh already holds as far as any reader can tell.
   mutable std::vector<Mesh> meshes_;
   std::vector<Instance> instances_;
   std::vector<Light> lights_;
@@ -294,11 +299,13 @@ class Scene {
   std::vector<uint64_t> mesh_vertex_versions_;
   std::vector<uint8_t> mesh_deforms_;
   void mark_vertices(uint32_t mesh, uint32_t begin, uint32_t end);
-  // Per mesh, its deferred writer (null: none); how many are not null.
-  mutable std::vector<MeshVertexWriter> deferred_writers_;
-  mutable uint32_t deferred_count_ = 0;
-  void write_deferred_vertices() const;
-  void write_deferred_vertices(uint32_t mesh) const;
+  // Per mesh, the pose its copy still waits for (null: none), and how many
+  // are not null; and compiled_pose().
+  mutable std::vector<std::shared_ptr<const MeshPose>> unwritten_poses_;
+  mutable uint32_t unwritten_count_ = 0;
+  std::vector<std::shared_ptr<const MeshPose>> poses_since_clear_;
+  void write_unwritten_poses() const;
+  void write_unwritten_pose(uint32_t mesh) const;
   mutable SceneBoundsCache bounds_cache_;
   bool camera_dirty_ = true;
   bool environment_dirty_ = true;

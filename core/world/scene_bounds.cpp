@@ -138,7 +138,9 @@ void SceneBoundsCache::mesh_vertex_bounds(uint32_t mesh, const SceneBounds& all_
   given_[mesh] = 1;
 }
 
-SceneBounds SceneBoundsCache::refresh_mesh(uint32_t mesh, const Mesh& m) {
+SceneBounds SceneBoundsCache::refresh_mesh(uint32_t mesh, const MeshLookup& lookup) {
+  if (vertex_use_[mesh] == kAllUsed && given_[mesh]) return given_bounds_[mesh];
+  const Mesh& m = lookup(mesh);
   if (vertex_use_[mesh] == kUnknown) {
     // Once per mesh: are all vertices used? Then a straight pass over the
     // positions (or the compiler's box) gives the triangles' box.
@@ -173,8 +175,7 @@ void SceneBoundsCache::mark_instance(uint32_t instance) {
 
 // Room for every instance: leaves_ doubles, so a scene that keeps adding
 // instances pays for a rebuild O(log n) times in all.
-void SceneBoundsCache::regrow_tree(const std::vector<Mesh>& meshes,
-                                   const std::vector<Instance>& instances) {
+void SceneBoundsCache::regrow_tree(size_t mesh_count, const std::vector<Instance>& instances) {
   const uint32_t n = uint32_t(instances.size());
   uint32_t leaves = std::max(1u, leaves_);
   while (leaves < n)
@@ -189,7 +190,7 @@ void SceneBoundsCache::regrow_tree(const std::vector<Mesh>& meshes,
     } else {
       const uint32_t m = instances[i].mesh;
       tree_[leaves + i] =
-          m < meshes.size() ? instance_world_bounds(instances[i], mesh_bounds_[m]) : SceneBounds{};
+          m < mesh_count ? instance_world_bounds(instances[i], mesh_bounds_[m]) : SceneBounds{};
     }
   }
   for (uint32_t p = leaves - 1; p >= 1; --p) {
@@ -200,8 +201,14 @@ void SceneBoundsCache::regrow_tree(const std::vector<Mesh>& meshes,
 
 SceneBounds SceneBoundsCache::bounds(const std::vector<Mesh>& meshes,
                                      const std::vector<Instance>& instances) {
+  return bounds(
+      meshes.size(), [&](uint32_t m) -> const Mesh& { return meshes[m]; }, instances);
+}
+
+SceneBounds SceneBoundsCache::bounds(size_t mesh_count, const MeshLookup& mesh,
+                                     const std::vector<Instance>& instances) {
   for (uint32_t m : stale_meshes_) {
-    mesh_bounds_[m] = refresh_mesh(m, meshes[m]);
+    mesh_bounds_[m] = refresh_mesh(m, mesh);
     mesh_stale_[m] = 0;
     given_[m] = 0;
     for (uint32_t i : mesh_instances_[m])
@@ -209,12 +216,12 @@ SceneBounds SceneBoundsCache::bounds(const std::vector<Mesh>& meshes,
   }
   stale_meshes_.clear();
   if (instances.size() > leaves_) {
-    regrow_tree(meshes, instances);
+    regrow_tree(mesh_count, instances);
   } else {
     for (uint32_t i : stale_instances_) {
       const uint32_t m = instances[i].mesh;
       tree_[leaves_ + i] =
-          m < meshes.size() ? instance_world_bounds(instances[i], mesh_bounds_[m]) : SceneBounds{};
+          m < mesh_count ? instance_world_bounds(instances[i], mesh_bounds_[m]) : SceneBounds{};
     }
     // Parents of the changed leaves, level by level (each parent once).
     std::vector<uint32_t> level;

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -66,16 +67,22 @@ class SceneBoundsCache {
            !(given_[mesh] && vertex_use_[mesh] == kAllUsed);
   }
 
-  // Brings the stale entries up to date and returns the union.
+  // Brings the stale entries up to date and returns the union. `mesh(m)`
+  // is asked only for the stale meshes whose box it was not given (and
+  // once per mesh whether every vertex is used), so a caller whose meshes
+  // are written on demand (posed meshes) passes a lookup that writes one.
+  using MeshLookup = std::function<const Mesh&(uint32_t)>;
+  SceneBounds bounds(size_t mesh_count, const MeshLookup& mesh,
+                     const std::vector<Instance>& instances);
   SceneBounds bounds(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
   // A mesh's object-space box as of the last bounds().
   const SceneBounds& mesh_box(uint32_t mesh) const { return mesh_bounds_[mesh]; }
 
  private:
   void mark_instance(uint32_t instance);
-  void regrow_tree(const std::vector<Mesh>& meshes, const std::vector<Instance>& instances);
+  void regrow_tree(size_t mesh_count, const std::vector<Instance>& instances);
 
-  SceneBounds refresh_mesh(uint32_t mesh, const Mesh& m);
+  SceneBounds refresh_mesh(uint32_t mesh, const MeshLookup& mesh_lookup);
 
   std::vector<SceneBounds> mesh_bounds_;
   // Per mesh: a box from mesh_vertex_bounds() waiting (1) or not (0); and

@@ -26,6 +26,9 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
   // Materials before meshes: mesh flags (alpha test, emission) read them.
   compile_materials(scene, out);
   compile_meshes(scene, out, delta);
+  // The instances into the bounds before any is classified by its box.
+  for (const Instance& inst : scene.instances())
+    bounds_.instance_added(inst.mesh);
   compile_instances(scene, out);
   // The environment before the lights: its luminance is the environment
   // light's power.
@@ -39,7 +42,8 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
 #undef TANDEM_MARK_ALL
 }
 
-SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, KernelScene& out) {
+SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& settings,
+                                  KernelScene& out) {
   SceneDelta delta;
   if (needs_full_build(scene)) {
     compile_full(scene, out, delta);
@@ -86,8 +90,18 @@ SceneDelta SceneCompiler::compile(Scene& scene, const RenderSettings& settings, 
   const size_t counts[5] = {scene.textures().size(), scene.materials().size(), scene.mesh_count(),
                             scene.instances().size(), scene.lights().size()};
   std::copy(counts, counts + 5, counts_);
-  scene.clear_dirty();
   return delta;
+}
+
+SceneBounds SceneCompiler::scene_bounds(const Scene& scene) {
+  return bounds_.bounds(
+      scene.mesh_count(), [&](uint32_t m) -> const Mesh& { return scene.mesh(m); },
+      scene.instances());
+}
+
+const SceneBounds& SceneCompiler::mesh_box(const Scene& scene, uint32_t mesh) {
+  scene_bounds(scene);
+  return bounds_.mesh_box(mesh);
 }
 
 }  // namespace tandem
