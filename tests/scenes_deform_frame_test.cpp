@@ -12,11 +12,11 @@
 
 #include "core/kernel/host_isa.h"
 #include "core/world/kernel_scene.h"
+#include "sync/scene_sync.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/mesh_deformer.h"
 #include "scenes/procedural_rigs.h"
 #include "scenes/scene_animator.h"
-#include "tests/world_compile_util.h"
 
 namespace tandem {
 namespace {
@@ -24,36 +24,35 @@ namespace {
 TEST(MeshDeformer, AnUnchangedPoseIsNeitherSkinnedNorRefitAgain) {
   Scene scene = make_skinned_grid_scene(40);
   auto animator = make_scene_animator(scene);
-  KernelScene ks;
-  SceneCompiler compiler;
+  SceneSync sync(SceneSyncSettings::arrays_only());
   const RenderSettings settings;
-  compile_taking_changes(compiler, scene, settings, ks);
+  sync.update(scene, settings);
   animator->pose(0.5, scene);
   ASSERT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   const uint64_t version = scene.mesh_vertex_version(0);
-  EXPECT_EQ(compile_taking_changes(compiler, scene, settings, ks).meshes_refit.size(), 1u);
+  EXPECT_EQ(sync.update(scene, settings).changes.meshes_refit.size(), 1u);
   // The same time again: the palette is bit for bit the last one and the
   // mesh holds what it wrote, so nothing is skinned, marked or refit.
   animator->pose(0.5, scene);
   EXPECT_TRUE(scene.dirty_meshes().empty());
   EXPECT_EQ(scene.mesh_vertex_version(0), version);
-  const SceneDelta same = compile_taking_changes(compiler, scene, settings, ks);
+  const SceneDelta same = sync.update(scene, settings).changes;
   EXPECT_TRUE(same.meshes_refit.empty());
   EXPECT_FALSE(same.positions.any());
   // Someone else writes the mesh: the same pose is then written again.
   const std::vector<glm::vec3> posed = scene.meshes()[0].positions;
   scene.edit_mesh_vertices(0, 7, 1).positions[7].y += 1.0f;
-  compile_taking_changes(compiler, scene, settings, ks);
+  sync.update(scene, settings).changes;
   animator->pose(0.5, scene);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   EXPECT_EQ(scene.meshes()[0].positions, posed);
-  compile_taking_changes(compiler, scene, settings, ks);
+  sync.update(scene, settings).changes;
   // Another time moves it as before.
   animator->pose(0.6, scene);
   EXPECT_TRUE(scene.mesh_dirty()[0] & kDirtyVertices);
   EXPECT_NE(scene.meshes()[0].positions, posed);
   // A copy of the scene holds the pose too: not written again there.
-  compile_taking_changes(compiler, scene, settings, ks);
+  sync.update(scene, settings).changes;
   Scene copy = scene;
   animator->pose(0.6, copy);
   EXPECT_TRUE(copy.dirty_meshes().empty());
@@ -81,8 +80,8 @@ TEST(MeshDeformer, APoseSkinnedIntoTheKernelArraysEqualsTheCompilersCopy) {
       while (rig + 1 < a.meshes().size() && a.meshes()[rig].name.rfind("rig.", 0) != 0)
         ++rig;
       auto anim_a = make_scene_animator(a), anim_b = make_scene_animator(b);
-      KernelScene ka, kb;
-      SceneCompiler ca, cb;
+      SceneSync sa(SceneSyncSettings::arrays_only()), sb(SceneSyncSettings::arrays_only());
+      const KernelScene &ka = sa.kernel_scene(), &kb = sb.kernel_scene();
       const RenderSettings settings;
       size_t direct = 0;
       for (int f = 0; f < 6; ++f) {
@@ -104,8 +103,8 @@ TEST(MeshDeformer, APoseSkinnedIntoTheKernelArraysEqualsTheCompilersCopy) {
           EXPECT_FALSE(f == 3 && m == rig) << "the mesh had another edit";
           posed.push_back(m);
         }
-        const SceneDelta da = compile_taking_changes(ca, a, settings, ka);
-        const SceneDelta db = compile_taking_changes(cb, b, settings, kb);
+        const SceneDelta da = sa.update(a, settings).changes;
+        const SceneDelta db = sb.update(b, settings).changes;
         for (uint32_t m : posed) {
           ++direct;
           // The compile did not write the Scene's copy.
@@ -149,13 +148,12 @@ TEST(MeshDeformer, APoseSkinnedIntoTheKernelArraysEqualsTheCompilersCopy) {
 // scene whose pose was written at once.
 TEST(MeshDeformer, TheScenesCopyOfAPoseOutlivesItsAnimator) {
   Scene a = make_skinned_grid_scene(50), b = make_skinned_grid_scene(50);
-  KernelScene kb;
-  SceneCompiler cb;
-  compile_taking_changes(cb, b, RenderSettings{}, kb);
+  SceneSync sb(SceneSyncSettings::arrays_only());
+  sb.update(b, RenderSettings{});
   make_scene_animator(a)->pose(0.7, a);
   a.meshes();
   make_scene_animator(b)->pose(0.7, b);
-  compile_taking_changes(cb, b, RenderSettings{}, kb);
+  sb.update(b, RenderSettings{});
   ASSERT_TRUE(b.mesh_pose_unwritten(0));
   EXPECT_EQ(a.meshes()[0].positions, b.meshes()[0].positions);
   EXPECT_EQ(a.meshes()[0].normals, b.meshes()[0].normals);
