@@ -41,26 +41,27 @@ const SceneSyncUpdate& SceneSync::update(Scene& scene, const RenderSettings& set
     up.compile_seconds = seconds_since(start);
     up.compile_cpu_seconds = process_cpu_seconds() - cpu;
   }
-  if (accel_ && !bvh_needed_) {
-    if (!bvh_missed_) bvh_missed_.emplace();
-    bvh_missed_->merge(up.changes);
-  } else if (accel_) {
+  // The compiler's changes make the new generation; the BVH's, made from
+  // them, join it.
+  up.generation = log_.append(up.changes);
+  if (accel_ && bvh_needed_) {
     const ScopedActivity activity("building the acceleration structure" + of);
     const auto start = Clock::now();
     const double cpu = process_cpu_seconds();
-    if (bvh_missed_) {
-      SceneDelta missed = std::move(*bvh_missed_);
-      bvh_missed_.reset();
-      missed.merge(up.changes);
-      up.accel = accel_->update(kernel_scene_, missed);
-    } else {
+    // The generations since the BVH last followed: this one alone, unless
+    // it was not needed for a while (then all it missed; further back than
+    // the log keeps, or never built: everything, a full build).
+    if (bvh_generation_ + 1 == up.generation) {
       up.accel = accel_->update(kernel_scene_, up.changes);
+    } else {
+      up.accel = accel_->update(kernel_scene_, log_.changes_since(bvh_generation_));
     }
-    up.changes.merge(up.accel.delta);
+    bvh_generation_ = up.generation;
+    log_.add_to_newest(up.accel.delta);
+    up.changes = log_.newest();
     up.accstruc_seconds = seconds_since(start);
     up.accstruc_cpu_seconds = process_cpu_seconds() - cpu;
   }
-  up.generation = log_.append(up.changes);
   last_ = std::move(up);
   return last_;
 }

@@ -14,7 +14,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <optional>
 
 #include "accstruc/accel_structure.h"
 #include "core/world/kernel_change_log.h"
@@ -94,8 +93,9 @@ class SceneSync {
   KernelScene kernel_scene_;
   std::unique_ptr<AccelStructure> accel_;
   bool bvh_needed_ = true;
-  // The compiler's changes the BVH has not seen while it was not needed.
-  std::optional<SceneDelta> bvh_missed_;
+  // The generation the BVH was last brought up to (0: never): while it is
+  // not needed it falls behind, and catches up on changes_since() it.
+  uint64_t bvh_generation_ = 0;
   KernelChangeLog log_;
   SceneSyncUpdate last_;
 };

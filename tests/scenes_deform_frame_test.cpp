@@ -12,11 +12,11 @@
 
 #include "core/kernel/host_isa.h"
 #include "core/world/kernel_scene.h"
-#include "sync/scene_sync.h"
 #include "scenes/builtin_scenes.h"
 #include "scenes/mesh_deformer.h"
 #include "scenes/procedural_rigs.h"
 #include "scenes/scene_animator.h"
+#include "sync/scene_sync.h"
 
 namespace tandem {
 namespace {

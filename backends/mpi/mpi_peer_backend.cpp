@@ -53,10 +53,10 @@ void MpiPeerBackend::sync(const KernelScene& scene, const SceneDelta& delta) {
     worker_cpu_ = worker_render_cpu_ = 0;
   }
   if (!delta.any() && receiver_counts_ != ArrayCounts{}) return;
-  SceneDelta d = delta;
-  if (receiver_counts_ == ArrayCounts{}) d.merge(SceneDelta::everything());
+  // A worker that holds nothing gets everything, whatever changed.
+  const bool empty = receiver_counts_ == ArrayCounts{};
   WireWriter w;
-  encode_scene(scene, d, receiver_counts_, w);
+  encode_scene(scene, empty ? SceneDelta::everything() : delta, receiver_counts_, w);
   pending_.bytes_to_worker += w.bytes().size();
   pending_.scene_bytes += w.bytes().size();
   // Not waited for: the worker takes it when it next looks (it may be

@@ -31,6 +31,11 @@ uint64_t KernelChangeLog::append(const SceneDelta& changes) {
   return ++generation_;
 }
 
+void KernelChangeLog::add_to_newest(const SceneDelta& changes) {
+  if (kept_.empty()) throw std::logic_error("KernelChangeLog::add_to_newest: no generation yet");
+  kept_.back().merge(changes);
+}
+
 SceneDelta KernelChangeLog::changes_since(uint64_t since) const {
   if (since > generation_)
     throw std::logic_error("KernelChangeLog::changes_since: generation " + std::to_string(since) +

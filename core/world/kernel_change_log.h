@@ -25,8 +25,14 @@ class KernelChangeLog {
 
   // Records the changes of a new generation and returns it (1, 2, ...).
   uint64_t append(const SceneDelta& changes);
+  // More changes of the newest generation, made from it by a later stage
+  // of the same update (the BVH after the compiler). Throws
+  // std::logic_error before the first append().
+  void add_to_newest(const SceneDelta& changes);
   // The newest generation; 0 before the first append().
   uint64_t generation() const { return generation_; }
+  // Its changes (empty before the first append()).
+  const SceneDelta& newest() const { return kept_.empty() ? none_ : kept_.back(); }
   // What changed after generation `since`, up to generation(): the union of
   // the generations in between. A consumer that has seen nothing (since 0)
   // or is further behind than the log keeps gets everything
@@ -46,6 +52,7 @@ class KernelChangeLog {
   uint64_t id_;
   uint64_t generation_ = 0;
   std::deque<SceneDelta> kept_;  // generations (generation_ - kept_.size(), generation_]
+  SceneDelta none_;
 };
 
 }  // namespace tandem
