@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "core/kernel/math.h"
+#include "core/world/mesh_pose.h"
 #include "core/world/scene_ranges.h"
 
 #include <glm/gtc/type_ptr.hpp>
@@ -138,18 +140,56 @@ Mesh to_mesh(const MeshData& data, uint32_t material, const char* what) {
   return mesh;
 }
 
-void overwrite_vertices(const MeshData& vertices, Mesh& mesh, const char* what) {
-  check_vertices(vertices, what);
-  if (vertices.vertex_count != mesh.positions.size()) {
-    invalid(std::string(what) + ": " + std::to_string(vertices.vertex_count) +
-            " vertices given, the mesh has " + std::to_string(mesh.positions.size()));
+namespace {
+
+// The attributes a caller gave: positions, and normals and uv0 where given
+// (empty: the mesh keeps its own).
+class GivenVertices final : public MeshPose {
+ public:
+  explicit GivenVertices(Mesh given) : given_(std::move(given)) {}
+  size_t vertex_count() const override { return given_.positions.size(); }
+  void write(Mesh& out) const override {
+    out.positions = given_.positions;
+    if (!given_.normals.empty()) out.normals = given_.normals;
+    if (!given_.uv0.empty()) out.uv0 = given_.uv0;
   }
-  // Attributes not given keep their old values.
-  Mesh fresh;
-  copy_vertices(vertices, fresh);
-  mesh.positions = std::move(fresh.positions);
-  if (vertices.normals) mesh.normals = std::move(fresh.normals);
-  if (vertices.uvs) mesh.uv0 = std::move(fresh.uv0);
+  bool write(const MeshVertexTarget& target, SceneBounds* box) const override {
+    const size_t n = given_.positions.size();
+    // An attribute the compiled mesh has no room for: the compiler's copy.
+    if (target.vertex_count != n || (!given_.normals.empty() && target.normals == nullptr) ||
+        (!given_.uv0.empty() && target.uv0 == nullptr))
+      return false;
+    for (size_t v = 0; v < n; ++v) {
+      const glm::vec3& p = given_.positions[v];
+      target.positions[v] = {p.x, p.y, p.z};
+    }
+    for (size_t v = 0; v < given_.normals.size(); ++v) {
+      const glm::vec3& nrm = given_.normals[v];
+      target.normals[v] = {nrm.x, nrm.y, nrm.z};
+    }
+    for (size_t v = 0; v < given_.uv0.size(); ++v)
+      target.uv0[v] = {given_.uv0[v].x, given_.uv0[v].y};
+    bool finite = false;
+    *box = vertex_bounds(given_.positions.data(), n, &finite);
+    return finite;
+  }
+
+ private:
+  Mesh given_;
+};
+
+}  // namespace
+
+std::shared_ptr<const MeshPose> vertices_pose(const MeshData& vertices, size_t mesh_vertices,
+                                              const char* what) {
+  check_vertices(vertices, what);
+  if (vertices.vertex_count != mesh_vertices) {
+    invalid(std::string(what) + ": " + std::to_string(vertices.vertex_count) +
+            " vertices given, the mesh has " + std::to_string(mesh_vertices));
+  }
+  Mesh given;
+  copy_vertices(vertices, given);
+  return std::make_shared<GivenVertices>(std::move(given));
 }
 
 Material to_material(const MaterialDesc& d, const char* what) {

@@ -4,6 +4,7 @@
 // from a game never reaches the scene compiler or a kernel.
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "api/tandem/tandem.h"
@@ -22,8 +23,11 @@ Camera to_camera(const CameraDesc& desc, const char* what);
 glm::mat4 to_matrix(const Transform& transform, const char* what);
 void check_options(const RendererOptions& options, const char* what);
 
-// Writes `vertices` (positions, and normals/uvs where given) over `mesh`,
-// whose vertex count it must match.
-void overwrite_vertices(const MeshData& vertices, Mesh& mesh, const char* what);
+// `vertices` (positions, and normals/uvs where given), checked, as a pose
+// of a mesh of `mesh_vertices` vertices (Scene::pose_mesh): the compiler
+// converts them straight into the kernel arrays, so a game's deforming mesh
+// is copied once on its way to the renderers, as a skinned glTF mesh is.
+std::shared_ptr<const MeshPose> vertices_pose(const MeshData& vertices, size_t mesh_vertices,
+                                              const char* what);
 
 }  // namespace tandem::api_detail

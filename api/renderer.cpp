@@ -235,13 +235,9 @@ MeshId Renderer::add_mesh(const MeshData& mesh, MaterialId material) {
 
 void Renderer::set_mesh_vertices(MeshId id, const MeshData& vertices) {
   const uint32_t i = checked(id, impl_->scene.mesh_count(), "set_mesh_vertices", "mesh");
-  // Check everything on a copy first: a failed call changes nothing.
-  Mesh updated = impl_->scene.meshes()[i];
-  api_detail::overwrite_vertices(vertices, updated, "set_mesh_vertices");
-  Mesh& target = impl_->scene.edit_mesh_vertices(i);
-  target.positions = std::move(updated.positions);
-  target.normals = std::move(updated.normals);
-  target.uv0 = std::move(updated.uv0);
+  // Checked before anything changes: a failed call changes nothing.
+  impl_->scene.pose_mesh(i, api_detail::vertices_pose(vertices, impl_->scene.mesh_vertex_count(i),
+                                                      "set_mesh_vertices"));
 }
 
 InstanceId Renderer::add_instance(MeshId mesh, const Transform& transform) {

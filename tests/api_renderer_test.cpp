@@ -155,6 +155,27 @@ TEST(ApiRenderer, MeshVerticesCanBeReplaced) {
             Error::Kind::kInvalidArgument);
 }
 
+// Replaced vertices go straight into the kernel arrays (a pose, as a skinned
+// glTF mesh's do) and render as a mesh that held them all along: bit for bit
+// the image of a renderer whose block had them before its first frame (the
+// compiler's copy of a whole new scene), after an edit that restarts its
+// accumulation as well.
+TEST(ApiRenderer, ReplacedVerticesRenderAsAMeshThatHeldThem) {
+  const Quad higher(0.5f, 1.5f);
+  tandem::Renderer a(small_options()), b(small_options());
+  build_scene(a);
+  const tandem::InstanceId block = build_scene(b);
+  b.set_mesh_vertices(tandem::MeshId{1}, higher.data());
+  a.render_frame();
+  b.render_frame();
+  EXPECT_NE(a.image_linear(), b.image_linear());
+  a.set_mesh_vertices(tandem::MeshId{1}, higher.data());
+  b.set_instance_transform(block, tandem::Transform::translation(-1.0f, 0.5f, 0.0f));  // as it was
+  a.render_frame();
+  b.render_frame();
+  EXPECT_EQ(a.image_linear(), b.image_linear());
+}
+
 TEST(ApiRenderer, TransformHelpersComposeAsMatrices) {
   const tandem::Transform t = tandem::Transform::translation(1, 2, 3) *
                               tandem::Transform::rotation(1.5707963f, 0, 1, 0) *

@@ -209,6 +209,9 @@ class Renderer {
   MeshId add_mesh(const MeshData& mesh, MaterialId material);
   // Replaces a mesh's vertex positions (and normals/uvs where given) with
   // the same vertex count; its triangles stay (indices are ignored here).
+  // Made for meshes a game deforms every frame: the vertices are copied
+  // once here and converted straight into the arrays the renderers read at
+  // the next frame, and the mesh's BVH is refit, not rebuilt.
   // Errors: kInvalidArgument for an unknown id, another vertex count, null
   // positions, or non-finite values.
   void set_mesh_vertices(MeshId id, const MeshData& vertices);

@@ -182,6 +182,8 @@ bool pose_target(KernelScene& out, uint32_t mesh, const MeshPose& pose, MeshVert
   target->tangents = (km.flags & kMeshHasTangents) && first + n <= out.tangents.size()
                          ? out.tangents.data() + first
                          : nullptr;
+  target->uv0 =
+      (km.flags & kMeshHasUv0) && first + n <= out.uv0.size() ? out.uv0.data() + first : nullptr;
   target->vertex_count = n;
   return true;
 }

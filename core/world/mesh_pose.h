@@ -1,7 +1,8 @@
 // A deforming mesh's vertices given as a pose (Scene::pose_mesh) rather
 // than written: a deformation of fixed base vertices with one set of joint
-// matrices and morph weights, which can be written again, bit for bit, as
-// often as it is asked for.
+// matrices and morph weights (scenes/mesh_deformer.h), or the vertices an
+// embedding game computed (api/), which can be written again, bit for bit,
+// as often as it is asked for.
 //
 // Why a pose and not vertices: a frame loop that skins a million vertices
 // needs them once, in the compiled arrays the renderers read. Written into
@@ -18,15 +19,17 @@ namespace tandem {
 
 struct Mesh;
 struct SceneBounds;
-struct Vec3;  // core/kernel/math.h
+struct Vec2;  // core/kernel/math.h
+struct Vec3;
 struct Vec4;
 
-// Where a compiled mesh's deforming attributes lie in the kernel arrays.
-// normals/tangents are null where the compiled mesh has none.
+// Where a compiled mesh's vertex attributes lie in the kernel arrays.
+// normals/tangents/uv0 are null where the compiled mesh has none.
 struct MeshVertexTarget {
   Vec3* positions = nullptr;
   Vec3* normals = nullptr;
   Vec4* tangents = nullptr;
+  Vec2* uv0 = nullptr;
   size_t vertex_count = 0;
 };
 
@@ -37,8 +40,8 @@ class MeshPose {
   virtual ~MeshPose() = default;
   // How many vertices the pose writes (the mesh's vertex count).
   virtual size_t vertex_count() const = 0;
-  // The posed positions, normals and tangents into the Scene's mesh (the
-  // attributes it has; others are left as they are).
+  // The posed attributes (positions, and those of normals, tangents and
+  // uv0 the pose sets) into the Scene's mesh; others are left as they are.
   virtual void write(Mesh& out) const = 0;
   // The same vertices, converted as the compiler converts a Mesh, into
   // `target` (the attributes it has); their box into `box`. Returns false
