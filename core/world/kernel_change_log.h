@@ -1,11 +1,17 @@
 // What changed in the kernel arrays, generation by generation.
 //
-// Whoever brings the arrays up to date (SceneSync) appends one SceneDelta
-// per update and so makes a new generation; every consumer keeps the
-// generation it last committed and asks changes_since() for its backlog: a
-// backend that syncs every frame, one of the CUDA backend's two device
-// buffer sets that was last written two frames ago, an MPI worker. None of
-// them keeps lists of pending changes of its own.
+// Each generation is one update of the arrays (SceneSync::update): per
+// kernel array the ranges its writers rewrote (the per-kind compilers, the
+// compiler's writes of posed meshes, the BVH emitters) or "reallocated",
+// and the few meaning-level events a backend needs beyond ranges (meshes
+// rebuilt or refit, instances moved, constants), all in the SceneDelta the
+// writers fill. The BVH, which follows the compiler, adds its changes to
+// the same generation. Every consumer keeps the generation it last
+// committed and asks changes_since() for its backlog: a backend that syncs
+// every frame, one of the CUDA backend's two device buffer sets that was
+// last written two frames ago, an MPI worker, the BVH itself after a time
+// it was not needed. None of them keeps lists of pending changes of its
+// own, and only this log joins two generations' changes.
 #pragma once
 
 #include <cstdint>
