@@ -271,6 +271,42 @@ TEST(CoreTracer, SyncingTheSceneAheadGivesTheSameFrames) {
   tracer.end_frame();
 }
 
+// A cancelled frame (the viewer's answer to input) hands out no more tiles,
+// drops its samples and restarts accumulation, so the frames after it are
+// those of a tracer that never started it; waiting for a frame in slices
+// ends when it is rendered.
+TEST(CoreTracer, ACancelledFrameLeavesNoSamplesBehind) {
+  for (const char* backend : {"cpu", "host"}) {
+    SCOPED_TRACE(backend);
+    TracerSettings settings = small_settings(-1.0f, true);
+    // 3,072 tiles, a tenth of a second: cancelled long before the last.
+    settings.render.width = 256;
+    settings.render.height = 192;
+    settings.tile_size = 4;
+    const ImageRGB plain = render_frames({backend}, settings, 2);
+    Scene scene = make_cornell_box();
+    CoreTracer tracer(make({backend}), settings);
+    tracer.begin_frame(scene);
+    tracer.cancel_frame();
+    const FrameMetrics& cancelled = tracer.end_frame();
+    EXPECT_TRUE(cancelled.cancelled);
+    EXPECT_EQ(cancelled.accumulated_spp, 0u);
+    EXPECT_LT(cancelled.backends[0].tiles, 3072u) << "tiles were taken after the cancel";
+    EXPECT_EQ(tracer.accumulated_spp(), 0u);
+    for (int f = 0; f < 2; ++f) {
+      tracer.begin_frame(scene);
+      while (!tracer.wait_rendered(0.001)) {
+      }
+      EXPECT_TRUE(tracer.wait_rendered(0.0));
+      const FrameMetrics& m = tracer.end_frame();
+      EXPECT_FALSE(m.cancelled);
+      EXPECT_EQ(m.accumulation_reset, f == 0);
+    }
+    EXPECT_EQ(tracer.accumulated_spp(), 2 * settings.samples_per_frame);
+    EXPECT_TRUE(bitwise_equal(tracer.image(), plain));
+  }
+}
+
 // What is being built, for an out-of-memory message: the innermost scope,
 // and the outer one again when it ends.
 TEST(ScopedActivity, NamesTheInnermostStage) {

@@ -4,6 +4,8 @@
 // image, the debug views).
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstring>
 #include <filesystem>
 
 #include "app/view/denoise_view.h"
@@ -135,6 +137,55 @@ TEST(ViewSession, TheNextFrameIsPosedWhileThisOneRenders) {
   session.render_frame(false, 1.0);
   EXPECT_EQ(session.scene_time(), 0.5);
   EXPECT_FALSE(session.last_frame_moving());
+}
+
+// Input is read while a frame renders, every input slice; an input that
+// asks for it cancels the frame after the tiles in flight, the display
+// keeps the last finished frame, and the still image then converges to the
+// pixels of a session that was never interrupted.
+TEST(ViewSession, InputIsReadWhileAFrameRendersAndCancelsIt) {
+  ViewOptions o = small("builtin:cornell");
+  o.width = 160;
+  o.height = 120;
+  o.max_depth = 4;
+  o.fixed_scale = 1.0f;
+  o.fixed_samples_per_frame = 16;  // a still frame of tens of input slices
+  o.target_spp = 32;
+  ViewSession interrupted(o), plain(o);
+  for (ViewSession* s : {&interrupted, &plain})
+    s->render_frame(true, std::nullopt);  // the full build, not timed
+  const std::vector<uint8_t> shown = interrupted.display();
+
+  using Clock = std::chrono::steady_clock;
+  std::vector<Clock::time_point> polls;
+  const int kEventAt = 2;  // the poll that finds the injected event
+  const FrameMetrics& m = interrupted.render_frame(false, std::nullopt, [&] {
+    polls.push_back(Clock::now());
+    return int(polls.size()) - 1 == kEventAt;
+  });
+  const Clock::time_point returned = Clock::now();
+  ASSERT_GT(polls.size(), size_t(kEventAt)) << "the frame ended before the event";
+  EXPECT_TRUE(m.cancelled);
+  EXPECT_LT(m.backends[0].tiles, 20u) << "tiles were taken after the cancel";
+  EXPECT_EQ(interrupted.accumulated_spp(), 0u);
+  EXPECT_FALSE(interrupted.converged());
+  EXPECT_EQ(interrupted.display(), shown) << "a cancelled frame is not shown";
+  // Polled every slice (a generous bound: sanitizer builds share two cores
+  // with the render threads), and the cancel ended the frame soon after.
+  for (size_t i = 1; i < polls.size(); ++i) {
+    EXPECT_LT(std::chrono::duration<double>(polls[i] - polls[i - 1]).count(), 0.1)
+        << "between polls " << i - 1 << " and " << i;
+  }
+  EXPECT_LT(std::chrono::duration<double>(returned - polls[kEventAt]).count(), 1.0);
+
+  for (ViewSession* s : {&interrupted, &plain}) {
+    for (int i = 0; i < 10 && !s->converged(); ++i)
+      s->render_frame(false, std::nullopt, [] { return false; });
+    ASSERT_TRUE(s->converged());
+  }
+  const ImageRGB a = interrupted.tracer().image(), b = plain.tracer().image();
+  ASSERT_EQ(a.rgb.size(), b.rgb.size());
+  EXPECT_EQ(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)), 0);
 }
 
 // --- the denoiser in the display -------------------------------------------

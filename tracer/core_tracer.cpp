@@ -296,7 +296,14 @@ void CoreTracer::launch_render() {
   for (const BackendTraits& tr : traits_)
     f.pass.host_scene_may_change =
         f.pass.host_scene_may_change && !tr.reads_host_scene_while_rendering;
+  f.cancelled = false;
+  f.done = 0;
   f.sources = scheduler_.begin_frame();
+  f.cancellable.clear();
+  for (TileSource*& source : f.sources) {
+    f.cancellable.push_back(std::make_unique<CancellableTiles>(*source, f.cancelled));
+    source = f.cancellable.back().get();
+  }
   const size_t n = backends_.size();
   f.stats.assign(n, BackendStats{});
   f.errors.assign(n, nullptr);
@@ -321,6 +328,9 @@ void CoreTracer::launch_render() {
         flight_.errors[b] = std::current_exception();
       }
       claim();  // also when the backend never got to claim its scene
+      std::lock_guard<std::mutex> lock(flight_.done_mutex);
+      ++flight_.done;
+      flight_.done_cv.notify_all();
     });
   }
   in_flight_ = true;
@@ -401,6 +411,19 @@ void CoreTracer::complete_incomplete_renders() {
   }
 }
 
+bool CoreTracer::wait_rendered(double seconds) {
+  if (!in_flight_) throw std::logic_error("CoreTracer::wait_rendered: no frame in flight");
+  Flight& f = flight_;
+  std::unique_lock<std::mutex> lock(f.done_mutex);
+  return f.done_cv.wait_for(lock, std::chrono::duration<double>(std::max(seconds, 0.0)),
+                            [&] { return f.done == f.threads.size(); });
+}
+
+void CoreTracer::cancel_frame() {
+  if (!in_flight_) throw std::logic_error("CoreTracer::cancel_frame: no frame in flight");
+  flight_.cancelled = true;
+}
+
 const FrameMetrics& CoreTracer::end_frame() {
   if (!in_flight_) throw std::logic_error("CoreTracer::end_frame: no frame in flight");
   Flight& f = flight_;
@@ -412,6 +435,9 @@ const FrameMetrics& CoreTracer::end_frame() {
   m.render_seconds = seconds_since(f.start);
   const size_t n = backends_.size();
   m.backends.assign(n, BackendFrameMetrics{});
+  m.cancelled = f.cancelled;
+  // (In a cancelled frame this completes only the tiles a failed backend
+  // had taken: its source hands out no more.)
   complete_incomplete_renders();
   std::vector<double> backend_seconds(n);
   for (size_t b = 0; b < n; ++b)
@@ -438,6 +464,15 @@ const FrameMetrics& CoreTracer::end_frame() {
       reset_pending_ = true;
       std::rethrow_exception(e);
     }
+  }
+  if (m.cancelled) {
+    // Some tiles have this frame's samples, others not: none keeps them.
+    film_.clear();
+    accumulated_spp_ = 0;
+    reset_pending_ = true;
+    m.accumulated_spp = 0;
+    m.total_seconds = seconds_since(frame_start_);
+    return m;
   }
   scheduler_.end_frame(backend_seconds, f.tile_seconds);
   if (settings_.exclusive_host_cores && settings_.scheduler.forced_split < 0.0f &&

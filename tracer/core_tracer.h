@@ -80,6 +80,9 @@ struct FrameMetrics {
   double sync_scene_seconds = 0.0, update_accstruc_seconds = 0.0, sync_accstruc_seconds = 0.0;
   double render_seconds = 0.0, total_seconds = 0.0;
   uint64_t delta_bytes = 0;  // size of the frame's changed kernel-array ranges
+  // cancel_frame() stopped it: its samples were dropped (accumulation
+  // restarts next frame) and the scheduler learnt nothing from it.
+  bool cancelled = false;
   std::vector<BackendFrameMetrics> backends;
   uint64_t rays() const;
   uint64_t samples() const;
@@ -104,6 +107,16 @@ class CoreTracer {
   // after end_frame().
   void begin_frame(Scene& scene);
   const FrameMetrics& end_frame();
+  // Between begin_frame() and end_frame(): waits up to `seconds` for every
+  // backend to finish rendering; true once they have (end_frame() then
+  // returns without waiting). A caller that must stay responsive (the
+  // viewer reading input) waits in slices.
+  bool wait_rendered(double seconds);
+  // Between begin_frame() and end_frame(): no backend takes another tile,
+  // so end_frame() returns once the tiles in flight are done (one tile's
+  // time). The frame's samples are dropped: accumulation restarts with
+  // the next frame, which is what a camera move or a quit wants anyway.
+  void cancel_frame();
   // SyncScene, UpdateAccStruc and SyncAccStruc alone, outside a frame: the
   // set-up the first begin_frame() would otherwise do (BVH builds, the
   // environment's sampling tables), for a caller that wants it done before
@@ -179,6 +192,13 @@ class CoreTracer {
     std::vector<std::exception_ptr> errors;
     std::vector<std::thread> threads;
     std::chrono::steady_clock::time_point start;
+    // Backends done rendering (wait_rendered()); cancel_frame() stops the
+    // tile sources through `cancelled`.
+    std::mutex done_mutex;
+    std::condition_variable done_cv;
+    size_t done = 0;
+    std::atomic<bool> cancelled{false};
+    std::vector<std::unique_ptr<CancellableTiles>> cancellable;
   };
 
   std::vector<std::unique_ptr<Backend>> backends_;

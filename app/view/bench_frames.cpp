@@ -9,6 +9,7 @@
 #include <tbb/info.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <optional>
 
@@ -17,6 +18,7 @@
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/scene_setup.h"
+#include "app/view/input_waits.h"
 #include "app/view/scripted_path.h"
 #include "app/view/view_session.h"
 #include "core/util/errors.h"
@@ -103,8 +105,17 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::vector<double> copy_s, hidden_s;
   uint32_t overlapped_commits = 0;
   double first_frame = 0.0;
+  // Where the viewer reads its input: before each frame and every input
+  // slice while it renders (the first frame's full build not counted).
+  InputWaits waits;
+  const auto start = std::chrono::steady_clock::now();
+  auto poll = [&] {
+    waits.polled(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    return false;
+  };
   session.advance_scene(0.0);
   for (uint32_t f = 0; f < frames; ++f) {
+    if (f > 0) poll();
     // The viewer's frame loop (Brigade's overlap): while the backends
     // render frame f, the simulation advances the Scene to frame f + 1 (the
     // renderers only read the compiled KernelScene) and, GPU-only, the next
@@ -112,7 +123,8 @@ int run_frame_bench(const std::vector<std::string>& argv) {
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
     std::optional<double> next_t;
     if (f + 1 < frames) next_t = double(f + 1) * kScriptedFrameStep;
-    const FrameMetrics& m = session.render_frame(true, next_t);
+    const FrameMetrics& m =
+        f == 0 ? session.render_frame(true, next_t) : session.render_frame(true, next_t, poll);
     if (f == 0) {
       first_frame = m.total_seconds;  // full compile + build: reported apart
       names.clear();
@@ -155,6 +167,8 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::printf("frame time p50 / p99:      %8.2f / %.2f ms  (mean %.2f ms, %.1f fps)\n",
               percentile(frame_s, 0.5) * 1e3, percentile(frame_s, 0.99) * 1e3, total / n * 1e3,
               n / std::max(total, 1e-9));
+  std::printf("input read every:          %8.2f ms at most (p99 %.2f ms)\n", waits.max_ms(),
+              waits.p99_ms());
   std::printf("scene delta per frame:     %8.1f KiB\n", double(delta_bytes) / n / 1024.0);
   std::printf(
       "scene work per frame p50:  pose %.2f ms (beside the render), SyncScene %.2f, "
@@ -201,6 +215,8 @@ int run_frame_bench(const std::vector<std::string>& argv) {
         .set("frame_ms_p99", percentile(frame_s, 0.99) * 1e3)
         .set("frame_ms_mean", total / n * 1e3)
         .set("fps", n / std::max(total, 1e-9))
+        .set("max_input_wait_ms", waits.max_ms())
+        .set("p99_input_wait_ms", waits.p99_ms())
         .set("scene_delta_kib_per_frame", double(delta_bytes) / n / 1024.0)
         .set("pose_ms_p50", percentile(pose_s, 0.5) * 1e3)
         .set("sync_scene_ms_p50", percentile(sync_s, 0.5) * 1e3)

@@ -121,25 +121,27 @@ int run(const std::vector<std::string>& argv) {
   }
 
   ViewSession session(o);
-  if (frames > 0 && args.has("no-window")) {
-    run_headless_script(session, frames, screenshot);
-    return 0;
-  }
+  InputWaits waits;
   WindowRunOptions w;
   w.scripted_frames = frames;
   w.screenshot = screenshot;
+  w.input_waits = &waits;
   std::string error;
-  if (!run_view_window(session, w, &error)) {
+  if (frames > 0 && args.has("no-window")) {
+    run_headless_script(session, frames, screenshot, &waits);
+  } else if (!run_view_window(session, w, &error)) {
     if (frames == 0) throw InputError(error);
     // A scripted run still produces its frames without a display.
     std::fprintf(stderr, "tandem-view: %s; rendering the script without a window\n", error.c_str());
-    run_headless_script(session, frames, screenshot);
+    run_headless_script(session, frames, screenshot, &waits);
   }
   if (frames > 0) {
-    std::printf("tandem-view: %u frames, last %ux%u, %u spp accumulated%s%s\n", frames,
-                session.tracer().settings().render.width, session.tracer().settings().render.height,
-                session.tracer().accumulated_spp(), screenshot.empty() ? "" : ", wrote ",
-                screenshot.c_str());
+    std::printf(
+        "tandem-view: %u frames, last %ux%u, %u spp accumulated, input read every %.1f ms at "
+        "most (p99 %.1f)%s%s\n",
+        frames, session.tracer().settings().render.width, session.tracer().settings().render.height,
+        session.tracer().accumulated_spp(), waits.max_ms(), waits.p99_ms(),
+        screenshot.empty() ? "" : ", wrote ", screenshot.c_str());
   }
   return 0;
 }

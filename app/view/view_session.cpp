@@ -79,7 +79,8 @@ bool ViewSession::converged() const {
 }
 
 const FrameMetrics& ViewSession::render_frame(bool camera_moved,
-                                              std::optional<double> next_scene_time) {
+                                              std::optional<double> next_scene_time,
+                                              const InputPoll& poll) {
   const bool moving = camera_moved || scene_posed_;
   quality_ = adaptive_.next(moving, last_seconds_);
   TracerSettings settings = tracer_settings();
@@ -99,24 +100,37 @@ const FrameMetrics& ViewSession::render_frame(bool camera_moved,
     const double t = *next_scene_time;
     advance = [this, t](Scene&) { advance_scene(t); };
   }
-  const FrameMetrics* metrics = nullptr;
-  if (options_.denoise || view_buffer_ != ViewBuffer::kImage) {
-    // The feature pass must see the scene this frame rendered: the next
-    // frame is posed while this one renders (as render_frame(scene,
-    // advance) does) but compiled only at the next begin_frame(), after the
-    // features (no prepare_next_frame(), which only GPU-only lists use).
-    tracer_->begin_frame(scene_);
-    try {
-      if (advance) advance(scene_);
-    } catch (...) {
-      tracer_->end_frame();
-      throw;
+  // The next frame is posed while this one renders. With features to take
+  // (the denoiser, a debug view) it is compiled only at the next
+  // begin_frame(), after the feature pass has seen this frame's scene;
+  // otherwise prepare_next_frame() compiles it now where the backends
+  // allow it (GPU-only lists).
+  const bool features = options_.denoise || view_buffer_ != ViewBuffer::kImage;
+  tracer_->begin_frame(scene_);
+  try {
+    if (advance) {
+      advance(scene_);
+      if (!features) tracer_->prepare_next_frame(scene_);
     }
-    metrics = &tracer_->end_frame();
-  } else {
-    metrics = &tracer_->render_frame(scene_, advance);
+    if (poll) {
+      bool cancelled = false;
+      while (!tracer_->wait_rendered(input_slice_seconds())) {
+        if (poll() && !cancelled) {
+          tracer_->cancel_frame();
+          cancelled = true;
+        }
+      }
+    }
+  } catch (...) {
+    tracer_->end_frame();  // the render threads must be joined before anything else
+    throw;
   }
-  const FrameMetrics& m = *metrics;
+  const FrameMetrics& m = tracer_->end_frame();
+  if (m.cancelled) {
+    // Nothing of it is shown; the next frame starts accumulating afresh.
+    restart_pending_ = true;
+    return m;
+  }
   last_moving_ = moving;
   ++frames_;
   denoise_frame(m);

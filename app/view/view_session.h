@@ -6,6 +6,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -79,7 +80,17 @@ class ViewSession {
   // poses the scene for `next_scene_time` (the next frame's time; none: no
   // next frame, or nothing to pose) and compiles the next frame where the
   // backends allow it.
-  const FrameMetrics& render_frame(bool camera_moved, std::optional<double> next_scene_time);
+  //
+  // With `poll`, the caller reads input while the frame renders: poll() is
+  // called every input_slice_seconds() until the backends are done, and
+  // its returning true cancels the frame (CoreTracer::cancel_frame: it ends
+  // after the tiles in flight, its samples dropped, the display kept as it
+  // was; FrameMetrics::cancelled).
+  using InputPoll = std::function<bool()>;
+  const FrameMetrics& render_frame(bool camera_moved, std::optional<double> next_scene_time,
+                                   const InputPoll& poll = {});
+  // How often render_frame() polls: well under the 50 ms a key may wait.
+  static constexpr double input_slice_seconds() { return 0.01; }
   // render_frame() without posing anything for the next frame.
   const FrameMetrics& render(bool moving) { return render_frame(moving, std::nullopt); }
   // Still, and the accumulated samples reached the target: rendering more

@@ -153,14 +153,23 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
 
 }  // namespace
 
-void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot) {
+void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
+                         InputWaits* input_waits) {
   const Camera base = session.camera();
+  const auto start = Clock::now();
+  auto polled = [&] {
+    if (input_waits != nullptr)
+      input_waits->polled(std::chrono::duration<double>(Clock::now() - start).count());
+    return false;
+  };
   session.advance_scene(0.0);
   for (uint32_t f = 0; f < frames; ++f) {
+    polled();
     // Frame f + 1's scene is posed while frame f renders.
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
-    session.render_frame(true, double(f + 1) * kScriptedFrameStep);
+    session.render_frame(true, double(f + 1) * kScriptedFrameStep, polled);
   }
+  polled();
   if (!screenshot.empty()) session.screenshot(screenshot);
 }
 
@@ -235,71 +244,94 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   uint32_t frame = 0;
   bool running = true, idle = false;
   FrameMetrics metrics;  // of the last rendered frame
+  InputWaits own_waits;
+  InputWaits& waits = opt.input_waits != nullptr ? *opt.input_waits : own_waits;
+  // Input read between frames and while one renders (ViewSession's
+  // InputPoll), so no key waits for a frame to end.
+  CameraInput in;
+  bool reset_camera = false;
+  ImGuiIO& io = ImGui::GetIO();
+  // One event; returns whether it changes what is seen (a still image being
+  // refined is then cancelled at once).
+  auto handle = [&](const SDL_Event& ev) {
+    ImGui_ImplSDL2_ProcessEvent(&ev);
+    bool changes_view = false;
+    if (ev.type == SDL_QUIT) running = false;
+    if (ev.type == SDL_WINDOWEVENT && ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED) {
+      session.set_output_size(uint32_t(ev.window.data1), uint32_t(ev.window.data2));
+      changes_view = true;
+    }
+    if (ev.type == SDL_KEYDOWN && !io.WantCaptureKeyboard) {
+      changes_view = true;
+      switch (ev.key.keysym.sym) {
+        case SDLK_ESCAPE:
+          running = false;
+          break;
+        case SDLK_F1:
+          ui.show_help = !ui.show_help;
+          changes_view = false;
+          break;
+        case SDLK_TAB:
+          ui.orbit_mode = !ui.orbit_mode;
+          break;
+        case SDLK_p:
+          session.paused = !session.paused;
+          break;
+        case SDLK_n:
+          session.set_denoise(!session.denoise());
+          break;
+        case SDLK_b:
+          session.set_view_buffer(
+              ViewBuffer((int(session.view_buffer()) + 1) % int(ViewBuffer::kCount)));
+          break;
+        case SDLK_HOME:
+        case SDLK_r:
+          reset_camera = true;
+          break;
+        case SDLK_F12: {
+          changes_view = false;
+          const std::string path =
+              opt.screenshot.empty() ? default_screenshot_name() : opt.screenshot;
+          try {
+            session.screenshot(path);
+            ui.message = "saved " + path;
+          } catch (const std::exception& e) {
+            ui.message = e.what();
+          }
+          break;
+        }
+        default:
+          break;
+      }
+    }
+    if (ev.type == SDL_MOUSEMOTION && !io.WantCaptureMouse) {
+      const glm::vec2 d(float(ev.motion.xrel), float(ev.motion.yrel));
+      if (ev.motion.state & SDL_BUTTON_LMASK) (ui.orbit_mode ? in.orbit : in.look) += d;
+      if ((ev.motion.state & SDL_BUTTON_RMASK) && ui.orbit_mode) in.pan += d;
+      changes_view |= (ev.motion.state & (SDL_BUTTON_LMASK | SDL_BUTTON_RMASK)) != 0;
+    }
+    if (ev.type == SDL_MOUSEWHEEL && !io.WantCaptureMouse && ui.orbit_mode) {
+      in.wheel += float(ev.wheel.y);
+      changes_view = true;
+    }
+    return changes_view;
+  };
+  auto read_input = [&] {
+    waits.polled(seconds_now());
+    bool changes_view = false;
+    SDL_Event ev;
+    while (SDL_PollEvent(&ev))
+      changes_view |= handle(ev);
+    return changes_view;
+  };
   while (running) {
     // A converged still image is not rendered again: sleep until input.
     if (idle) SDL_WaitEventTimeout(nullptr, 100);
     const double now = seconds_now();
     const double dt = now - last;
     last = now;
-    CameraInput in;
     in.dt = clamp_frame_delta(dt);
-    bool reset_camera = false;
-    SDL_Event ev;
-    ImGuiIO& io = ImGui::GetIO();
-    while (SDL_PollEvent(&ev)) {
-      ImGui_ImplSDL2_ProcessEvent(&ev);
-      if (ev.type == SDL_QUIT) running = false;
-      if (ev.type == SDL_WINDOWEVENT && ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED) {
-        session.set_output_size(uint32_t(ev.window.data1), uint32_t(ev.window.data2));
-      }
-      if (ev.type == SDL_KEYDOWN && !io.WantCaptureKeyboard) {
-        switch (ev.key.keysym.sym) {
-          case SDLK_ESCAPE:
-            running = false;
-            break;
-          case SDLK_F1:
-            ui.show_help = !ui.show_help;
-            break;
-          case SDLK_TAB:
-            ui.orbit_mode = !ui.orbit_mode;
-            break;
-          case SDLK_p:
-            session.paused = !session.paused;
-            break;
-          case SDLK_n:
-            session.set_denoise(!session.denoise());
-            break;
-          case SDLK_b:
-            session.set_view_buffer(
-                ViewBuffer((int(session.view_buffer()) + 1) % int(ViewBuffer::kCount)));
-            break;
-          case SDLK_HOME:
-          case SDLK_r:
-            reset_camera = true;
-            break;
-          case SDLK_F12: {
-            const std::string path =
-                opt.screenshot.empty() ? default_screenshot_name() : opt.screenshot;
-            try {
-              session.screenshot(path);
-              ui.message = "saved " + path;
-            } catch (const std::exception& e) {
-              ui.message = e.what();
-            }
-            break;
-          }
-          default:
-            break;
-        }
-      }
-      if (ev.type == SDL_MOUSEMOTION && !io.WantCaptureMouse) {
-        const glm::vec2 d(float(ev.motion.xrel), float(ev.motion.yrel));
-        if (ev.motion.state & SDL_BUTTON_LMASK) (ui.orbit_mode ? in.orbit : in.look) += d;
-        if ((ev.motion.state & SDL_BUTTON_RMASK) && ui.orbit_mode) in.pan += d;
-      }
-      if (ev.type == SDL_MOUSEWHEEL && !io.WantCaptureMouse && ui.orbit_mode)
-        in.wheel += float(ev.wheel.y);
-    }
+    read_input();
     if (!io.WantCaptureKeyboard) {
       const Uint8* k = SDL_GetKeyboardState(nullptr);
       in.forward = k[SDL_SCANCODE_W], in.back = k[SDL_SCANCODE_S];
@@ -343,11 +375,20 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     }
     // Nothing changes and the image has its samples: present it as it is.
     idle = !moved && !next_time && session.converged();
+    in = CameraInput{};  // taken; what arrives while rendering is the next frame's
+    reset_camera = false;
     double render_seconds = 0.0;
     if (!idle) {
       const double t0 = seconds_now();
-      metrics = session.render_frame(moved, next_time);
+      // A still image being refined gives way to any input that changes
+      // the view, and anything gives way to a quit.
+      const bool still = !moved && !next_time;
+      const FrameMetrics& m = session.render_frame(moved, next_time, [&] {
+        const bool changes_view = read_input();
+        return !running || (still && changes_view);
+      });
       render_seconds = seconds_now() - t0;
+      if (!m.cancelled) metrics = m;
     }
 
     glBindTexture(GL_TEXTURE_2D, texture);

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <string>
 
+#include "app/view/input_waits.h"
 #include "app/view/view_session.h"
 
 namespace tandem {
@@ -14,6 +15,8 @@ struct WindowRunOptions {
   uint32_t scripted_frames = 0;
   std::string screenshot;  // also the F12 target when set
   bool hidden = false;     // do not show the window (scripted runs)
+  // When set, receives the times between reads of the event queue.
+  InputWaits* input_waits = nullptr;
 };
 
 // Opens the window and runs until Esc / close (or the script ends). Returns
@@ -22,7 +25,9 @@ struct WindowRunOptions {
 bool run_view_window(ViewSession& session, const WindowRunOptions& options, std::string* error);
 
 // The same frames as a scripted window run, without any window (for
-// machines with no display at all).
-void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot);
+// machines with no display at all); `input_waits`, when set, receives the
+// times between the points where a window would read its input.
+void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
+                         InputWaits* input_waits = nullptr);
 
 }  // namespace tandem

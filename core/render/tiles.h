@@ -52,4 +52,18 @@ class ResumedTiles final : public TileSource {
   size_t taken_ = 0;
 };
 
+// Hands out what `inner` has until `stop` is set, then nothing: a frame a
+// caller cancels ends after the tiles already taken.
+class CancellableTiles final : public TileSource {
+ public:
+  CancellableTiles(TileSource& inner, const std::atomic<bool>& stop) : inner_(inner), stop_(stop) {}
+  bool next(Tile* tile) override {
+    return !stop_.load(std::memory_order_relaxed) && inner_.next(tile);
+  }
+
+ private:
+  TileSource& inner_;
+  const std::atomic<bool>& stop_;
+};
+
 }  // namespace tandem
