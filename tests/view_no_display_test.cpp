@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 
+#include "tests/json_test_parser.h"
 #include "tests/test_temp_dir.h"
 
 namespace tandem {
@@ -54,6 +55,35 @@ TEST(ViewNoDisplay, AnUnavailableVideoDriverExitsOne) {
   const ViewRun r = run_view("-u DISPLAY SDL_VIDEODRIVER=no-such-driver", dir.path() / "log");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("cannot initialise SDL video"), std::string::npos) << r.output;
+#endif
+}
+
+// A scripted run without a window writes its figures with --stats: frames
+// presented per second, frame times, how long input waited, what was shown.
+TEST(ViewNoDisplay, AScriptedRunWritesItsStats) {
+#ifndef TANDEM_VIEW_BINARY
+  GTEST_SKIP() << "tandem-view was not built";
+#else
+  TempDir dir("tandem_view_stats");
+  const fs::path stats = dir.path() / "stats.json", log = dir.path() / "log";
+  std::string cmd = "timeout 120 '";
+  cmd += TANDEM_VIEW_BINARY;
+  cmd += "' builtin:cornell --no-window --frames 4 --width 64 --height 48 --backend cpu ";
+  cmd += "--stats '" + stats.string() + "' > '" + log.string() + "' 2>&1";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  std::ifstream in(stats);
+  const std::string text{std::istreambuf_iterator<char>(in), {}};
+  const json_test::Node n = json_test::parse(text);
+  EXPECT_EQ(n["tool"].string, "tandem-view");
+  EXPECT_EQ(n["frames"].number, 3.0) << "the first frame (the scene's build) is not counted";
+  EXPECT_GT(n["fps"].number, 0.0);
+  EXPECT_GT(n["frame_ms_p99"].number, 0.0);
+  EXPECT_GT(n["max_input_wait_ms"].number, 0.0);
+  EXPECT_LE(n["p99_input_wait_ms"].number, n["max_input_wait_ms"].number);
+  EXPECT_GT(n["shown_width"].number, 0.0);
+  EXPECT_LE(n["shown_width"].number, 64.0);
+  EXPECT_GT(n["spp_per_frame"].number, 0.0);
 #endif
 }
 

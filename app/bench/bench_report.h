@@ -28,6 +28,9 @@ void set_render_facts(JsonValue& report, const std::string& scene, uint32_t widt
 // The median of timings or rates (the mean of the middle two for an even
 // count; 0 for none): what the modes that repeat a measurement report.
 double median(std::vector<double> v);
+// The value at fraction p in [0, 1] of the sorted values (the nearest
+// rank; 0 for none): frame-time p50 and p99.
+double percentile(std::vector<double> v, double p);
 
 // The values as a JSON array: the individual runs beside their median.
 JsonValue json_number_list(const std::vector<double>& v);

@@ -25,17 +25,6 @@
 
 namespace tandem {
 
-namespace {
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t i = std::min(v.size() - 1, size_t(p * double(v.size() - 1) + 0.5));
-  return v[i];
-}
-
-}  // namespace
-
 const std::vector<OptionSpec>& frame_bench_options() {
   static const std::vector<OptionSpec> specs = compose_options({
       {

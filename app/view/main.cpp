@@ -3,6 +3,7 @@
 // writes the last frame (`--frames N --screenshot out.png`, for tests under
 // Xvfb). Exit codes as `tandem`: 1 bad input, 2 bad usage.
 #include <tbb/global_control.h>
+#include <tbb/info.h>
 
 #include <cstdio>
 #include <exception>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "app/backend_list.h"
+#include "app/bench/bench_report.h"
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/scene_setup.h"
@@ -49,6 +51,9 @@ const std::vector<OptionSpec>& view_options() {
           {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
           {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
           {"no-window", false, "scripted run without opening a window (needs --frames)"},
+          {"stats", true,
+           "write the run's frame rate, frame times, input waits and what was shown as JSON",
+           "FILE"},
       },
       scene_options(),
       environment_options(),
@@ -56,6 +61,33 @@ const std::vector<OptionSpec>& view_options() {
       {{"version", false, "print the version"}},
   });
   return specs;
+}
+
+// The figures a scripted run is judged by: frames presented per second,
+// frame times, how long input waited, and the resolution and samples shown.
+void write_view_stats(const std::string& path, ViewSession& session,
+                      const std::vector<double>& frame_seconds, const InputWaits& waits) {
+  double total = 0.0;
+  for (double s : frame_seconds)
+    total += s;
+  const TracerSettings& t = session.tracer().settings();
+  JsonValue report = bench_report("view", tbb::info::default_concurrency());
+  report.set("tool", std::string("tandem-view"))
+      .set("scene", session.options().scene)
+      .set("frames", uint64_t(frame_seconds.size()))
+      .set("fps", frame_seconds.empty() ? 0.0 : double(frame_seconds.size()) / total)
+      .set("frame_ms_p50", percentile(frame_seconds, 0.5) * 1e3)
+      .set("frame_ms_p99", percentile(frame_seconds, 0.99) * 1e3)
+      .set("max_input_wait_ms", waits.max_ms())
+      .set("p99_input_wait_ms", waits.p99_ms())
+      .set("output_width", uint64_t(session.options().width))
+      .set("output_height", uint64_t(session.options().height))
+      .set("shown_width", uint64_t(t.render.width))
+      .set("shown_height", uint64_t(t.render.height))
+      .set("spp_per_frame", uint64_t(t.samples_per_frame))
+      .set("accumulated_spp", uint64_t(session.accumulated_spp()))
+      .set("denoise", session.denoise());
+  write_json_report(path, report);
 }
 
 int run(const std::vector<std::string>& argv) {
@@ -120,20 +152,25 @@ int run(const std::vector<std::string>& argv) {
     check_output_path(screenshot);
   }
 
+  const std::optional<std::string> stats_path = args.value("stats");
+  if (stats_path) check_json_output_path(*stats_path);  // before the run
+
   ViewSession session(o);
   InputWaits waits;
+  std::vector<double> frame_seconds;
   WindowRunOptions w;
   w.scripted_frames = frames;
   w.screenshot = screenshot;
   w.input_waits = &waits;
+  w.frame_seconds = &frame_seconds;
   std::string error;
   if (frames > 0 && args.has("no-window")) {
-    run_headless_script(session, frames, screenshot, &waits);
+    run_headless_script(session, frames, screenshot, &waits, &frame_seconds);
   } else if (!run_view_window(session, w, &error)) {
     if (frames == 0) throw InputError(error);
     // A scripted run still produces its frames without a display.
     std::fprintf(stderr, "tandem-view: %s; rendering the script without a window\n", error.c_str());
-    run_headless_script(session, frames, screenshot, &waits);
+    run_headless_script(session, frames, screenshot, &waits, &frame_seconds);
   }
   if (frames > 0) {
     std::printf(
@@ -143,6 +180,7 @@ int run(const std::vector<std::string>& argv) {
         session.tracer().accumulated_spp(), waits.max_ms(), waits.p99_ms(),
         screenshot.empty() ? "" : ", wrote ", screenshot.c_str());
   }
+  if (stats_path) write_view_stats(*stats_path, session, frame_seconds, waits);
   return 0;
 }
 

@@ -154,20 +154,29 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
 }  // namespace
 
 void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         InputWaits* input_waits) {
+                         InputWaits* input_waits, std::vector<double>* frame_seconds) {
   const Camera base = session.camera();
   const auto start = Clock::now();
+  // From the end of the first frame, which builds the scene (loading, not
+  // a frame's work).
+  bool measuring = false;
   auto polled = [&] {
-    if (input_waits != nullptr)
+    if (input_waits != nullptr && measuring)
       input_waits->polled(std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   };
   session.advance_scene(0.0);
   for (uint32_t f = 0; f < frames; ++f) {
+    measuring = f > 0;
     polled();
     // Frame f + 1's scene is posed while frame f renders.
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
+    const auto frame_start = Clock::now();
     session.render_frame(true, double(f + 1) * kScriptedFrameStep, polled);
+    if (frame_seconds != nullptr && f > 0) {
+      session.display();  // what presenting it costs
+      frame_seconds->push_back(std::chrono::duration<double>(Clock::now() - frame_start).count());
+    }
   }
   polled();
   if (!screenshot.empty()) session.screenshot(screenshot);
@@ -244,6 +253,7 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   uint32_t frame = 0;
   bool running = true, idle = false;
   FrameMetrics metrics;  // of the last rendered frame
+  double last_presented = seconds_now();
   InputWaits own_waits;
   InputWaits& waits = opt.input_waits != nullptr ? *opt.input_waits : own_waits;
   // Input read between frames and while one renders (ViewSession's
@@ -316,8 +326,11 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     }
     return changes_view;
   };
+  // Measured from the first frame presented (the first frame builds the
+  // scene: loading, not a frame's work).
+  bool measuring = false;
   auto read_input = [&] {
-    waits.polled(seconds_now());
+    if (measuring) waits.polled(seconds_now());
     bool changes_view = false;
     SDL_Event ev;
     while (SDL_PollEvent(&ev))
@@ -415,7 +428,13 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     glClear(GL_COLOR_BUFFER_BIT);
     ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
     SDL_GL_SwapWindow(window);
-    ui.counter.presented(seconds_now(), render_seconds);
+    const double presented = seconds_now();
+    ui.counter.presented(presented, render_seconds);
+    if (opt.frame_seconds != nullptr && !idle && measuring) {
+      opt.frame_seconds->push_back(presented - last_presented);
+    }
+    last_presented = presented;
+    measuring = true;
 
     ++frame;
     if (opt.scripted_frames > 0 && frame >= opt.scripted_frames) {

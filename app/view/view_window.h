@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "app/view/input_waits.h"
 #include "app/view/view_session.h"
@@ -15,8 +16,11 @@ struct WindowRunOptions {
   uint32_t scripted_frames = 0;
   std::string screenshot;  // also the F12 target when set
   bool hidden = false;     // do not show the window (scripted runs)
-  // When set, receives the times between reads of the event queue.
+  // When set, receive the times between reads of the event queue and
+  // between presented frames (seconds), from the first frame presented on
+  // (the first builds the scene).
   InputWaits* input_waits = nullptr;
+  std::vector<double>* frame_seconds = nullptr;
 };
 
 // Opens the window and runs until Esc / close (or the script ends). Returns
@@ -25,9 +29,11 @@ struct WindowRunOptions {
 bool run_view_window(ViewSession& session, const WindowRunOptions& options, std::string* error);
 
 // The same frames as a scripted window run, without any window (for
-// machines with no display at all); `input_waits`, when set, receives the
-// times between the points where a window would read its input.
+// machines with no display at all); `input_waits` and `frame_seconds`, when
+// set, receive what WindowRunOptions's do (the points where a window would
+// read its input and present).
 void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         InputWaits* input_waits = nullptr);
+                         InputWaits* input_waits = nullptr,
+                         std::vector<double>* frame_seconds = nullptr);
 
 }  // namespace tandem
