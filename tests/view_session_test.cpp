@@ -149,8 +149,8 @@ TEST(ViewSession, InputIsReadWhileAFrameRendersAndCancelsIt) {
   o.height = 120;
   o.max_depth = 4;
   o.fixed_scale = 1.0f;
-  o.fixed_samples_per_frame = 16;  // a still frame of tens of input slices
-  o.target_spp = 32;
+  o.fixed_samples_per_frame = 32;  // a still frame of tens of input slices
+  o.target_spp = 64;
   ViewSession interrupted(o), plain(o);
   for (ViewSession* s : {&interrupted, &plain})
     s->render_frame(true, std::nullopt);  // the full build, not timed
