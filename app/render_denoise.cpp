@@ -67,15 +67,6 @@ ImageRGB denoise_offline_image(const std::vector<PixelFeatures>& features, const
   return denoiser.process(features, image);
 }
 
-double relative_mse(const ImageRGB& image, const ImageRGB& ref) {
-  double sum = 0.0;
-  for (size_t i = 0; i < image.rgb.size(); ++i) {
-    const double d = double(image.rgb[i]) - ref.rgb[i];
-    sum += d * d / (double(ref.rgb[i]) * ref.rgb[i] + 1e-2);
-  }
-  return image.rgb.empty() ? 0.0 : sum / double(image.rgb.size());
-}
-
 double ssim_luminance(const ImageRGB& image, const ImageRGB& ref) {
   const uint32_t w = image.width, h = image.height;
   auto lum = [](const ImageRGB& img, uint32_t x, uint32_t y) {

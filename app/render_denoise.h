@@ -34,8 +34,7 @@ void write_feature_aovs(const std::filesystem::path& dir,
 ImageRGB denoise_offline_image(const std::vector<PixelFeatures>& features, const ImageRGB& image,
                                uint32_t spp);
 
-// Relative MSE, mean over pixels and channels of (a - ref)^2 / (ref^2 + 0.01).
-double relative_mse(const ImageRGB& image, const ImageRGB& reference);
+// (relative_mse() is in core/image/image.h.)
 // Mean SSIM of the luminance of the tone-mapped (x / (1 + x)) images, 8x8
 // windows with stride 4.
 double ssim_luminance(const ImageRGB& image, const ImageRGB& reference);

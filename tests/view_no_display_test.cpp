@@ -68,7 +68,8 @@ TEST(ViewNoDisplay, AScriptedRunWritesItsStats) {
   const fs::path stats = dir.path() / "stats.json", log = dir.path() / "log";
   std::string cmd = "timeout 120 '";
   cmd += TANDEM_VIEW_BINARY;
-  cmd += "' builtin:cornell --no-window --frames 4 --width 64 --height 48 --backend cpu ";
+  cmd += "' builtin:cornell --no-window --frames 10 --width 64 --height 48 --backend cpu ";
+  cmd += "--motion-reference-spp 4 ";
   cmd += "--stats '" + stats.string() + "' > '" + log.string() + "' 2>&1";
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
@@ -76,7 +77,7 @@ TEST(ViewNoDisplay, AScriptedRunWritesItsStats) {
   const std::string text{std::istreambuf_iterator<char>(in), {}};
   const json_test::Node n = json_test::parse(text);
   EXPECT_EQ(n["tool"].string, "tandem-view");
-  EXPECT_EQ(n["frames"].number, 3.0) << "the first frame (the scene's build) is not counted";
+  EXPECT_EQ(n["frames"].number, 9.0) << "the first frame (the scene's build) is not counted";
   EXPECT_GT(n["fps"].number, 0.0);
   EXPECT_GT(n["frame_ms_p99"].number, 0.0);
   EXPECT_GT(n["max_input_wait_ms"].number, 0.0);
@@ -84,6 +85,15 @@ TEST(ViewNoDisplay, AScriptedRunWritesItsStats) {
   EXPECT_GT(n["shown_width"].number, 0.0);
   EXPECT_LE(n["shown_width"].number, 64.0);
   EXPECT_GT(n["spp_per_frame"].number, 0.0);
+  EXPECT_GT(n["motion_relmse"].number, 0.0);
+  EXPECT_EQ(n["motion_relmse_frames"].items.size(), 4u);
+  // The references would stall a window: only a run without one takes them.
+  std::string windowed = "env -u DISPLAY -u WAYLAND_DISPLAY timeout 60 '";
+  windowed += TANDEM_VIEW_BINARY;
+  windowed +=
+      "' builtin:cornell --frames 10 --motion-reference-spp 4 > '" + log.string() + "' 2>&1";
+  const int usage = std::system(windowed.c_str());
+  EXPECT_TRUE(WIFEXITED(usage) && WEXITSTATUS(usage) == 2);
 #endif
 }
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "app/view/denoise_view.h"
+#include "app/view/motion_quality.h"
 #include "app/view/view_session.h"
 #include "scenes/arena_scene.h"
 #include "scenes/builtin_scenes.h"
@@ -186,6 +187,28 @@ TEST(ViewSession, InputIsReadWhileAFrameRendersAndCancelsIt) {
   const ImageRGB a = interrupted.tracer().image(), b = plain.tracer().image();
   ASSERT_EQ(a.rgb.size(), b.rgb.size());
   EXPECT_EQ(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)), 0);
+}
+
+// The motion-quality figure (the image shown, resampled to the window,
+// against a reference of the same frame) falls as the shown image
+// converges, and compares at the output size what was rendered at half.
+TEST(ViewMotionQuality, FallsAsTheShownImageConverges) {
+  ViewOptions o = small("builtin:cornell");
+  o.width = 64;
+  o.height = 48;
+  o.fixed_scale = 0.5f;
+  o.fixed_samples_per_frame = 1;
+  o.denoise = false;
+  ViewSession session(o);
+  session.render_frame(true, std::nullopt);
+  ASSERT_EQ(session.shown_linear().width, 32u);
+  const Scene frame = session.scene();
+  const double one = motion_relmse(frame, session, 64);
+  for (int i = 0; i < 63; ++i)
+    session.render_frame(false, std::nullopt);
+  const double converged = motion_relmse(frame, session, 64);
+  EXPECT_GT(one, 0.0);
+  EXPECT_LT(converged, 0.5 * one) << one << " at 1 spp, " << converged << " at 64";
 }
 
 // --- the denoiser in the display -------------------------------------------

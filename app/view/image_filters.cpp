@@ -34,10 +34,12 @@ void tint_tile_owners(std::vector<uint8_t>& rgb, uint32_t width, uint32_t height
   }
 }
 
-std::vector<uint8_t> resize_rgb8(const std::vector<uint8_t>& rgb, uint32_t w, uint32_t h,
-                                 uint32_t ow, uint32_t oh) {
-  if (w == ow && h == oh) return rgb;
-  std::vector<uint8_t> out(size_t(ow) * oh * 3);
+namespace {
+
+// Bilinear resampling of 3-channel images, pixel centres aligned: put(x, y,
+// c, v) receives each output value, at(x, y, c) reads the input.
+template <class At, class Put>
+void resize_bilinear(uint32_t w, uint32_t h, uint32_t ow, uint32_t oh, At at, Put put) {
   for (uint32_t y = 0; y < oh; ++y) {
     const float fy =
         std::clamp((float(y) + 0.5f) * float(h) / float(oh) - 0.5f, 0.0f, float(h - 1));
@@ -49,15 +51,37 @@ std::vector<uint8_t> resize_rgb8(const std::vector<uint8_t>& rgb, uint32_t w, ui
       const uint32_t x0 = uint32_t(fx), x1 = std::min(x0 + 1, w - 1);
       const float tx = fx - float(x0);
       for (int c = 0; c < 3; ++c) {
-        auto at = [&](uint32_t xx, uint32_t yy) {
-          return float(rgb[(size_t(yy) * w + xx) * 3 + c]);
-        };
-        const float v = (at(x0, y0) * (1 - tx) + at(x1, y0) * tx) * (1 - ty) +
-                        (at(x0, y1) * (1 - tx) + at(x1, y1) * tx) * ty;
-        out[(size_t(y) * ow + x) * 3 + c] = uint8_t(std::lround(std::clamp(v, 0.0f, 255.0f)));
+        const float v = (at(x0, y0, c) * (1 - tx) + at(x1, y0, c) * tx) * (1 - ty) +
+                        (at(x0, y1, c) * (1 - tx) + at(x1, y1, c) * tx) * ty;
+        put(x, y, c, v);
       }
     }
   }
+}
+
+}  // namespace
+
+std::vector<uint8_t> resize_rgb8(const std::vector<uint8_t>& rgb, uint32_t w, uint32_t h,
+                                 uint32_t ow, uint32_t oh) {
+  if (w == ow && h == oh) return rgb;
+  std::vector<uint8_t> out(size_t(ow) * oh * 3);
+  resize_bilinear(
+      w, h, ow, oh,
+      [&](uint32_t x, uint32_t y, int c) { return float(rgb[(size_t(y) * w + x) * 3 + c]); },
+      [&](uint32_t x, uint32_t y, int c, float v) {
+        out[(size_t(y) * ow + x) * 3 + c] = uint8_t(std::lround(std::clamp(v, 0.0f, 255.0f)));
+      });
+  return out;
+}
+
+ImageRGB resize_linear(const ImageRGB& image, uint32_t ow, uint32_t oh) {
+  if (image.width == ow && image.height == oh) return image;
+  ImageRGB out(ow, oh);
+  const uint32_t w = image.width;
+  resize_bilinear(
+      w, image.height, ow, oh,
+      [&](uint32_t x, uint32_t y, int c) { return image.rgb[(size_t(y) * w + x) * 3 + c]; },
+      [&](uint32_t x, uint32_t y, int c, float v) { out.rgb[(size_t(y) * ow + x) * 3 + c] = v; });
   return out;
 }
 

@@ -25,5 +25,7 @@ void backend_color(size_t i, float rgb[3]);
 // frames rendered at a reduced resolution scale).
 std::vector<uint8_t> resize_rgb8(const std::vector<uint8_t>& rgb, uint32_t width, uint32_t height,
                                  uint32_t out_width, uint32_t out_height);
+// The same for linear radiance (what the motion quality is measured on).
+ImageRGB resize_linear(const ImageRGB& image, uint32_t out_width, uint32_t out_height);
 
 }  // namespace tandem

@@ -22,6 +22,9 @@ class InputWaits {
     last_ = time;
     have_last_ = true;
   }
+  // The next read starts afresh (time spent on something else than the
+  // loop, such as a reference render, is not a wait).
+  void pause() { have_last_ = false; }
   double max_ms() const { return max_ * 1e3; }
   // The 99th percentile of the gaps (the first kKept of them).
   double p99_ms() const {

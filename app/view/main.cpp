@@ -54,6 +54,10 @@ const std::vector<OptionSpec>& view_options() {
           {"stats", true,
            "write the run's frame rate, frame times, input waits and what was shown as JSON",
            "FILE"},
+          {"motion-reference-spp", true,
+           "with --no-window --frames: the relMSE of four frames as shown against references of "
+           "N spp",
+           "N"},
       },
       scene_options(),
       environment_options(),
@@ -66,7 +70,8 @@ const std::vector<OptionSpec>& view_options() {
 // The figures a scripted run is judged by: frames presented per second,
 // frame times, how long input waited, and the resolution and samples shown.
 void write_view_stats(const std::string& path, ViewSession& session,
-                      const std::vector<double>& frame_seconds, const InputWaits& waits) {
+                      const std::vector<double>& frame_seconds, const InputWaits& waits,
+                      const std::vector<double>& motion_relmse) {
   double total = 0.0;
   for (double s : frame_seconds)
     total += s;
@@ -87,6 +92,13 @@ void write_view_stats(const std::string& path, ViewSession& session,
       .set("spp_per_frame", uint64_t(t.samples_per_frame))
       .set("accumulated_spp", uint64_t(session.accumulated_spp()))
       .set("denoise", session.denoise());
+  if (!motion_relmse.empty()) {
+    double sum = 0.0;
+    for (double e : motion_relmse)
+      sum += e;
+    report.set("motion_relmse", sum / double(motion_relmse.size()))
+        .set("motion_relmse_frames", json_number_list(motion_relmse));
+  }
   write_json_report(path, report);
 }
 
@@ -154,10 +166,17 @@ int run(const std::vector<std::string>& argv) {
 
   const std::optional<std::string> stats_path = args.value("stats");
   if (stats_path) check_json_output_path(*stats_path);  // before the run
+  const uint32_t reference_spp = args.get_u32("motion-reference-spp", 0, 1, 1u << 20);
+  if (reference_spp > 0 && !(args.has("no-window") && frames >= 5)) {
+    throw UsageError(
+        "--motion-reference-spp measures a scripted run without a window: add --no-window "
+        "--frames N (N >= 5)");
+  }
 
   ViewSession session(o);
   InputWaits waits;
-  std::vector<double> frame_seconds;
+  std::vector<double> frame_seconds, motion_relmse;
+  const ScriptRecord record{&waits, &frame_seconds, reference_spp, &motion_relmse};
   WindowRunOptions w;
   w.scripted_frames = frames;
   w.screenshot = screenshot;
@@ -165,12 +184,12 @@ int run(const std::vector<std::string>& argv) {
   w.frame_seconds = &frame_seconds;
   std::string error;
   if (frames > 0 && args.has("no-window")) {
-    run_headless_script(session, frames, screenshot, &waits, &frame_seconds);
+    run_headless_script(session, frames, screenshot, record);
   } else if (!run_view_window(session, w, &error)) {
     if (frames == 0) throw InputError(error);
     // A scripted run still produces its frames without a display.
     std::fprintf(stderr, "tandem-view: %s; rendering the script without a window\n", error.c_str());
-    run_headless_script(session, frames, screenshot, &waits, &frame_seconds);
+    run_headless_script(session, frames, screenshot, record);
   }
   if (frames > 0) {
     std::printf(
@@ -180,7 +199,13 @@ int run(const std::vector<std::string>& argv) {
         session.tracer().accumulated_spp(), waits.max_ms(), waits.p99_ms(),
         screenshot.empty() ? "" : ", wrote ", screenshot.c_str());
   }
-  if (stats_path) write_view_stats(*stats_path, session, frame_seconds, waits);
+  if (!motion_relmse.empty()) {
+    std::printf("tandem-view: motion relMSE (shown against %u spp references):", reference_spp);
+    for (double e : motion_relmse)
+      std::printf(" %.4f", e);
+    std::printf("\n");
+  }
+  if (stats_path) write_view_stats(*stats_path, session, frame_seconds, waits, motion_relmse);
   return 0;
 }
 

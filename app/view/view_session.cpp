@@ -217,14 +217,12 @@ void ViewSession::make_display() const {
     display_stale_ = false;
     return;
   }
-  const ImageRGB* img = &accumulated_;
+  // shown_linear() without copying the image shown as it is.
+  const ImageRGB* img = showing_denoised() ? &denoised_ : &accumulated_;
   ImageRGB blended;
-  if (showing_denoised()) {
-    img = &denoised_;
-    if (blend_ > 0.0f) {
-      blended = blend_images(denoised_, accumulated_, blend_);
-      img = &blended;
-    }
+  if (showing_denoised() && blend_ > 0.0f) {
+    blended = blend_images(denoised_, accumulated_, blend_);
+    img = &blended;
   }
   display_ = tone_map_to_srgb8(*img, options_.exposure, ToneMap::kAces);
   display_w_ = img->width;
@@ -233,6 +231,11 @@ void ViewSession::make_display() const {
     tint_tile_owners(display_, display_w_, display_h_, tracer_->tiles(), tracer_->tile_owners());
   }
   display_stale_ = false;
+}
+
+ImageRGB ViewSession::shown_linear() const {
+  if (!showing_denoised()) return accumulated_;
+  return blend_ > 0.0f ? blend_images(denoised_, accumulated_, blend_) : denoised_;
 }
 
 void ViewSession::screenshot(const std::filesystem::path& path) const {

@@ -109,6 +109,9 @@ class ViewSession {
   const std::vector<uint8_t>& display() const;
   uint32_t display_width() const;
   uint32_t display_height() const;
+  // The linear radiance display() tone-maps (the image view), at render
+  // resolution: what the motion quality is measured on.
+  ImageRGB shown_linear() const;
   // Writes the last frame resampled to the output resolution (atomic PNG).
   void screenshot(const std::filesystem::path& path) const;
 

@@ -15,6 +15,7 @@
 #include "app/view/camera_controller.h"
 #include "app/view/frame_counter.h"
 #include "app/view/image_filters.h"
+#include "app/view/motion_quality.h"
 #include "app/view/scripted_path.h"
 #include "core/util/errors.h"
 
@@ -154,7 +155,9 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
 }  // namespace
 
 void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         InputWaits* input_waits, std::vector<double>* frame_seconds) {
+                         const ScriptRecord& record) {
+  InputWaits* input_waits = record.input_waits;
+  std::vector<double>* frame_seconds = record.frame_seconds;
   const Camera base = session.camera();
   const auto start = Clock::now();
   // From the end of the first frame, which builds the scene (loading, not
@@ -171,11 +174,20 @@ void run_headless_script(ViewSession& session, uint32_t frames, const std::strin
     polled();
     // Frame f + 1's scene is posed while frame f renders.
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
+    // Four frames spread over the path (never the first) are measured.
+    const bool measured = record.reference_spp > 0 && record.motion_relmse != nullptr &&
+                          frames >= 5 && f > 0 && f % (frames / 5) == 0 && f / (frames / 5) <= 4;
+    std::optional<Scene> frame_scene;
+    if (measured) frame_scene = session.scene();  // as this frame renders it
     const auto frame_start = Clock::now();
     session.render_frame(true, double(f + 1) * kScriptedFrameStep, polled);
     if (frame_seconds != nullptr && f > 0) {
       session.display();  // what presenting it costs
       frame_seconds->push_back(std::chrono::duration<double>(Clock::now() - frame_start).count());
+    }
+    if (frame_scene) {
+      record.motion_relmse->push_back(motion_relmse(*frame_scene, session, record.reference_spp));
+      if (input_waits != nullptr) input_waits->pause();
     }
   }
   polled();

@@ -28,12 +28,21 @@ struct WindowRunOptions {
 // with the reason in `error`.
 bool run_view_window(ViewSession& session, const WindowRunOptions& options, std::string* error);
 
+// What a headless scripted run records, where set: what WindowRunOptions's
+// fields of the same names receive (the points where a window would read
+// its input and present), and with reference_spp > 0 the motion quality
+// (motion_quality.h) of four frames spread over the path, their
+// reference renders left out of the other figures.
+struct ScriptRecord {
+  InputWaits* input_waits = nullptr;
+  std::vector<double>* frame_seconds = nullptr;
+  uint32_t reference_spp = 0;
+  std::vector<double>* motion_relmse = nullptr;
+};
+
 // The same frames as a scripted window run, without any window (for
-// machines with no display at all); `input_waits` and `frame_seconds`, when
-// set, receive what WindowRunOptions's do (the points where a window would
-// read its input and present).
+// machines with no display at all).
 void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         InputWaits* input_waits = nullptr,
-                         std::vector<double>* frame_seconds = nullptr);
+                         const ScriptRecord& record = {});
 
 }  // namespace tandem

@@ -30,4 +30,13 @@ std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_sto
   return out;
 }
 
+double relative_mse(const ImageRGB& image, const ImageRGB& ref) {
+  double sum = 0.0;
+  for (size_t i = 0; i < image.rgb.size(); ++i) {
+    const double d = double(image.rgb[i]) - ref.rgb[i];
+    sum += d * d / (double(ref.rgb[i]) * ref.rgb[i] + 1e-2);
+  }
+  return image.rgb.empty() ? 0.0 : sum / double(image.rgb.size());
+}
+
 }  // namespace tandem

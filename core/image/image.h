@@ -22,6 +22,11 @@ struct ImageRGB {
   const float* pixel(uint32_t x, uint32_t y) const { return &rgb[(size_t(y) * width + x) * 3]; }
 };
 
+// Relative MSE against `reference` (same size): the mean over pixels and
+// channels of (a - ref)^2 / (ref^2 + 0.01), the noise metric the denoiser
+// and motion-quality figures use.
+double relative_mse(const ImageRGB& image, const ImageRGB& reference);
+
 enum class ToneMap { kStandard, kAces, kReinhard };
 
 // Parses "standard" | "aces" | "reinhard"; throws UsageError otherwise.
