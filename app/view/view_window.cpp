@@ -171,14 +171,19 @@ void run_headless_script(ViewSession& session, uint32_t frames, const std::strin
   session.advance_scene(0.0);
   for (uint32_t f = 0; f < frames; ++f) {
     measuring = f > 0;
-    polled();
     // Frame f + 1's scene is posed while frame f renders.
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
-    // Four frames spread over the path (never the first) are measured.
+    // Four frames spread over the path (never the first) are measured, on
+    // a copy of the scene as this frame renders it (a copy, like the
+    // reference render, is no part of the loop: the input waits skip both).
     const bool measured = record.reference_spp > 0 && record.motion_relmse != nullptr &&
                           frames >= 5 && f > 0 && f % (frames / 5) == 0 && f / (frames / 5) <= 4;
     std::optional<Scene> frame_scene;
-    if (measured) frame_scene = session.scene();  // as this frame renders it
+    if (measured) {
+      frame_scene = session.scene();
+      if (input_waits != nullptr) input_waits->pause();
+    }
+    polled();
     const auto frame_start = Clock::now();
     session.render_frame(true, double(f + 1) * kScriptedFrameStep, polled);
     if (frame_seconds != nullptr && f > 0) {
