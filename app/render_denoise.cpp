@@ -20,7 +20,7 @@ std::vector<PixelFeatures> render_scene_features(const Scene& scene,
   backend.sync(scene_sync.kernel_scene(), up.changes);
   MotionHistory motion;
   std::vector<PixelFeatures> features(size_t(settings.width) * settings.height);
-  backend.render_features(motion.advance(scene_sync.view()), features.data());
+  backend.render_features(motion.advance(scene_sync.view()), features.data(), {});
   return features;
 }
 

@@ -95,16 +95,16 @@ class CpuFallbackBackend final : public Backend {
   // A device that fails in the feature pass falls back like one that fails
   // in render(): the CPU backend gets the whole scene and computes the
   // features, so the denoiser never sees a device error.
-  bool render_features(const FeaturePass& pass, PixelFeatures* out) override {
+  bool render_features(const FeaturePass& pass, PixelFeatures* out, const PassStop& stop) override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!fell_back_) {
       try {
-        return active_->render_features(pass, out);
+        return active_->render_features(pass, out, stop);
       } catch (const DeviceError& e) {
         fall_back_and_sync_locked(e.what(), *scene_);
       }
     }
-    return active_->render_features(pass, out);
+    return active_->render_features(pass, out, stop);
   }
 
  private:

@@ -349,15 +349,15 @@ TEST(CudaBackendQueries, SyncWithANewSizeDuringTheFeaturePassIsRefused) {
     hooked->hook = [&] { cuda.sync(second.ks, d2); };
     MotionHistory motion;
     std::vector<PixelFeatures> out(24 * 16);
-    EXPECT_THROW(cuda.render_features(motion.advance(first.ks.view()), out.data()),
+    EXPECT_THROW(cuda.render_features(motion.advance(first.ks.view()), out.data(), {}),
                  std::logic_error);
     std::vector<PixelFeatures> now(32 * 24), cpu(32 * 24);
     motion.reset();
     const FeaturePass pass = motion.advance(second.ks.view());
-    ASSERT_TRUE(cuda.render_features(pass, now.data()));
+    ASSERT_TRUE(cuda.render_features(pass, now.data(), {}));
     CpuBackend host{CpuTraversal::kTandemBvh};
     host.sync(second.ks, d2);
-    ASSERT_TRUE(host.render_features(pass, cpu.data()));
+    ASSERT_TRUE(host.render_features(pass, cpu.data(), {}));
     EXPECT_EQ(std::memcmp(now.data(), cpu.data(), now.size() * sizeof(PixelFeatures)), 0);
   }
   EXPECT_TRUE(sim->report().hazards.empty()) << hazards_of(sim->report());

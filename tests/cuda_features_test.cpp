@@ -32,7 +32,7 @@ TEST(CudaGpu, FeaturePassMatchesCpu) {
   std::string reason;
   CudaBackend cuda(open_device(&reason), CudaKernelVariant::kMegakernel, {});
   std::vector<PixelFeatures> f(n);
-  EXPECT_THROW(cuda.render_features(FeaturePass{}, f.data()), std::logic_error);
+  EXPECT_THROW(cuda.render_features(FeaturePass{}, f.data(), {}), std::logic_error);
   CpuBackend host{CpuTraversal::kTandemBvh};
   MotionHistory motion;
   for (int frame = 0; frame < 2; ++frame) {
@@ -52,8 +52,8 @@ TEST(CudaGpu, FeaturePassMatchesCpu) {
     cuda.sync(fs.ks, delta);
     const FeaturePass pass = motion.advance(fs.ks.view());
     std::vector<PixelFeatures> g(n);
-    ASSERT_TRUE(host.render_features(pass, f.data()));
-    ASSERT_TRUE(cuda.render_features(pass, g.data()));
+    ASSERT_TRUE(host.render_features(pass, f.data(), {}));
+    ASSERT_TRUE(cuda.render_features(pass, g.data(), {}));
     size_t hits = 0, moving = 0, identical = 0, same_surface = 0;
     for (size_t i = 0; i < n; ++i) {
       const PixelFeatures& a = f[i];

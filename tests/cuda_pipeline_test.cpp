@@ -458,9 +458,9 @@ TEST(CudaFaults, FeaturePassFailureFallsBackToTheCpu) {
   MotionHistory motion;
   const FeaturePass pass = motion.advance(fs.ks.view());
   std::vector<PixelFeatures> got(16 * 16), want(16 * 16);
-  ASSERT_TRUE(wrapped->render_features(pass, got.data()));  // the first launch fails
+  ASSERT_TRUE(wrapped->render_features(pass, got.data(), {}));  // the first launch fails
   EXPECT_EQ(wrapped->name(), "cpu");
-  ASSERT_TRUE(cpu.render_features(pass, want.data()));
+  ASSERT_TRUE(cpu.render_features(pass, want.data(), {}));
   EXPECT_EQ(std::memcmp(got.data(), want.data(), got.size() * sizeof(PixelFeatures)), 0);
 }
 

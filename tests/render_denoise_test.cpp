@@ -5,11 +5,15 @@
 // the whole pipeline on a rendered scene.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
 #include <random>
+#include <string>
 
 #include "accstruc/accel_structure.h"
 #include "backends/cpu/cpu_backend.h"
+#include "backends/cpu_loops/cpu_features.h"
 #include "core/render/offline_render.h"
 #include "core/render/temporal_denoiser.h"
 #include "core/world/motion_history.h"
@@ -266,7 +270,7 @@ TEST(Denoise, MotionVectorsUnderCameraRotationMatchCameraMath) {
   MotionHistory motion;
   std::vector<PixelFeatures> before(64 * 48), after(64 * 48);
   c.compile(scene, settings);
-  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), before.data()));
+  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), before.data(), {}));
   const Camera a = scene.camera();
   // Yaw by 3 degrees and pitch by 1 about the camera's own position.
   Camera b = a;
@@ -276,7 +280,7 @@ TEST(Denoise, MotionVectorsUnderCameraRotationMatchCameraMath) {
   b.up = glm::normalize(glm::vec3(r * glm::vec4(a.up, 0.0f)));
   scene.edit_camera() = b;
   c.compile(scene, settings);
-  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), after.data()));
+  ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), after.data(), {}));
   double worst = 0.0;
   int hits = 0, same_surface = 0;
   for (uint32_t y = 0; y < 48; ++y) {
@@ -316,8 +320,8 @@ TEST(Denoise, FeaturesAreTheSameOnEveryCpuBackendAndStaticWithoutMotion) {
   MotionHistory motion;
   const FeaturePass pass = motion.advance(ks.view());
   std::vector<PixelFeatures> f(40 * 30), g(40 * 30);
-  ASSERT_TRUE(cpu.render_features(pass, f.data()));
-  ASSERT_TRUE(host.render_features(pass, g.data()));
+  ASSERT_TRUE(cpu.render_features(pass, f.data(), {}));
+  ASSERT_TRUE(host.render_features(pass, g.data(), {}));
   int hits = 0, same = 0;
   for (size_t i = 0; i < f.size(); ++i) {
     const PixelFeatures& p = f[i];
@@ -369,7 +373,7 @@ TEST(Denoise, AccumulatedAndFilteredOneSampleFramesBeatRawOneSample) {
     OfflineRenderOptions one;
     one.spp = 1;
     raw = render_offline(c.backend, 64, 64, one).image;
-    ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), f.data()));
+    ASSERT_TRUE(c.backend.render_features(motion.advance(c.ks.view()), f.data(), {}));
     denoised = denoiser.process(f, raw);
   }
   const double e_raw = rel_mse(raw, ref), e_den = rel_mse(denoised, ref);
@@ -612,6 +616,82 @@ TEST(Denoise, Avx2AndBaselineLoopsGiveTheSameImage) {
       EXPECT_LT(d.worst, 1e-3) << "largest relative difference";
       EXPECT_LT(d.mean, 1e-5) << "mean relative difference";
     }
+  }
+}
+
+// The viewer reads input between the parts of the feature pass: a stop
+// after the first band leaves the rest unwritten, and a stop that never
+// says so changes nothing.
+TEST(Denoise, TheFeaturePassStopsBetweenBandsOfRows) {
+  Scene scene = make_cornell_box();
+  RenderSettings settings;
+  settings.width = 40;
+  settings.height = 64;
+  Compiled c;
+  c.compile(scene, settings);
+  MotionHistory still;
+  const FeaturePass pass = still.advance(c.ks.view());
+  std::vector<PixelFeatures> whole(40 * 64), asked(40 * 64);
+  ASSERT_TRUE(c.backend.render_features(pass, whole.data(), {}));
+  int calls = 0;
+  ASSERT_TRUE(c.backend.render_features(pass, asked.data(), [&] { return ++calls < 0; }));
+  EXPECT_EQ(calls, int(kFeatureBands) - 1) << "asked between every two bands";
+  EXPECT_EQ(std::memcmp(whole.data(), asked.data(), whole.size() * sizeof(PixelFeatures)), 0);
+
+  std::vector<PixelFeatures> stopped(40 * 64);
+  std::memset(stopped.data(), 0xab, stopped.size() * sizeof(PixelFeatures));
+  const std::vector<PixelFeatures> untouched = stopped;
+  ASSERT_TRUE(c.backend.render_features(pass, stopped.data(), [] { return true; }));
+  const size_t band = size_t(std::max(64u / kFeatureBands, 8u)) * 40;
+  EXPECT_EQ(std::memcmp(stopped.data(), whole.data(), band * sizeof(PixelFeatures)), 0);
+  EXPECT_EQ(std::memcmp(stopped.data() + band, untouched.data() + band,
+                        (stopped.size() - band) * sizeof(PixelFeatures)),
+            0)
+      << "rows after the stop were written";
+}
+
+// A filter stopped at any of the points where it asks leaves the output
+// alone and drops the history, so the next frame is filtered as a fresh
+// denoiser would; a stop that never says so changes nothing.
+TEST(Denoise, AStoppedFilterIsFollowedByAFreshHistory) {
+  const uint32_t w = 96, h = 64;
+  std::mt19937 rng(11);
+  std::vector<PixelFeatures> f[3];
+  ImageRGB r[3];
+  for (int k = 0; k < 3; ++k) {
+    std::vector<Vec3> radiance;
+    make_square_frame(k, w, h, rng, f[k], radiance);
+    r[k] = image_from(radiance, w, h);
+  }
+  auto primed = [&] {
+    TemporalDenoiser d;
+    d.process(f[0], r[0]);
+    d.process(f[1], r[1]);
+    return d;
+  };
+  TemporalDenoiser plain = primed(), asked = primed();
+  const ImageRGB want = plain.process(f[2], r[2]);
+  int calls = 0;
+  ImageRGB got;
+  ASSERT_TRUE(asked.process(f[2], r[2], got, [&] { return ++calls < 0; }));
+  EXPECT_EQ(got.rgb, want.rgb);
+  // Bands of the split, temporal and variance stages, the points between
+  // the stages and iterations.
+  EXPECT_GE(calls, 3 * 3 + 2 + int(svgf_default_params(w, h).iterations) - 1);
+
+  TemporalDenoiser fresh;
+  fresh.process(f[0], r[0]);  // a history of its own, then a cut
+  fresh.reset();
+  const ImageRGB after_cut = fresh.process(f[2], r[2]);
+  for (int stop_at = 1; stop_at <= calls; ++stop_at) {
+    SCOPED_TRACE("stopped at call " + std::to_string(stop_at));
+    TemporalDenoiser d = primed();
+    int n = 0;
+    ImageRGB out;
+    EXPECT_FALSE(d.process(f[2], r[2], out, [&] { return ++n == stop_at; }));
+    EXPECT_EQ(out.width, 0u) << "the output was written";
+    EXPECT_FALSE(d.has_history());
+    EXPECT_EQ(d.process(f[2], r[2]).rgb, after_cut.rgb);
   }
 }
 

@@ -234,6 +234,44 @@ double mean_abs_difference(const std::vector<uint8_t>& a, const std::vector<uint
   return a.empty() ? 0.0 : d / double(a.size());
 }
 
+// Input read while the frame's features and filter run (after the
+// backends are done) gives the frame up at the first point the filter
+// asks: nothing of it is shown, and the next frame is filtered from a fresh
+// history.
+TEST(ViewSession, InputReadWhileAFrameIsFilteredGivesItUp) {
+  ViewOptions o = denoise_options("builtin:cornell", 1);
+  o.width = 160;
+  o.height = 120;
+  ViewSession session(o), plain(o);
+  for (ViewSession* s : {&session, &plain})
+    s->render_frame(true, std::nullopt);
+  const std::vector<uint8_t> shown = session.display();
+  int asked = 0;
+  const FrameMetrics& m = session.render_frame(true, std::nullopt, [&] {
+    if (session.tracer().frame_in_flight()) return false;
+    ++asked;
+    return true;
+  });
+  EXPECT_EQ(asked, 1) << "the filter went on after the stop";
+  EXPECT_TRUE(m.cancelled);
+  EXPECT_EQ(session.frames(), 1u);
+  EXPECT_EQ(session.display(), shown) << "a frame given up is not shown";
+  EXPECT_FALSE(session.denoiser().has_history());
+
+  // The next frame starts the history afresh (one frame long everywhere),
+  // where an uninterrupted session's has grown.
+  for (ViewSession* s : {&session, &plain})
+    s->render_frame(true, std::nullopt, [] { return false; });
+  ASSERT_TRUE(session.showing_denoised());
+  float longest = 0.0f, plain_longest = 0.0f;
+  for (const Vec4& h : session.denoiser().moments())
+    longest = std::max(longest, h.z);
+  for (const Vec4& h : plain.denoiser().moments())
+    plain_longest = std::max(plain_longest, h.z);
+  EXPECT_EQ(longest, 1.0f);
+  EXPECT_GT(plain_longest, 1.0f);
+}
+
 TEST(ViewDenoise, MovingFramesShowTheFilteredFrame) {
   ViewSession session(denoise_options("builtin:cornell", 1));
   ASSERT_TRUE(session.denoise()) << "on by default";

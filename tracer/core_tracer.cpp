@@ -143,12 +143,13 @@ void CoreTracer::apply_settings(const TracerSettings& settings) {
   scheduler_.set_settings(settings.scheduler);
 }
 
-bool CoreTracer::render_features(MotionHistory& motion, std::vector<PixelFeatures>& out) {
+bool CoreTracer::render_features(MotionHistory& motion, std::vector<PixelFeatures>& out,
+                                 const PassStop& stop) {
   const KernelData kd = scene_sync_->view();
   out.resize(size_t(kd.constants.camera.width) * kd.constants.camera.height);
   const FeaturePass pass = motion.advance(kd);
   for (const std::unique_ptr<Backend>& backend : backends_)
-    if (backend->render_features(pass, out.data())) return true;
+    if (backend->render_features(pass, out.data(), stop)) return true;
   return false;
 }
 

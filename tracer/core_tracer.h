@@ -112,6 +112,8 @@ class CoreTracer {
   // returns without waiting). A caller that must stay responsive (the
   // viewer reading input) waits in slices.
   bool wait_rendered(double seconds);
+  // Between begin_frame() and end_frame().
+  bool frame_in_flight() const { return in_flight_; }
   // Between begin_frame() and end_frame(): no backend takes another tile,
   // so end_frame() returns once the tiles in flight are done (one tile's
   // time). The frame's samples are dropped: accumulation restarts with
@@ -157,8 +159,11 @@ class CoreTracer {
   // scene, from the first backend with a feature pass, with motion measured
   // from the frame of motion's previous advance(). Call after end_frame()
   // and before the next prepare_next_frame()/begin_frame(). Returns false
-  // when no backend has a feature pass (a GPU-only list).
-  bool render_features(MotionHistory& motion, std::vector<PixelFeatures>& out);
+  // when no backend has a feature pass (a GPU-only list). A CPU pass asks
+  // `stop` between bands of rows (core/render/pass_stop.h): when it says
+  // stop, `out` is left incomplete and `motion` has advanced all the same.
+  bool render_features(MotionHistory& motion, std::vector<PixelFeatures>& out,
+                       const PassStop& stop = {});
   // Which backend rendered each tile of the last frame (index into
   // backends; -1: none), for the split overlay.
   const std::vector<Tile>& tiles() const { return scheduler_.tiles(); }

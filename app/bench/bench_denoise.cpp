@@ -208,7 +208,7 @@ int run_denoise_quality_bench(const std::vector<std::string>& argv) {
     const double render_ms = median(render_samples);
     const auto feature_start = Clock::now();
     features.resize(size_t(w) * h);
-    backend.render_features(motion.advance(scene_sync.view()), features.data());
+    backend.render_features(motion.advance(scene_sync.view()), features.data(), {});
     const double feature_ms = ms_since(feature_start);
     for (uint32_t r = 0; r + 1 < runs; ++r) {
       TemporalDenoiser trial = denoiser;

@@ -104,8 +104,8 @@ class TimedBackend final : public Backend {
       tiles_.emplace_back(i, pass.tile_seconds ? pass.tile_seconds[i] : -1.0);
     return stats;
   }
-  bool render_features(const FeaturePass& pass, PixelFeatures* out) override {
-    return inner_->render_features(pass, out);
+  bool render_features(const FeaturePass& pass, PixelFeatures* out, const PassStop& stop) override {
+    return inner_->render_features(pass, out, stop);
   }
   // (tile index, seconds) of the last render().
   const std::vector<std::pair<uint32_t, double>>& tiles() const { return tiles_; }

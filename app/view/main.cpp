@@ -49,6 +49,10 @@ const std::vector<OptionSpec>& view_options() {
            "NAME", "image"},
           {"split-view", false, "tint tiles by the backend that rendered them"},
           {"frames", true, "scripted run: render N frames along a camera path, then exit", "N"},
+          {"still-frames", true,
+           "with --frames: then N frames with the camera and scene held still (a still image "
+           "refining; its input waits are measured, its frames are not in the frame rate)",
+           "N", "0"},
           {"screenshot", true, "PNG for the last scripted frame (and F12)", "FILE"},
           {"no-window", false, "scripted run without opening a window (needs --frames)"},
           {"stats", true,
@@ -70,8 +74,8 @@ const std::vector<OptionSpec>& view_options() {
 // The figures a scripted run is judged by: frames presented per second,
 // frame times, how long input waited, and the resolution and samples shown.
 void write_view_stats(const std::string& path, ViewSession& session,
-                      const std::vector<double>& frame_seconds, const InputWaits& waits,
-                      const std::vector<double>& motion_relmse) {
+                      const std::vector<double>& frame_seconds, uint32_t still_frames,
+                      const InputWaits& waits, const std::vector<double>& motion_relmse) {
   double total = 0.0;
   for (double s : frame_seconds)
     total += s;
@@ -80,6 +84,7 @@ void write_view_stats(const std::string& path, ViewSession& session,
   report.set("tool", std::string("tandem-view"))
       .set("scene", session.options().scene)
       .set("frames", uint64_t(frame_seconds.size()))
+      .set("still_frames", uint64_t(still_frames))
       .set("fps", frame_seconds.empty() ? 0.0 : double(frame_seconds.size()) / total)
       .set("frame_ms_p50", percentile(frame_seconds, 0.5) * 1e3)
       .set("frame_ms_p99", percentile(frame_seconds, 0.99) * 1e3)
@@ -145,6 +150,10 @@ int run(const std::vector<std::string>& argv) {
   std::optional<tbb::global_control> thread_limit;
   if (threads) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
   const uint32_t frames = args.get_u32("frames", 0, 1, 1u << 24);
+  const uint32_t still_frames = args.get_u32("still-frames", 0, 0, 1u << 24);
+  if (still_frames > 0 && frames == 0) {
+    throw UsageError("--still-frames follows a scripted run: add --frames N");
+  }
   const std::string screenshot = args.get_string("screenshot", "");
   if (args.has("no-window") && frames == 0) {
     throw UsageError(
@@ -179,25 +188,26 @@ int run(const std::vector<std::string>& argv) {
   const ScriptRecord record{&waits, &frame_seconds, reference_spp, &motion_relmse};
   WindowRunOptions w;
   w.scripted_frames = frames;
+  w.still_frames = still_frames;
   w.screenshot = screenshot;
   w.input_waits = &waits;
   w.frame_seconds = &frame_seconds;
   std::string error;
   if (frames > 0 && args.has("no-window")) {
-    run_headless_script(session, frames, screenshot, record);
+    run_headless_script(session, frames, still_frames, screenshot, record);
   } else if (!run_view_window(session, w, &error)) {
     if (frames == 0) throw InputError(error);
     // A scripted run still produces its frames without a display.
     std::fprintf(stderr, "tandem-view: %s; rendering the script without a window\n", error.c_str());
-    run_headless_script(session, frames, screenshot, record);
+    run_headless_script(session, frames, still_frames, screenshot, record);
   }
   if (frames > 0) {
     std::printf(
         "tandem-view: %u frames, last %ux%u, %u spp accumulated, input read every %.1f ms at "
         "most (p99 %.1f)%s%s\n",
-        frames, session.tracer().settings().render.width, session.tracer().settings().render.height,
-        session.tracer().accumulated_spp(), waits.max_ms(), waits.p99_ms(),
-        screenshot.empty() ? "" : ", wrote ", screenshot.c_str());
+        frames + still_frames, session.tracer().settings().render.width,
+        session.tracer().settings().render.height, session.tracer().accumulated_spp(),
+        waits.max_ms(), waits.p99_ms(), screenshot.empty() ? "" : ", wrote ", screenshot.c_str());
   }
   if (!motion_relmse.empty()) {
     std::printf("tandem-view: motion relMSE (shown against %u spp references):", reference_spp);
@@ -205,7 +215,8 @@ int run(const std::vector<std::string>& argv) {
       std::printf(" %.4f", e);
     std::printf("\n");
   }
-  if (stats_path) write_view_stats(*stats_path, session, frame_seconds, waits, motion_relmse);
+  if (stats_path)
+    write_view_stats(*stats_path, session, frame_seconds, still_frames, waits, motion_relmse);
   return 0;
 }
 

@@ -131,9 +131,16 @@ const FrameMetrics& ViewSession::render_frame(bool camera_moved,
     restart_pending_ = true;
     return m;
   }
+  if (!denoise_frame(m, poll)) {
+    // Input came while the frame was filtered: it is not shown (its
+    // samples stay accumulated; the next frame shows them with its own).
+    restart_pending_ = true;
+    stopped_metrics_ = m;
+    stopped_metrics_.cancelled = true;
+    return stopped_metrics_;
+  }
   last_moving_ = moving;
   ++frames_;
-  denoise_frame(m);
   // The filter is part of what a frame costs: adaptive quality sees both.
   last_seconds_ = m.total_seconds + denoise_seconds_;
   display_stale_ = true;
@@ -145,29 +152,45 @@ void ViewSession::drop_denoise_history() {
   denoiser_.reset();
 }
 
-void ViewSession::denoise_frame(const FrameMetrics& m) {
+bool ViewSession::denoise_frame(const FrameMetrics& m, const InputPoll& poll) {
   const auto start = std::chrono::steady_clock::now();
+  const uint64_t frame = frames_ + 1;  // the frame being finished
   const uint32_t spp = tracer_->accumulated_spp();
-  ImageRGB now = tracer_->image();
   const uint32_t before = m.accumulation_reset ? 0u : accumulated_spp_before_;
-  blend_ = options_.denoise ? accumulated_blend_weight(spp) : 1.0f;
-  const bool filter = options_.denoise && blend_ < 1.0f;
+  const float blend = options_.denoise ? accumulated_blend_weight(spp) : 1.0f;
+  const bool filter = options_.denoise && blend < 1.0f;
+  // The feature pass and the filter read input between their parts: at
+  // full resolution on the CPU they take ~100 ms together.
+  bool stopped = false;
+  PassStop stop;
+  if (poll) stop = [&] { return stopped = stopped || poll(); };
+  auto give_up = [&] {
+    drop_denoise_history();  // the motion history has advanced past it
+    features_frame_ = 0;     // features_ is half written
+    return false;
+  };
+  ImageRGB now = tracer_->image();
   if (filter || view_buffer_ != ViewBuffer::kImage) {
-    features_frame_ = tracer_->render_features(motion_, features_) ? frames_ : 0;
+    const bool have = tracer_->render_features(motion_, features_, stop);
+    if (stopped) return give_up();
+    features_frame_ = have ? frame : 0;
   }
-  if (filter && features_frame_ == frames_) {
+  if (filter && features_frame_ == frame) {
+    if (pass_should_stop(stop)) return give_up();
     frame_radiance_ = frame_samples(now, spp, accumulated_, before);
-    denoised_ = denoiser_.process(features_, frame_radiance_);
-    denoised_frame_ = frames_;
+    if (!denoiser_.process(features_, frame_radiance_, denoised_, stop)) return give_up();
+    denoised_frame_ = frame;
   } else if (options_.denoise && !filter) {
     // The accumulated image has taken over: when things move again the
     // filter starts afresh rather than from a stale history.
     drop_denoise_history();
   }
+  blend_ = blend;
   accumulated_ = std::move(now);
   accumulated_spp_before_ = spp;
   denoise_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return true;
 }
 
 void ViewSession::set_denoise(bool on) {

@@ -85,7 +85,11 @@ class ViewSession {
   // called every input_slice_seconds() until the backends are done, and
   // its returning true cancels the frame (CoreTracer::cancel_frame: it ends
   // after the tiles in flight, its samples dropped, the display kept as it
-  // was; FrameMetrics::cancelled).
+  // was; FrameMetrics::cancelled). The feature pass and the denoiser that
+  // follow call it between their parts (bands of rows, filter stages);
+  // true there gives the frame up too (cancelled, the display kept; the
+  // samples stay accumulated and the denoiser starts afresh). poll() must
+  // not change the session: the caller keeps what it reads for after.
   using InputPoll = std::function<bool()>;
   const FrameMetrics& render_frame(bool camera_moved, std::optional<double> next_scene_time,
                                    const InputPoll& poll = {});
@@ -161,8 +165,10 @@ class ViewSession {
  private:
   void make_display() const;
   TracerSettings tracer_settings() const;
-  // After a frame: this frame's samples, features, the filter, the blend.
-  void denoise_frame(const FrameMetrics& m);
+  // After a frame: this frame's samples, features, the filter, the blend,
+  // reading input through `poll` between their parts. Returns false, having
+  // changed nothing shown, when poll() asked to stop.
+  bool denoise_frame(const FrameMetrics& m, const InputPoll& poll);
   void drop_denoise_history();
 
   ViewOptions options_;
@@ -178,6 +184,7 @@ class ViewSession {
   AdaptiveQuality adaptive_;
   Quality quality_;
   double last_seconds_ = 0.0;
+  FrameMetrics stopped_metrics_;  // what render_frame() returns for a frame given up in the filter
   uint64_t frames_ = 0;
   float light_scale_ = 1.0f;
   std::vector<float> light_intensity_, emissive_strength_;  // as loaded

@@ -154,8 +154,8 @@ void draw_panel(ViewSession& s, UiState& ui, const FrameMetrics& m) {
 
 }  // namespace
 
-void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         const ScriptRecord& record) {
+void run_headless_script(ViewSession& session, uint32_t frames, uint32_t still_frames,
+                         const std::string& screenshot, const ScriptRecord& record) {
   InputWaits* input_waits = record.input_waits;
   std::vector<double>* frame_seconds = record.frame_seconds;
   const Camera base = session.camera();
@@ -194,6 +194,12 @@ void run_headless_script(ViewSession& session, uint32_t frames, const std::strin
       record.motion_relmse->push_back(motion_relmse(*frame_scene, session, record.reference_spp));
       if (input_waits != nullptr) input_waits->pause();
     }
+  }
+  // The last pose held: the image refines as it would on screen.
+  for (uint32_t f = 0; f < still_frames; ++f) {
+    measuring = true;
+    polled();
+    session.render_frame(false, std::nullopt, polled);
   }
   polled();
   if (!screenshot.empty()) session.screenshot(screenshot);
@@ -278,25 +284,37 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   CameraInput in;
   bool reset_camera = false;
   ImGuiIO& io = ImGui::GetIO();
-  // One event; returns whether it changes what is seen (a still image being
-  // refined is then cancelled at once).
+  // Whether an event changes what is seen (a still image being refined is
+  // then cancelled at once) and whether it quits, without acting on it.
+  auto changes_view = [&](const SDL_Event& ev) {
+    switch (ev.type) {
+      case SDL_WINDOWEVENT:
+        return ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED;
+      case SDL_KEYDOWN:
+        return !io.WantCaptureKeyboard && ev.key.keysym.sym != SDLK_F1 &&
+               ev.key.keysym.sym != SDLK_F12;
+      case SDL_MOUSEMOTION:
+        return !io.WantCaptureMouse && (ev.motion.state & (SDL_BUTTON_LMASK | SDL_BUTTON_RMASK));
+      case SDL_MOUSEWHEEL:
+        return !io.WantCaptureMouse && ui.orbit_mode;
+      default:
+        return false;
+    }
+  };
+  auto quits = [&](const SDL_Event& ev) {
+    return ev.type == SDL_QUIT ||
+           (ev.type == SDL_KEYDOWN && !io.WantCaptureKeyboard && ev.key.keysym.sym == SDLK_ESCAPE);
+  };
+  // One event, acted on.
   auto handle = [&](const SDL_Event& ev) {
     ImGui_ImplSDL2_ProcessEvent(&ev);
-    bool changes_view = false;
-    if (ev.type == SDL_QUIT) running = false;
-    if (ev.type == SDL_WINDOWEVENT && ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED) {
+    if (quits(ev)) running = false;
+    if (ev.type == SDL_WINDOWEVENT && ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED)
       session.set_output_size(uint32_t(ev.window.data1), uint32_t(ev.window.data2));
-      changes_view = true;
-    }
     if (ev.type == SDL_KEYDOWN && !io.WantCaptureKeyboard) {
-      changes_view = true;
       switch (ev.key.keysym.sym) {
-        case SDLK_ESCAPE:
-          running = false;
-          break;
         case SDLK_F1:
           ui.show_help = !ui.show_help;
-          changes_view = false;
           break;
         case SDLK_TAB:
           ui.orbit_mode = !ui.orbit_mode;
@@ -316,7 +334,6 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
           reset_camera = true;
           break;
         case SDLK_F12: {
-          changes_view = false;
           const std::string path =
               opt.screenshot.empty() ? default_screenshot_name() : opt.screenshot;
           try {
@@ -335,24 +352,36 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
       const glm::vec2 d(float(ev.motion.xrel), float(ev.motion.yrel));
       if (ev.motion.state & SDL_BUTTON_LMASK) (ui.orbit_mode ? in.orbit : in.look) += d;
       if ((ev.motion.state & SDL_BUTTON_RMASK) && ui.orbit_mode) in.pan += d;
-      changes_view |= (ev.motion.state & (SDL_BUTTON_LMASK | SDL_BUTTON_RMASK)) != 0;
     }
-    if (ev.type == SDL_MOUSEWHEEL && !io.WantCaptureMouse && ui.orbit_mode) {
+    if (ev.type == SDL_MOUSEWHEEL && !io.WantCaptureMouse && ui.orbit_mode)
       in.wheel += float(ev.wheel.y);
-      changes_view = true;
-    }
-    return changes_view;
   };
   // Measured from the first frame presented (the first frame builds the
   // scene: loading, not a frame's work).
   bool measuring = false;
+  // Events read while a frame renders or is filtered wait here: the
+  // session is not changed under its own frame (ViewSession::render_frame).
+  std::vector<SDL_Event> deferred;
   auto read_input = [&] {
     if (measuring) waits.polled(seconds_now());
-    bool changes_view = false;
+    for (const SDL_Event& ev : deferred)
+      handle(ev);
+    deferred.clear();
     SDL_Event ev;
     while (SDL_PollEvent(&ev))
-      changes_view |= handle(ev);
-    return changes_view;
+      handle(ev);
+  };
+  // Returns whether anything read changes what is seen.
+  auto read_input_during_frame = [&] {
+    if (measuring) waits.polled(seconds_now());
+    bool changes = false;
+    SDL_Event ev;
+    while (SDL_PollEvent(&ev)) {
+      if (quits(ev)) running = false;
+      changes |= changes_view(ev);
+      deferred.push_back(ev);
+    }
+    return changes;
   };
   while (running) {
     // A converged still image is not rendered again: sleep until input.
@@ -373,9 +402,12 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     bool moved = false;
     std::optional<double> next_time;  // the next frame's scene time
     if (opt.scripted_frames > 0) {
-      session.set_camera(scripted_camera(base, double(frame) * kScriptedFrameStep));
-      next_time = double(frame + 1) * kScriptedFrameStep;
-      moved = true;
+      // Along the path, then held still.
+      if (frame < opt.scripted_frames) {
+        session.set_camera(scripted_camera(base, double(frame) * kScriptedFrameStep));
+        next_time = double(frame + 1) * kScriptedFrameStep;
+        moved = true;
+      }
     } else {
       if (reset_camera) {
         session.reset_camera();
@@ -414,8 +446,8 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
       // the view, and anything gives way to a quit.
       const bool still = !moved && !next_time;
       const FrameMetrics& m = session.render_frame(moved, next_time, [&] {
-        const bool changes_view = read_input();
-        return !running || (still && changes_view);
+        const bool changes = read_input_during_frame();
+        return !running || (still && changes);
       });
       render_seconds = seconds_now() - t0;
       if (!m.cancelled) metrics = m;
@@ -447,14 +479,15 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
     SDL_GL_SwapWindow(window);
     const double presented = seconds_now();
     ui.counter.presented(presented, render_seconds);
-    if (opt.frame_seconds != nullptr && !idle && measuring) {
+    const bool still_phase = opt.scripted_frames > 0 && frame >= opt.scripted_frames;
+    if (opt.frame_seconds != nullptr && !idle && measuring && !still_phase) {
       opt.frame_seconds->push_back(presented - last_presented);
     }
     last_presented = presented;
     measuring = true;
 
     ++frame;
-    if (opt.scripted_frames > 0 && frame >= opt.scripted_frames) {
+    if (opt.scripted_frames > 0 && frame >= opt.scripted_frames + opt.still_frames) {
       if (!opt.screenshot.empty()) session.screenshot(opt.screenshot);
       running = false;
     }

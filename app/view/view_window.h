@@ -14,6 +14,9 @@ struct WindowRunOptions {
   // > 0: headless script: N frames along the scripted camera path with the
   // scene at fixed time steps, then write `screenshot` and return.
   uint32_t scripted_frames = 0;
+  // Then this many frames with the camera and the scene held still: a
+  // still image refining (full resolution, more samples a frame).
+  uint32_t still_frames = 0;
   std::string screenshot;  // also the F12 target when set
   bool hidden = false;     // do not show the window (scripted runs)
   // When set, receive the times between reads of the event queue and
@@ -32,7 +35,9 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& options, std:
 // fields of the same names receive (the points where a window would read
 // its input and present), and with reference_spp > 0 the motion quality
 // (motion_quality.h) of four frames spread over the path, their
-// reference renders left out of the other figures.
+// reference renders left out of the other figures. frame_seconds has the
+// frames along the path only (the motion frame rate); the input waits
+// cover the still frames too.
 struct ScriptRecord {
   InputWaits* input_waits = nullptr;
   std::vector<double>* frame_seconds = nullptr;
@@ -42,7 +47,7 @@ struct ScriptRecord {
 
 // The same frames as a scripted window run, without any window (for
 // machines with no display at all).
-void run_headless_script(ViewSession& session, uint32_t frames, const std::string& screenshot,
-                         const ScriptRecord& record = {});
+void run_headless_script(ViewSession& session, uint32_t frames, uint32_t still_frames,
+                         const std::string& screenshot, const ScriptRecord& record = {});
 
 }  // namespace tandem

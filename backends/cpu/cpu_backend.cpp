@@ -46,11 +46,12 @@ EmbreeTracer CpuBackend::embree_tracer() const {
   return EmbreeTracer{embree_->top_level(), &kd_};
 }
 
-bool CpuBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
+bool CpuBackend::render_features(const FeaturePass& pass, PixelFeatures* out,
+                                 const PassStop& stop) {
   if (embree_) {
-    render_features_on_cpu(kd_, embree_tracer(), pass, out);
+    render_features_on_cpu(kd_, embree_tracer(), pass, out, stop);
   } else {
-    render_features_on_cpu(kd_, BvhTracer{&kd_}, pass, out);
+    render_features_on_cpu(kd_, BvhTracer{&kd_}, pass, out, stop);
   }
   return true;
 }

@@ -55,7 +55,7 @@ class CpuBackend final : public Backend {
   // (AccelStructure has not run on it).
   void sync(const KernelScene& scene, const SceneDelta& delta) override;
   BackendStats render(const RenderPass& pass, TileSource& tiles, Film& film) override;
-  bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
+  bool render_features(const FeaturePass& pass, PixelFeatures* out, const PassStop& stop) override;
 
   // Single-ray queries through the backend's traversal, for tests and
   // benchmarks (thread-safe after sync).

@@ -333,7 +333,8 @@ void CudaBackend::forget_synced() {
   impl_->scene.forget_generations();
 }
 
-bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out) {
+bool CudaBackend::render_features(const FeaturePass& pass, PixelFeatures* out,
+                                  const PassStop& /*stop: one launch*/) {
   Impl& m = *impl_;
   if (!m.scene.ready()) throw std::logic_error("cuda backend: render_features() before sync()");
   // The size the caller sized `out` for: the newest sync()'s camera.

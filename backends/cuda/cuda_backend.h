@@ -74,7 +74,7 @@ class CudaBackend final : public Backend {
   // true. Throws std::logic_error before sync() and when a sync() with
   // another film size runs on another thread during the call (nothing is
   // written then), DeviceError when the device fails.
-  bool render_features(const FeaturePass& pass, PixelFeatures* out) override;
+  bool render_features(const FeaturePass& pass, PixelFeatures* out, const PassStop& stop) override;
 
   void set_variant(CudaKernelVariant variant);
   CudaKernelVariant variant() const;

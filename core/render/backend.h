@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/render/film.h"
+#include "core/render/pass_stop.h"
 #include "core/render/tiles.h"
 #include "core/world/kernel_change_log.h"
 #include "core/world/kernel_scene.h"
@@ -141,7 +142,11 @@ class Backend {
   // Primary-hit features (core/kernel/features.h) of every pixel of the
   // synced scene's camera into out[y * width + x], for the denoiser. Returns
   // false when this backend has no feature pass (the caller asks another).
-  virtual bool render_features(const FeaturePass& /*pass*/, PixelFeatures* /*out*/) {
+  // A CPU backend asks `stop` between bands of rows and leaves the rest
+  // unwritten when it says so; a device computes the image in one launch
+  // and never asks.
+  virtual bool render_features(const FeaturePass& /*pass*/, PixelFeatures* /*out*/,
+                               const PassStop& /*stop*/) {
     return false;
   }
 

@@ -44,6 +44,23 @@ double for_each_row(uint32_t height, const F& f) {
   return seconds_since(start);
 }
 
+// for_each_row in bands with `stop` asked between them (a stop abandons the
+// whole filter, so a stage may end half done). Returns false when stopped.
+template <class F>
+bool for_each_row_until_stopped(uint32_t height, const PassStop& stop, const F& f) {
+  constexpr uint32_t kBands = 4;
+  const uint32_t band = stop ? std::max((height + kBands - 1) / kBands, 16u) : height;
+  for (uint32_t y0 = 0; y0 < height; y0 += band) {
+    if (y0 > 0 && pass_should_stop(stop)) return false;
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(y0, std::min(y0 + band, height), 4),
+                      [&](const tbb::blocked_range<uint32_t>& rows) {
+                        for (uint32_t y = rows.begin(); y != rows.end(); ++y)
+                          f(int(y));
+                      });
+  }
+  return true;
+}
+
 // --- the planes ----------------------------------------------------------------
 
 // The structure-of-arrays work space (SvgfFrame::planes): this frame's
@@ -492,7 +509,8 @@ size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height) {
   return kPlaneCount * svgf_cpu_plane_stride(size_t(width) * height);
 }
 
-SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuIsa isa) {
+SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuIsa isa,
+                              const PassStop& stop) {
   SvgfStageSeconds t;
   const size_t n = size_t(p.width) * p.height;
   if (n == 0) return t;
@@ -557,7 +575,11 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
   uint32_t* g_material = guide_out->material();
   uint32_t* g_instance = guide_out->instance();
   // This frame's records into planes (the guide among them).
-  for_each_row(p.height, [&](int y) {
+  auto stopped_at = [&t] {
+    t.stopped = true;
+    return t;
+  };
+  const bool split = for_each_row_until_stopped(p.height, stop, [&](int y) {
     for (size_t i = size_t(y) * p.width; i < size_t(y + 1) * p.width; ++i) {
       const PixelFeatures& f = fr.features[i];
       g_nx[i] = f.normal.x;
@@ -577,6 +599,7 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
       radiance_b[i] = fr.radiance[i].z;
     }
   });
+  if (!split) return stopped_at();
   tp.albedo_r = albedo_r;
   tp.albedo_g = albedo_g;
   tp.albedo_b = albedo_b;
@@ -605,13 +628,19 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
   tp.m2 = planes + kM2 * ps;
   tp.moments = fr.moments_out;
   const auto temporal = k.temporal[history ? 1 : 0];
-  for_each_row(p.height, [&](int y) { temporal(p, tp, y); });
+  const bool temporal_done =
+      for_each_row_until_stopped(p.height, stop, [&](int y) { temporal(p, tp, y); });
   t.temporal = seconds_since(temporal_start);
+  if (!temporal_done || pass_should_stop(stop)) return stopped_at();
   const SvgfGuidePlanes guide{tp.normal_x, tp.normal_y, tp.normal_z,
                               tp.depth,    tp.material, fr.depth_slope};
   const SvgfVariancePlanes vp{guide, tp.r, tp.g, tp.b, tp.m1, tp.m2, fr.moments_out};
   const IllumPlanes pa = illum_planes(planes, ps, kIllumA), pb = illum_planes(planes, ps, kIllumB);
-  t.variance = for_each_row(p.height, [&](int y) { k.variance(p, vp, tp.var, pa, y); });
+  const auto variance_start = Clock::now();
+  const bool variance_done =
+      for_each_row_until_stopped(p.height, stop, [&](int y) { k.variance(p, vp, tp.var, pa, y); });
+  t.variance = seconds_since(variance_start);
+  if (!variance_done || pass_should_stop(stop)) return stopped_at();
   // pa holds the input of the first iteration; the first iteration's
   // output is also written as records: the next frame's colour history.
   IllumPlanes in = pa;
@@ -631,6 +660,10 @@ SvgfStageSeconds svgf_run_cpu(const SvgfParams& p, const SvgfFrame& fr, SvgfCpuI
     }
   };
   for (uint32_t it = 0; it < p.iterations; ++it) {
+    if (it > 0 && pass_should_stop(stop)) {
+      t.atrous = seconds_since(atrous_start);
+      return stopped_at();
+    }
     const SvgfAtrousPlanes ab{guide, in.r, in.g, in.b, in.var};
     const uint32_t step = 1u << it;
     const IllumPlanes out = in.r == pa.r ? pb : pa;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/kernel/svgf.h"
+#include "core/render/pass_stop.h"
 
 namespace tandem {
 
@@ -79,6 +80,8 @@ size_t svgf_cpu_plane_floats(uint32_t width, uint32_t height);
 
 struct SvgfStageSeconds {
   double temporal = 0.0, variance = 0.0, atrous = 0.0, modulate = 0.0;
+  // svgf_run_cpu's PassStop said stop: the outputs are incomplete.
+  bool stopped = false;
   double total() const { return temporal + variance + atrous + modulate; }
 };
 
@@ -97,8 +100,11 @@ const char* svgf_cpu_isa_name(SvgfCpuIsa isa);
 // The stage order both drivers follow: temporal -> variance -> a-trous
 // iterations (the first one's output is the next frame's colour history, as
 // in Schied et al.; the last one multiplies the albedo back in). Throws
-// std::invalid_argument for kAvx2 on a CPU without AVX2 and FMA.
+// std::invalid_argument for kAvx2 on a CPU without AVX2 and FMA. `stop` is
+// asked between the stages and the iterations; when it says stop, the
+// filter returns with `stopped` set and its outputs (the history among
+// them) half written.
 SvgfStageSeconds svgf_run_cpu(const SvgfParams& params, const SvgfFrame& frame,
-                              SvgfCpuIsa isa = SvgfCpuIsa::kAuto);
+                              SvgfCpuIsa isa = SvgfCpuIsa::kAuto, const PassStop& stop = {});
 
 }  // namespace tandem

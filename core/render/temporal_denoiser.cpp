@@ -7,6 +7,13 @@ namespace tandem {
 
 ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                                    const ImageRGB& radiance) {
+  ImageRGB out;
+  process(features, radiance, out, {});
+  return out;
+}
+
+bool TemporalDenoiser::process(const std::vector<PixelFeatures>& features, const ImageRGB& radiance,
+                               ImageRGB& out, const PassStop& stop) {
   const size_t n = size_t(radiance.width) * radiance.height;
   if (features.size() != n) {
     throw std::invalid_argument("TemporalDenoiser: " + std::to_string(features.size()) +
@@ -55,24 +62,34 @@ ImageRGB TemporalDenoiser::process(const std::vector<PixelFeatures>& features,
                   guide_.data(),
                   material_.data(),
                   planes_.data()};
+  if (pass_should_stop(stop)) {
+    has_history_ = false;  // features_[next] is this frame's, the rest last frame's
+    return false;
+  }
   last_on_cpu_ = !offload_ || !offload_->run(p, frame, &last_seconds_);
   if (last_on_cpu_) {
     frame.guide_out = &cpu_guide_[next];
     // The previous frame's guide only if the CPU filter wrote it; without
     // it svgf_run_cpu derives it from the previous features.
     if (has_history_ && cpu_guide_current_[prev]) frame.prev_guide = &cpu_guide_[prev];
-    last_seconds_ = svgf_run_cpu(p, frame);
+    last_seconds_ = svgf_run_cpu(p, frame, SvgfCpuIsa::kAuto, stop);
+    if (last_seconds_.stopped) {
+      // The next frame's history (colour, moments, guide) is half written.
+      cpu_guide_current_[next] = false;
+      has_history_ = false;
+      return false;
+    }
   }
   cpu_guide_current_[next] = last_on_cpu_;
   current_ = next;
   has_history_ = true;
-  ImageRGB out(width_, height_);
+  out = ImageRGB(width_, height_);
   for (size_t i = 0; i < n; ++i) {
     out.rgb[3 * i] = output_[i].x;
     out.rgb[3 * i + 1] = output_[i].y;
     out.rgb[3 * i + 2] = output_[i].z;
   }
-  return out;
+  return true;
 }
 
 }  // namespace tandem

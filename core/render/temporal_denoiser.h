@@ -42,6 +42,11 @@ class TemporalDenoiser {
   // Filters `radiance` (this frame's noisy image) guided by `features` (this
   // frame's, width * height of them, motion relative to the previous call).
   ImageRGB process(const std::vector<PixelFeatures>& features, const ImageRGB& radiance);
+  // process() asking `stop` between the CPU filter's stages (a GPU filter
+  // runs whole): returns false, with `out` untouched and the history
+  // dropped (it was half written), when it said stop.
+  bool process(const std::vector<PixelFeatures>& features, const ImageRGB& radiance, ImageRGB& out,
+               const PassStop& stop);
   // Filters on `offload` from the next frame on, and on the CPU whenever it
   // cannot (null: the CPU only).
   void set_offload(std::shared_ptr<SvgfOffload> offload) { offload_ = std::move(offload); }
