@@ -693,6 +693,24 @@ TEST(Denoise, AStoppedFilterIsFollowedByAFreshHistory) {
     EXPECT_FALSE(d.has_history());
     EXPECT_EQ(d.process(f[2], r[2]).rgb, after_cut.rgb);
   }
+
+  // A new size (the viewer's still resolution after motion) asks between
+  // the groups of buffers it sizes too.
+  std::vector<PixelFeatures> small_f;
+  std::vector<Vec3> small_radiance;
+  make_square_frame(0, 48, 32, rng, small_f, small_radiance);
+  const ImageRGB small_r = image_from(small_radiance, 48, 32);
+  TemporalDenoiser at_small;
+  const ImageRGB small_want = at_small.process(small_f, small_r);
+  for (int stop_at = 1; stop_at <= 6; ++stop_at) {
+    SCOPED_TRACE("new size, stopped at call " + std::to_string(stop_at));
+    TemporalDenoiser d = primed();
+    int n = 0;
+    ImageRGB out;
+    EXPECT_FALSE(d.process(small_f, small_r, out, [&] { return ++n == stop_at; }));
+    EXPECT_EQ(d.process(small_f, small_r).rgb, small_want.rgb);
+    EXPECT_EQ(d.process(f[2], r[2]).rgb, after_cut.rgb) << "back at the first size";
+  }
 }
 
 }  // namespace

@@ -1,5 +1,8 @@
 #include "app/view/denoise_view.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -73,8 +76,11 @@ ImageRGB blend_images(const ImageRGB& a, const ImageRGB& b, float t) {
   if (a.width != b.width || a.height != b.height)
     throw std::invalid_argument("blend_images: images of different sizes");
   ImageRGB out(a.width, a.height);
-  for (size_t i = 0; i < out.rgb.size(); ++i)
-    out.rgb[i] = a.rgb[i] + (b.rgb[i] - a.rgb[i]) * t;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, out.rgb.size(), size_t(1) << 16),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i)
+                        out.rgb[i] = a.rgb[i] + (b.rgb[i] - a.rgb[i]) * t;
+                    });
   return out;
 }
 

@@ -171,6 +171,7 @@ bool ViewSession::denoise_frame(const FrameMetrics& m, const InputPoll& poll) {
   };
   ImageRGB now = tracer_->image();
   if (filter || view_buffer_ != ViewBuffer::kImage) {
+    if (pass_should_stop(stop)) return give_up();
     const bool have = tracer_->render_features(motion_, features_, stop);
     if (stopped) return give_up();
     features_frame_ = have ? frame : 0;

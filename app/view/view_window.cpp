@@ -385,7 +385,7 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
   };
   while (running) {
     // A converged still image is not rendered again: sleep until input.
-    if (idle) SDL_WaitEventTimeout(nullptr, 100);
+    if (idle && deferred.empty()) SDL_WaitEventTimeout(nullptr, 100);
     const double now = seconds_now();
     const double dt = now - last;
     last = now;
@@ -452,6 +452,11 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
       render_seconds = seconds_now() - t0;
       if (!m.cancelled) metrics = m;
     }
+    // Tone mapping a full-resolution frame takes ~20 ms on two cores:
+    // input is read again before it and before the upload and the present.
+    read_input_during_frame();
+    session.display();
+    read_input_during_frame();
 
     glBindTexture(GL_TEXTURE_2D, texture);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, GLsizei(session.display_width()),

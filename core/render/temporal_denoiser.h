@@ -67,6 +67,10 @@ class TemporalDenoiser {
   const std::vector<Vec4>& moments() const { return moments_[current_]; }
 
  private:
+  // The buffers for width x height images, dropping the history; false
+  // when `stop` said stop first (the size is then set again next time).
+  bool size_for(uint32_t width, uint32_t height, const PassStop& stop);
+
   SvgfParams params_ = svgf_default_params(0, 0);
   bool has_history_ = false;
   uint32_t width_ = 0, height_ = 0;
