@@ -175,6 +175,28 @@ TEST_F(BenchJson, FrameLoopReportsTheSceneWorkOfAMovingScene) {
   EXPECT_GT(n["update_accstruc_ms_p50"].number, 0.0);
 }
 
+// What was shown and how close it came to a converged frame: the figures
+// the viewer's resolution floor is chosen from.
+TEST_F(BenchJson, FrameLoopReportsWhatWasShownAndItsMotionQuality) {
+  const fs::path out = file("quality.json");
+  const RunResult r = run_tandem(
+      "bench --frames 6 --scene builtin:cornell --width 24 --height 16 --backend cpu "
+      "--motion-reference-spp 4 --json " +
+      shell_quote(out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("motion relMSE:"), std::string::npos) << r.output;
+  const Node n = read_json(out);
+  EXPECT_EQ(n["shown_width"].number, 24.0);
+  EXPECT_EQ(n["shown_height"].number, 16.0);
+  EXPECT_EQ(n["spp_per_frame"].number, 1.0);
+  EXPECT_GT(n["motion_relmse"].number, 0.0);
+  EXPECT_EQ(n["motion_relmse_frames"].items.size(), 4u);
+  EXPECT_EQ(n["motion_reference_spp"].number, 4.0);
+  const RunResult few = run_tandem(
+      "bench --frames 4 --scene builtin:cornell --width 8 --height 8 --motion-reference-spp 4");
+  EXPECT_EQ(few.exit_code, 2) << few.output;
+}
+
 TEST_F(BenchJson, GpuModeWritesJsonOrSaysWhyNot) {
   const fs::path out = file("gpu.json");
   const RunResult r = run_tandem("bench --gpu --width 16 --height 16 --gpu-frames 1 --json " +

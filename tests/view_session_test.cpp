@@ -140,6 +140,23 @@ TEST(ViewSession, TheNextFrameIsPosedWhileThisOneRenders) {
   EXPECT_FALSE(session.last_frame_moving());
 }
 
+// While things move, adaptation lowers the resolution no further than the
+// floor it is given.
+TEST(ViewSession, MotionStaysAtOrAboveTheResolutionFloor) {
+  for (const float floor : {0.15f, 0.5f}) {
+    ViewOptions o = small("builtin:cornell");
+    o.width = 160;
+    o.height = 120;
+    o.target_fps = 100000.0;  // no frame is fast enough
+    o.min_scale = floor;
+    ViewSession session(o);
+    for (int f = 0; f < 6; ++f)
+      session.render_frame(true, std::nullopt);
+    EXPECT_FLOAT_EQ(session.quality().scale, floor);
+    EXPECT_EQ(session.tracer().settings().render.width, uint32_t(std::lround(160 * floor)));
+  }
+}
+
 // Input is read while a frame renders, every input slice; an input that
 // asks for it cancels the frame after the tiles in flight, the display
 // keeps the last finished frame, and the still image then converges to the

@@ -19,6 +19,7 @@
 #include "app/cli_options.h"
 #include "app/scene_setup.h"
 #include "app/view/input_waits.h"
+#include "app/view/motion_quality.h"
 #include "app/view/scripted_path.h"
 #include "app/view/view_session.h"
 #include "core/util/errors.h"
@@ -32,7 +33,11 @@ const std::vector<OptionSpec>& frame_bench_options() {
           {"frames", true, "frames along the scripted path", "N", "300"},
       },
       image_size_options("640", "360"),
-      {{"spp", true, "samples per pixel per frame", "N", "1"}},
+      {{"spp", true, "samples per pixel per frame", "N", "1"},
+       {"motion-reference-spp", true,
+        "also the relMSE of four frames as shown against references of N spp (their renders "
+        "left out of the other figures)",
+        "N"}},
       path_depth_options("4"),
       backend_options(false),
       thread_options(),
@@ -77,6 +82,9 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   const uint32_t spp = args.get_u32("spp", 1, 4096);
   o.fixed_samples_per_frame = spp;
   const uint32_t frames = args.get_u32("frames", 1, 1u << 24);
+  const uint32_t reference_spp = args.get_u32("motion-reference-spp", 0, 1, 1u << 20);
+  if (reference_spp > 0 && frames < 5)
+    throw UsageError("bench --frames: --motion-reference-spp needs --frames 5 or more");
   const std::optional<std::string> json_path = args.value("json");
   if (json_path) check_json_output_path(*json_path);  // before measuring
 
@@ -97,6 +105,7 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   // Where the viewer reads its input: before each frame and every input
   // slice while it renders (the first frame's full build not counted).
   InputWaits waits;
+  std::vector<double> relmse;  // of the frames motion_quality_frame() picks
   const auto start = std::chrono::steady_clock::now();
   auto poll = [&] {
     waits.polled(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -110,6 +119,14 @@ int run_frame_bench(const std::vector<std::string>& argv) {
     // renderers only read the compiled KernelScene) and, GPU-only, the next
     // frame is compiled and its BVH updated.
     session.set_camera(scripted_camera(base, double(f) * kScriptedFrameStep));
+    // The Scene as this frame renders it, for its reference (a copy, like
+    // the reference render, is no part of the loop: the input waits skip
+    // both).
+    std::optional<Scene> frame_scene;
+    if (reference_spp > 0 && motion_quality_frame(f, frames)) {
+      frame_scene = session.scene();
+      waits.pause();
+    }
     std::optional<double> next_t;
     if (f + 1 < frames) next_t = double(f + 1) * kScriptedFrameStep;
     const FrameMetrics& m =
@@ -140,6 +157,10 @@ int run_frame_bench(const std::vector<std::string>& argv) {
       copy_s[i] += m.backends[i].commit_copy_seconds;
       hidden_s[i] += m.backends[i].commit_hidden_seconds;
     }
+    if (frame_scene) {
+      relmse.push_back(motion_relmse(*frame_scene, session, reference_spp));
+      waits.pause();
+    }
   }
   const double n = double(std::max<size_t>(frame_s.size(), 1));
   double total = 0.0, tile_sum = 0.0;
@@ -159,6 +180,13 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   std::printf("input read every:          %8.2f ms at most (p99 %.2f ms)\n", waits.max_ms(),
               waits.p99_ms());
   std::printf("scene delta per frame:     %8.1f KiB\n", double(delta_bytes) / n / 1024.0);
+  double mean_relmse = 0.0;
+  for (double e : relmse)
+    mean_relmse += e / double(relmse.size());
+  if (!relmse.empty()) {
+    std::printf("motion relMSE:             %8.4f (four frames against %u-spp references)\n",
+                mean_relmse, reference_spp);
+  }
   std::printf(
       "scene work per frame p50:  pose %.2f ms (beside the render), SyncScene %.2f, "
       "UpdateAccStruc %.2f, SyncAccStruc %.2f\n",
@@ -206,6 +234,10 @@ int run_frame_bench(const std::vector<std::string>& argv) {
         .set("fps", n / std::max(total, 1e-9))
         .set("max_input_wait_ms", waits.max_ms())
         .set("p99_input_wait_ms", waits.p99_ms())
+        .set("shown_width", uint64_t(session.tracer().settings().render.width))
+        .set("shown_height", uint64_t(session.tracer().settings().render.height))
+        .set("spp_per_frame", uint64_t(spp))
+        .set("denoise", o.denoise)
         .set("scene_delta_kib_per_frame", double(delta_bytes) / n / 1024.0)
         .set("pose_ms_p50", percentile(pose_s, 0.5) * 1e3)
         .set("sync_scene_ms_p50", percentile(sync_s, 0.5) * 1e3)
@@ -213,6 +245,11 @@ int run_frame_bench(const std::vector<std::string>& argv) {
         .set("sync_accstruc_ms_p50", percentile(commit_s, 0.5) * 1e3)
         .set("mrays_per_second", double(rays) / std::max(total, 1e-9) * 1e-6)
         .set("backends", std::move(backends));
+    if (!relmse.empty()) {
+      report.set("motion_relmse", mean_relmse)
+          .set("motion_relmse_frames", json_number_list(relmse))
+          .set("motion_reference_spp", uint64_t(reference_spp));
+    }
     write_json_report(json_path, report);
   }
   return 0;

@@ -37,6 +37,10 @@ const std::vector<OptionSpec>& view_options() {
       {
           {"target-fps", true, "frame rate to hold while things move", "F", "30"},
           {"scale", true, "fixed resolution scale in (0, 1]; disables adaptation", "S"},
+          {"min-scale", true,
+           "lowest resolution scale adaptation may choose while things move (docs/performance.md "
+           "measures what each shows)",
+           "S", "0.15"},
       },
       path_depth_options("4"),
       {{"max-spp", true, "most samples per pixel per frame when still", "N", "16"},
@@ -130,6 +134,7 @@ int run(const std::vector<std::string>& argv) {
   o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
   o.target_fps = args.get_float("target-fps", 1.0f, 1000.0f);
   o.fixed_scale = args.get_float("scale", 0.0f, 0.01f, 1.0f);
+  o.min_scale = args.get_float("min-scale", o.min_scale, 0.01f, 1.0f);
   o.max_depth = args.get_u32("max-depth", 1, 1024);
   o.max_spp_per_frame = args.get_u32("max-spp", 1, 4096);
   o.target_spp = args.get_u32("target-spp", 1, 1u << 24);

@@ -18,4 +18,11 @@ namespace tandem {
 // `reference_spp` samples per pixel on the CPU.
 double motion_relmse(const Scene& frame, const ViewSession& session, uint32_t reference_spp);
 
+// Whether frame f of a scripted run of `frames` is one of the four whose
+// motion quality is measured (spread over the path, never the first, which
+// builds the scene). None for runs of under 5 frames.
+inline bool motion_quality_frame(uint32_t f, uint32_t frames) {
+  return frames >= 5 && f > 0 && f % (frames / 5) == 0 && f / (frames / 5) <= 4;
+}
+
 }  // namespace tandem

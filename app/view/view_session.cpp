@@ -16,6 +16,7 @@ AdaptiveSettings adaptive_settings(const ViewOptions& o) {
   AdaptiveSettings a;
   a.target_fps = o.target_fps;
   a.max_spp = o.max_spp_per_frame;
+  a.min_scale = o.min_scale;
   if (o.fixed_scale > 0.0f) {
     a.enabled = false;
     a.max_scale = o.fixed_scale;

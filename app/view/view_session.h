@@ -31,6 +31,9 @@ struct ViewOptions {
   BackendOptions backend_options;  // the CUDA backend's kernel
   double target_fps = 30.0;
   float fixed_scale = 0.0f;  // > 0: fixed resolution scale, no adaptation
+  // The lowest scale adaptation goes to while things move. Chosen from the
+  // motion relMSE and frame rate of fixed scales (docs/performance.md).
+  float min_scale = 0.15f;
   // > 0 (with fixed_scale): this many samples every frame (`bench --frames`).
   uint32_t fixed_samples_per_frame = 0;
   uint32_t max_spp_per_frame = 16;

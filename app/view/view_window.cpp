@@ -177,7 +177,7 @@ void run_headless_script(ViewSession& session, uint32_t frames, uint32_t still_f
     // a copy of the scene as this frame renders it (a copy, like the
     // reference render, is no part of the loop: the input waits skip both).
     const bool measured = record.reference_spp > 0 && record.motion_relmse != nullptr &&
-                          frames >= 5 && f > 0 && f % (frames / 5) == 0 && f / (frames / 5) <= 4;
+                          motion_quality_frame(f, frames);
     std::optional<Scene> frame_scene;
     if (measured) {
       frame_scene = session.scene();
