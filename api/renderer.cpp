@@ -2,6 +2,7 @@
 // a CoreTracer running the Brigade loop, and every engine exception turned
 // into tandem::Error at this boundary.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <new>
@@ -106,7 +107,27 @@ const char* version() {
   return TANDEM_VERSION_STRING;
 }
 
+namespace {
+// Whether the host chose where messages go; until it does, none are shown.
+std::atomic<bool> g_host_chose_logging{false};
+}  // namespace
+
+void set_log_callback(LogCallback callback) {
+  g_host_chose_logging = true;
+  if (!callback) {
+    set_log_sink({});
+    set_log_level(LogLevel::kQuiet);
+    return;
+  }
+  set_log_sink([callback = std::move(callback)](LogLevel level, const std::string& message) {
+    callback(level == LogLevel::kWarning ? LogSeverity::kWarning : LogSeverity::kInfo, message);
+  });
+  set_log_level(LogLevel::kWarning);
+}
+
 void set_warnings_to_stderr(bool enabled) {
+  g_host_chose_logging = true;
+  set_log_sink({});
   set_log_level(enabled ? LogLevel::kWarning : LogLevel::kQuiet);
 }
 
@@ -207,6 +228,7 @@ struct Renderer::Impl {
 };
 
 Renderer::Renderer(const RendererOptions& options) : impl_(std::make_unique<Impl>()) {
+  if (!g_host_chose_logging) set_log_level(LogLevel::kQuiet);  // before the backends speak
   api_detail::check_options(options, "Renderer");
   impl_->options = options;
   impl_->create_tracer();

@@ -1,5 +1,8 @@
 // `tandem info SCENE`: what a scene contains.
+#include <algorithm>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "app/cli_args.h"
 #include "app/cli_options.h"
@@ -8,6 +11,8 @@
 #include "core/kernel/math.h"
 #include "core/util/errors.h"
 #include "core/world/scene_ranges.h"
+#include "scenes/gltf_loader.h"
+#include "scenes/gltf_validate.h"
 
 namespace tandem {
 
@@ -33,6 +38,8 @@ int run_info(const std::vector<std::string>& argv) {
   if (args.positionals().size() != 1) throw UsageError("info: expected exactly one SCENE argument");
   SceneRequest request = parse_scene_request(args, args.positionals()[0]);
   request.default_environment = false;  // info renders nothing
+  GltfSummary gltf;
+  request.load.gltf_summary = &gltf;
   const Scene scene = load_requested_scene(request, "tandem");
 
   size_t emissive_triangles = 0;
@@ -82,6 +89,24 @@ int run_info(const std::vector<std::string>& argv) {
                 c.position.y, c.position.z, c.forward.x, c.forward.y, c.forward.z);
   } else {
     std::printf("camera:     none (render frames the bounds automatically)\n");
+  }
+  // The file's extensions and what becomes of each here.
+  if (!gltf.extensions_used.empty() || !gltf.extensions_required.empty()) {
+    std::vector<std::string> names = gltf.extensions_used;
+    for (const std::string& r : gltf.extensions_required)
+      if (std::find(names.begin(), names.end(), r) == names.end()) names.push_back(r);
+    std::printf("extensions:");
+    for (size_t i = 0; i < names.size(); ++i) {
+      const std::string& e = names[i];
+      const bool required =
+          std::find(gltf.extensions_required.begin(), gltf.extensions_required.end(), e) !=
+          gltf.extensions_required.end();
+      const char* status = gltf::extension_supported(e)   ? "supported"
+                           : gltf::extension_ignorable(e) ? "not modelled, the rest loads"
+                                                          : "not supported, ignored";
+      std::printf("%s %s (%s%s)", i ? "," : "", e.c_str(), required ? "required, " : "", status);
+    }
+    std::printf("\n");
   }
   return 0;
 }

@@ -77,7 +77,7 @@ const std::vector<OptionSpec>& render_options() {
           {"aov", true,
            "also write the feature buffers (albedo, normal, depth, motion, ids) to DIR as EXR",
            "DIR"},
-          {"quiet", false, "no progress bar or summary"},
+          {"quiet", false, "no progress bar, summary or note that no GPU is used"},
           {"distributed", false,
            "under mpirun -np N: every rank renders tiles of each frame, rank 0 writes the output "
            "(docs/distributed.md)"},
@@ -149,8 +149,9 @@ int run_render(const std::vector<std::string>& argv) {
   settings.radiance_clamp = args.get_float("clamp", 0.0f, 1e30f);
   const std::string backend_spec = args.get_string("backend");
   // Usage errors before loading.
-  const BackendOptions backend_options =
+  BackendOptions backend_options =
       parse_kernel_option(args.value("kernel"), parse_backend_list(backend_spec));
+  backend_options.announce_cpu_fallback = !quiet;
   const float split = args.has("split") ? args.get_float("split", 0.0f, 1.0f) : -1.0f;
   ImageWriteOptions write_options;
   write_options.exposure = args.get_float("exposure", -50.0f, 50.0f);

@@ -180,7 +180,11 @@ class CpuFallbackBackend final : public Backend {
 std::unique_ptr<Backend> try_create_cuda(const BackendOptions& options) {
   std::string reason;
   if (!cuda_device_available(&reason)) {
-    log_warning("no usable GPU (" + reason + "); rendering on the CPU");
+    // Said once: a viewer that switches backends, or a bench that makes a
+    // list per measurement, would otherwise repeat it every time.
+    static std::atomic<bool> said{false};
+    if (options.announce_cpu_fallback && !said.exchange(true))
+      log_warning("no usable GPU (" + reason + "); rendering on the CPU");
     return nullptr;
   }
   try {

@@ -24,6 +24,9 @@ struct BackendOptions {
   // `cuda` as part of a backend list: a device failure while syncing or
   // rendering falls back to the CPU (as under auto) instead of ending the run.
   bool cuda_falls_back = false;
+  // auto/hetero without a usable GPU say so (once per process, however
+  // many backend lists are made); false: not at all (`--quiet`).
+  bool announce_cpu_fallback = true;
 };
 
 // Whether the CUDA backend has a device to run on (a GPU, or the simulated

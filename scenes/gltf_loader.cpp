@@ -471,13 +471,12 @@ class SceneBuilder {
   std::vector<GltfInstanceBinding> bindings_;  // one per instance, in order
 };
 
-void warn_about_extensions(Context& ctx, bool loading_animations) {
+// Animations need no word: the commands that play them load them, the
+// others show the rest pose as any single frame would.
+void warn_about_extensions(Context& ctx) {
   for (const std::string& ext : ctx.model.extensionsUsed) {
     if (gltf::extension_supported(ext) || ext == "KHR_xmp" || ext == "KHR_xmp_json_ld") continue;
     ctx.warn("extension " + ext + " is not supported; its data is ignored");
-  }
-  if (!ctx.model.animations.empty() && !loading_animations) {
-    ctx.warn("animations are not supported yet; the scene is shown in its static pose");
   }
 }
 
@@ -602,7 +601,7 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
   stage = "validating the file";
   Context ctx(label, model, options.limits);
   gltf::validate_model(ctx);
-  warn_about_extensions(ctx, options.animations != nullptr);
+  warn_about_extensions(ctx);
 
   int scene_index = options.scene_index;
   if (scene_index < -1) fail(label, "scene index " + std::to_string(scene_index) + " is invalid");

@@ -645,6 +645,56 @@ void validate_nodes_and_scenes(const Context& ctx) {
   }
 }
 
+// Whether an "extensions" object of `value` or of anything inside it (the
+// texture infos inside a KHR_materials_* block) names `ext`.
+bool value_uses_extension(const tinygltf::Value& value, const std::string& ext) {
+  if (value.IsArray()) {
+    for (size_t i = 0; i < value.ArrayLen(); ++i)
+      if (value_uses_extension(value.Get(int(i)), ext)) return true;
+    return false;
+  }
+  if (!value.IsObject()) return false;
+  if (value.Has("extensions") && value.Get("extensions").IsObject() &&
+      value.Get("extensions").Has(ext))
+    return true;
+  for (const std::string& key : value.Keys())
+    if (value_uses_extension(value.Get(key), ext)) return true;
+  return false;
+}
+
+bool map_uses_extension(const tinygltf::ExtensionMap& extensions, const std::string& ext) {
+  if (extensions.count(ext)) return true;
+  for (const auto& [name, value] : extensions)
+    if (value_uses_extension(value, ext)) return true;
+  return false;
+}
+
+// Whether anything in the file carries data of extension `ext`: the
+// "extensions" object of the file or of any of its objects.
+bool file_uses_extension(const Model& m, const std::string& ext) {
+  auto any = [&](const auto& objects) {
+    return std::any_of(objects.begin(), objects.end(),
+                       [&](const auto& o) { return map_uses_extension(o.extensions, ext); });
+  };
+  if (map_uses_extension(m.extensions, ext) || map_uses_extension(m.asset.extensions, ext))
+    return true;
+  if (any(m.scenes) || any(m.nodes) || any(m.meshes) || any(m.materials) || any(m.textures) ||
+      any(m.images) || any(m.samplers) || any(m.accessors) || any(m.bufferViews) ||
+      any(m.buffers) || any(m.animations) || any(m.skins) || any(m.cameras) || any(m.lights))
+    return true;
+  for (const tinygltf::Mesh& mesh : m.meshes)
+    if (any(mesh.primitives)) return true;
+  for (const tinygltf::Material& mat : m.materials) {
+    const tinygltf::PbrMetallicRoughness& pbr = mat.pbrMetallicRoughness;
+    for (const tinygltf::ExtensionMap* e :
+         {&pbr.extensions, &pbr.baseColorTexture.extensions,
+          &pbr.metallicRoughnessTexture.extensions, &mat.normalTexture.extensions,
+          &mat.occlusionTexture.extensions, &mat.emissiveTexture.extensions})
+      if (map_uses_extension(*e, ext)) return true;
+  }
+  return false;
+}
+
 void validate_asset_and_extensions(const Context& ctx) {
   const Model& m = ctx.model;
   const std::string& version = m.asset.version;
@@ -655,9 +705,15 @@ void validate_asset_and_extensions(const Context& ctx) {
     ctx.fail("asset.minVersion is \"" + m.asset.minVersion + "\"; only glTF 2.0 is supported");
   }
   for (const std::string& ext : m.extensionsRequired) {
-    if (!extension_supported(ext) && !extension_ignorable(ext)) {
-      ctx.fail("the file requires extension " + ext + ", which is not supported");
+    if (extension_supported(ext) || extension_ignorable(ext)) continue;
+    // Exporters list extensions they did not end up using (MSFT_texture_dds
+    // in a file without images): nothing to misread.
+    if (!file_uses_extension(m, ext)) {
+      ctx.warn("the file requires extension " + ext +
+               ", which is not supported, but nothing in it uses it; loading it without");
+      continue;
     }
+    ctx.fail("the file requires extension " + ext + ", which is not supported");
   }
 }
 

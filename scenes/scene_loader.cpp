@@ -29,7 +29,7 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
   gltf.scene_index = options.gltf_scene;
   gltf.allow_outside_uris = options.allow_outside_uris;
   gltf.animations = options.animations;
-  return load_gltf(path, gltf);
+  return load_gltf(path, gltf, options.gltf_summary);
 }
 
 void load_environment_map(Scene& scene, const std::string& path, float intensity) {

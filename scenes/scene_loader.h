@@ -9,6 +9,7 @@
 namespace tandem {
 
 struct GltfAnimations;
+struct GltfSummary;
 
 struct SceneLoadOptions {
   int gltf_scene = -1;  // -1: the file's default scene
@@ -17,6 +18,8 @@ struct SceneLoadOptions {
   // When set, a glTF file's node animations are loaded into it (see
   // scene_animator.h to play them).
   GltfAnimations* animations = nullptr;
+  // When set, a glTF file's summary (gltf_loader.h) is written here.
+  GltfSummary* gltf_summary = nullptr;
 };
 
 // Throws InputError naming the scene and the reason.

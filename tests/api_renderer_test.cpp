@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "api_test_scene.h"
@@ -497,6 +498,58 @@ TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {
     EXPECT_NE(std::string(e.what()).find("lies beyond 1e+09"), std::string::npos) << e.what();
   }
   EXPECT_EQ(r.instance_count(), 0u);
+}
+
+// The library says nothing unless its host asks: a Renderer made before
+// any choice is silent, a callback receives the messages, an empty one
+// silences them again, and stderr is one call away.
+TEST(ApiRenderer, TheLibrarySaysNothingUnlessItsHostAsks) {
+  tandem::TempDir dir("api_log");
+  const fs::path file = dir.path() / "vendor.gltf";
+  std::ofstream(file) << R"({"asset":{"version":"2.0"},"extensionsUsed":["VENDOR_sparkles"],)"
+                         R"("buffers":[{"byteLength":36,"uri":)"
+                         R"("data:application/octet-stream;base64,)"
+                         R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
+                         R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
+                         R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
+                         R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
+                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],)"
+                         R"("scenes":[{"nodes":[0]}]})";
+  auto load = [&] {
+    tandem::RendererOptions o = small_options();
+    o.backend = tandem::BackendChoice::kAuto;  // without a GPU: a fallback to tell
+    tandem::Renderer r(o);
+    r.load_gltf(file.string());
+  };
+  testing::internal::CaptureStderr();
+  load();
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "") << "before the host chose";
+
+  std::vector<std::pair<tandem::LogSeverity, std::string>> got;
+  tandem::set_log_callback(
+      [&](tandem::LogSeverity s, const std::string& m) { got.emplace_back(s, m); });
+  testing::internal::CaptureStderr();
+  load();
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  ASSERT_FALSE(got.empty());
+  bool named = false;
+  for (const auto& [severity, message] : got) {
+    EXPECT_EQ(severity, tandem::LogSeverity::kWarning);
+    named |= message.find("VENDOR_sparkles") != std::string::npos;
+  }
+  EXPECT_TRUE(named);
+
+  got.clear();
+  tandem::set_log_callback({});
+  testing::internal::CaptureStderr();
+  load();
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  EXPECT_TRUE(got.empty());
+
+  tandem::set_warnings_to_stderr(true);
+  testing::internal::CaptureStderr();
+  load();
+  EXPECT_NE(testing::internal::GetCapturedStderr().find("tandem: warning: "), std::string::npos);
 }
 
 }  // namespace

@@ -124,14 +124,34 @@ TEST(CliTest, InfoPrintsCounts) {
   EXPECT_NE(r.output.find("2 emissive triangles"), std::string::npos) << r.output;
 }
 
+TEST(CliTest, InfoListsTheFilesExtensionsAndWhatBecomesOfThem) {
+  const RunResult r = run_tandem(
+      "info " +
+      shell_quote((kShared / "gltf/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf").string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("extensions: KHR_materials_emissive_strength (supported)"),
+            std::string::npos)
+      << r.output;
+}
+
+// Without a GPU, auto says so once (however many backend lists the run
+// makes), and not at all under --quiet or with --backend cpu.
 TEST(CliTest, AutoBackendFallsBackToCpuWithNotice) {
   TempDir dir("tandem_cli");
-  const RunResult r = run_tandem("render builtin:cornell --width 8 --height 8 --spp 1 --output " +
-                                 shell_quote((dir.path() / "x.pfm").string()));
+  const std::string out =
+      " --width 8 --height 8 --spp 1 --output " + shell_quote((dir.path() / "x.pfm").string());
+  const RunResult r = run_tandem("render builtin:cornell" + out);
   if (r.output.find("rendering on the CPU") == std::string::npos) {
     GTEST_SKIP() << "a GPU is available here";
   }
   EXPECT_EQ(r.exit_code, 0) << r.output;
+  const size_t first = r.output.find("no usable GPU");
+  EXPECT_EQ(r.output.find("no usable GPU", first + 1), std::string::npos) << r.output;
+  for (const char* quiet : {" --quiet", " --backend cpu"}) {
+    const RunResult q = run_tandem("render builtin:cornell" + out + quiet);
+    EXPECT_EQ(q.exit_code, 0) << q.output;
+    EXPECT_EQ(q.output.find("GPU"), std::string::npos) << quiet << ": " << q.output;
+  }
 }
 
 TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {

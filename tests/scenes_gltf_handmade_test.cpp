@@ -449,8 +449,24 @@ TEST_F(GltfHandMade, UnsupportedExtensionsWarnOrFail) {
   EXPECT_EQ(scene.instances().size(), 1u);
 
   EXPECT_NE(error("required.gltf", triangle_gltf(R"(
-      "extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"])"))
+      "extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"],
+      "extensions": {"KHR_draco_mesh_compression": {}})"))
                 .find("requires extension KHR_draco_mesh_compression"),
+            std::string::npos);
+  // Required and unsupported where a texture would carry it: refused.
+  EXPECT_NE(error("dds.gltf", triangle_gltf(R"(
+      "extensionsUsed": ["MSFT_texture_dds"], "extensionsRequired": ["MSFT_texture_dds"],
+      "textures": [{"extensions": {"MSFT_texture_dds": {"source": 0}}}])"))
+                .find("requires extension MSFT_texture_dds"),
+            std::string::npos);
+  // Required but used by nothing in the file (an exporter's habit): loads,
+  // with a notice naming it.
+  testing::internal::CaptureStderr();
+  EXPECT_NO_THROW(load("unused.gltf", triangle_gltf(R"(
+      "extensionsUsed": ["MSFT_texture_dds"], "extensionsRequired": ["MSFT_texture_dds"])")));
+  EXPECT_NE(testing::internal::GetCapturedStderr().find(
+                "requires extension MSFT_texture_dds, which is not supported, but nothing in it "
+                "uses it"),
             std::string::npos);
   // Required but safely ignorable: loads.
   EXPECT_NO_THROW(load("ignorable.gltf", triangle_gltf(R"(

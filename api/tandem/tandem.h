@@ -35,6 +35,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -66,8 +67,14 @@ class Error : public std::runtime_error {
 // The library's version, "MAJOR.MINOR.PATCH" (the CMake package's version).
 const char* version();
 
-// Warnings (a glTF texture that is missing, a GPU fallback) go to stderr by
-// default; false silences them for the whole process.
+// What the library has to say (a glTF texture that is missing, a GPU it
+// falls back from) goes nowhere unless the host asks for it: to a callback
+// (called from any thread, one message at a time; empty: nowhere again), or
+// to stderr as "tandem: warning: ...". Either choice holds for the whole
+// process; a Renderer made before any choice silences the library.
+enum class LogSeverity { kWarning, kInfo };
+using LogCallback = std::function<void(LogSeverity severity, const std::string& message)>;
+void set_log_callback(LogCallback callback);
 void set_warnings_to_stderr(bool enabled);
 
 // Whether a CUDA device can be used by BackendChoice::kCuda; when not and
