@@ -98,6 +98,9 @@ uint32_t number(const char* text, const char* option) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // The library says nothing unless asked; a command-line host shows its
+  // warnings (a game would pass set_log_callback its own logger).
+  tandem::set_warnings_to_stderr(true);
   std::string output = "embed.png";
   tandem::RendererOptions options;
   options.width = 320;
