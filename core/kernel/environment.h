@@ -1,6 +1,6 @@
 // Environment lighting: a constant colour or an equirectangular HDR map,
 // importance sampled with a piecewise-constant 2D distribution over texels
-// weighted by luminance * sin(theta).
+// weighted by the luminance the bilinear lookup sees there * sin(theta).
 #pragma once
 
 #include "core/kernel/kernel_data.h"
@@ -34,11 +34,32 @@ TANDEM_HD Vec3 env_texel(const KernelData& kd, uint32_t x, uint32_t y) {
 
 // Unnormalised density of texel (x, y): the distribution the sampler follows.
 // Shared with the host-side table builder so both use identical numbers.
+//
+// Its luminance is the mean over the texel of what env_radiance_at returns
+// there, not the texel's own value: the lookup is bilinear between texel
+// centres, so a texel next to a small bright source (an HDRI's sun) returns
+// up to half of it near their shared edge. Weighted by its own value alone
+// such a texel was almost never sampled yet bright when hit, and the ratio
+// of the two left speckles at any sample count. The mean of the bilinear
+// function over [x, x + 1] is 3/4 of the texel's value and 1/8 of each
+// neighbour's, per axis (wrapping in x and clamped at the poles, as the
+// lookup is), so radiance / pdf stays within a small factor everywhere.
 TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   const KEnvironment& env = kd.constants.environment;
+  const uint32_t w = env.width, h = env.height;
+  const uint32_t xs[3] = {x == 0 ? w - 1 : x - 1, x, x + 1 == w ? 0 : x + 1};
+  const uint32_t ys[3] = {y == 0 ? 0 : y - 1, y, y + 1 == h ? y : y + 1};
+  const float k[3] = {0.125f, 0.75f, 0.125f};
+  float mean = 0.0f;
+  for (int j = 0; j < 3; ++j) {
+    float row = 0.0f;
+    for (int i = 0; i < 3; ++i)
+      row += k[i] * luminance(env_texel(kd, xs[i], ys[j]));
+    mean += k[j] * row;
+  }
   const float sin_theta = sin_pi((float(y) + 0.5f) / float(env.height));
   // A small floor keeps every direction reachable by light sampling.
-  return (luminance(env_texel(kd, x, y)) + 1e-4f) * sin_theta;
+  return (mean + 1e-4f) * sin_theta;
 }
 
 // Density over the map's unit square of sampling texel (x, y):
