@@ -202,15 +202,16 @@ double irradiance_relative_variance(const KernelData& kd, uint32_t seed) {
   return (sum_sq / kSamples - mean * mean) / (mean * mean);
 }
 
-// The sampler follows what the lookup returns (env_texel_weight), so a
-// sharp sun is about as clean as a soft one of the same power; weighted by
-// each texel's own value the bilinear halo around the sharp one made its
-// variance hundreds of times larger.
+// The sampler follows what the lookup returns (env_texel_weight picks the
+// texel, the lookup the point inside it), so a sharp sun is as clean as a
+// soft one of the same power: 0.36 against 0.41. Weighted by each texel's
+// own value the bilinear halo around the sharp one made it 176 (426
+// times); by the texel's mean of the lookup alone, under twice.
 TEST(KernelEnvironment, ASharpSunIsAsCleanAsASoftOneOfTheSamePower) {
   const KernelScene sharp = make_sun_scene(true), soft = make_sun_scene(false);
   const double v_sharp = irradiance_relative_variance(sharp.view(), 230);
   const double v_soft = irradiance_relative_variance(soft.view(), 231);
-  EXPECT_LT(v_sharp, 2.0 * v_soft) << "sharp " << v_sharp << ", soft " << v_soft;
+  EXPECT_LT(v_sharp, 1.1 * v_soft) << "sharp " << v_sharp << ", soft " << v_soft;
 }
 
 TEST(KernelEnvironment, RotationTurnsTheMapAboutY) {
@@ -370,15 +371,13 @@ TEST(KernelEnvironment, GuidedSearchFindsTheIntervalOfTheFullSearch) {
 }
 
 TEST(KernelEnvironment, TablesGiveThePdfAndRadianceOfTheDirectFormulas) {
-  // env_pdf reads the per-texel pdf table, env_sample also the guide
-  // tables, and env_radiance_at wraps columns without a division: all must
-  // give the bits of the formulas they replaced (written out here).
+  // env_sample reads the guide tables and env_radiance_at wraps columns
+  // without a division: both must give the bits of the formulas they
+  // replaced (written out here); env_pdf is the lookup's luminance (plus
+  // the floor) times the texel's sin(theta), normalised.
   const KernelScene ks = make_environment_scene(0.7f);
   const KernelData kd = ks.view();
   const KEnvironment& env = kd.constants.environment;
-  const auto direct_pdf_uv = [&](uint32_t x, uint32_t y) {
-    return env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
-  };
   const auto direct_radiance = [&](Vec2 uv) {
     const float x = uv.x * float(env.width) - 0.5f, y = uv.y * float(env.height) - 0.5f;
     const float x0f = floorf(x), y0f = floorf(y);
@@ -395,10 +394,12 @@ TEST(KernelEnvironment, TablesGiveThePdfAndRadianceOfTheDirectFormulas) {
             env_texel(kd, uint32_t(x1), uint32_t(y1)) * (tx * ty)) *
            env.color;
   };
-  for (uint32_t y = 0; y < env.height; ++y) {
-    for (uint32_t x = 0; x < env.width; ++x)
-      ASSERT_EQ(kd.env_texel_pdf[y * env.width + x], direct_pdf_uv(x, y)) << x << ", " << y;
-  }
+  ASSERT_EQ(env.color.x, 1.0f);  // direct_radiance's luminance is then the map's
+  const auto direct_pdf_uv = [&](Vec2 uv, uint32_t y) {
+    return (luminance(direct_radiance(uv)) + 1e-4f) *
+           std::sin((float(y) + 0.5f) * kPi / float(env.height)) * float(env.width) *
+           float(env.height) / env.map_integral;
+  };
   // Guide tables whose every entry is n - 1 bracket [n - 1, n], which
   // holds the answer or fails its check and widens to [0, n]: the plain
   // binary search.
@@ -414,10 +415,10 @@ TEST(KernelEnvironment, TablesGiveThePdfAndRadianceOfTheDirectFormulas) {
     ASSERT_EQ(std::memcmp(&got, &want, sizeof(EnvSample)), 0) << u1 << ", " << u2;
     const Vec3 d = sample_uniform_sphere(u1, u2);
     const Vec2 uv = env_map_uv(kd, d);
-    const uint32_t px = min_u(uint32_t(uv.x * float(env.width)), env.width - 1);
     const uint32_t py = min_u(uint32_t(uv.y * float(env.height)), env.height - 1);
     const float sin_theta = sqrtf((d.x * d.x + d.z * d.z) / (d.x * d.x + d.y * d.y + d.z * d.z));
-    ASSERT_EQ(env_pdf(kd, d), direct_pdf_uv(px, py) / (2.0f * kPi * kPi * sin_theta));
+    const float want_pdf = direct_pdf_uv(uv, py) / (2.0f * kPi * kPi * sin_theta);
+    ASSERT_NEAR(env_pdf(kd, d), want_pdf, 1e-5f * want_pdf);
     // Coordinates in and around [0, 1]: the wrap's compare path and its
     // division fallback.
     const Vec2 wide = make_vec2(3.0f * rng.next() - 1.0f, rng.next());

@@ -470,7 +470,6 @@ TEST(KernelTriangleLight, EnvironmentAndTrianglesShareOneLightList) {
   s.ks.env_conditional_cdf = env.env_conditional_cdf;
   s.ks.env_marginal_guide = env.env_marginal_guide;
   s.ks.env_conditional_guide = env.env_conditional_guide;
-  s.ks.env_texel_pdf = env.env_texel_pdf;
   s.ks.constants.environment = env.constants.environment;
   std::vector<double> power;
   const KernelData kd0 = s.ks.view();

@@ -1,6 +1,8 @@
 // Environment lighting: a constant colour or an equirectangular HDR map,
-// importance sampled with a piecewise-constant 2D distribution over texels
-// weighted by the luminance the bilinear lookup sees there * sin(theta).
+// importance sampled in proportion to what the lookup returns: a texel by
+// the mean luminance of the bilinear lookup over it * sin(theta) (a
+// piecewise-constant 2D distribution), the point inside it by the lookup's
+// luminance there. A sun of a few texels is then as clean as a soft one.
 #pragma once
 
 #include "core/kernel/kernel_data.h"
@@ -43,7 +45,8 @@ TANDEM_HD Vec3 env_texel(const KernelData& kd, uint32_t x, uint32_t y) {
 // of the two left speckles at any sample count. The mean of the bilinear
 // function over [x, x + 1] is 3/4 of the texel's value and 1/8 of each
 // neighbour's, per axis (wrapping in x and clamped at the poles, as the
-// lookup is), so radiance / pdf stays within a small factor everywhere.
+// lookup is); env_sample then places the point inside the texel by the
+// lookup itself (env_pdf_uv_at), so radiance / pdf is nearly constant.
 TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
   const KEnvironment& env = kd.constants.environment;
   const uint32_t w = env.width, h = env.height;
@@ -58,18 +61,9 @@ TANDEM_HD float env_texel_weight(const KernelData& kd, uint32_t x, uint32_t y) {
     mean += k[j] * row;
   }
   const float sin_theta = sin_pi((float(y) + 0.5f) / float(env.height));
-  // A small floor keeps every direction reachable by light sampling.
+  // A small floor keeps every direction reachable by light sampling
+  // (kEnvLuminanceFloor, below).
   return (mean + 1e-4f) * sin_theta;
-}
-
-// Density over the map's unit square of sampling texel (x, y):
-// env_texel_weight normalised. The scene compiler stores it per texel
-// (env_texel_pdf) so that the kernels read one float instead of a texel, a
-// luminance and a sine; computed here, by one function, so the table holds
-// the bits the kernels used to compute.
-TANDEM_HD float env_texel_pdf_uv(const KernelData& kd, uint32_t x, uint32_t y) {
-  const KEnvironment& env = kd.constants.environment;
-  return env_texel_weight(kd, x, y) * float(env.width) * float(env.height) / env.map_integral;
 }
 
 // The map coordinates of direction dir ((0, 0) without a map, where the
@@ -114,6 +108,50 @@ TANDEM_HD Vec3 env_radiance_at(const KernelData& kd, Vec2 uv) {
 
 TANDEM_HD Vec3 env_radiance(const KernelData& kd, Vec3 dir) {
   return env_radiance_at(kd, env_map_uv(kd, dir));
+}
+
+// The floor env_texel_weight adds to every texel's luminance.
+constexpr float kEnvLuminanceFloor = 1e-4f;
+
+// Position x in [0, 1] drawn from the density proportional to
+// (1 - x) * a + x * b (a, b >= 0, not both 0) by u in [0, 1): the inverse
+// of its CDF, in the form that stays finite when a and b are equal.
+TANDEM_HD float sample_linear(float u, float a, float b) {
+  const float x = u * (a + b) / (a + sqrtf((1.0f - u) * a * a + u * b * b));
+  return x < 1.0f ? x : 0.99999994f;
+}
+
+// Texel (x, y)'s neighbours as the bilinear lookup takes them: wrapping in
+// x, clamped at the poles in y.
+struct EnvNeighbours {
+  uint32_t xm, xp, ym, yp;
+};
+TANDEM_HD EnvNeighbours env_neighbours(const KEnvironment& env, uint32_t x, uint32_t y) {
+  return {x == 0 ? env.width - 1 : x - 1, x + 1 == env.width ? 0 : x + 1, y == 0 ? 0 : y - 1,
+          y + 1 == env.height ? y : y + 1};
+}
+
+TANDEM_HD float env_lum(const KernelData& kd, uint32_t x, uint32_t y) {
+  return luminance(env_texel(kd, x, y)) + kEnvLuminanceFloor;
+}
+
+// Density over the map's unit square of env_sample's (u, v) inside texel
+// (x, y): what the lookup's luminance (plus the floor) is there, times the
+// texel's sin(theta), normalised. env_texel_weight is its mean over the
+// texel, so choosing the texel by that weight and the point inside it by
+// the lookup (env_sample) gives exactly this.
+TANDEM_HD float env_pdf_uv_at(const KernelData& kd, Vec2 uv, uint32_t x, uint32_t y) {
+  const KEnvironment& env = kd.constants.environment;
+  // The luminance env_radiance_at returns at uv (luminance is linear, so
+  // that of the bilinear mix is the mix of the texels' own).
+  const float fx = uv.x * float(env.width) - float(x), fy = uv.y * float(env.height) - float(y);
+  const EnvNeighbours n = env_neighbours(env, x, y);
+  const uint32_t x1 = fx < 0.5f ? n.xm : n.xp, y1 = fy < 0.5f ? n.ym : n.yp;
+  const float tx = fx < 0.5f ? 0.5f - fx : fx - 0.5f, ty = fy < 0.5f ? 0.5f - fy : fy - 0.5f;
+  const float f = env_lum(kd, x, y) * ((1 - tx) * (1 - ty)) + env_lum(kd, x1, y) * (tx * (1 - ty)) +
+                  env_lum(kd, x, y1) * ((1 - tx) * ty) + env_lum(kd, x1, y1) * (tx * ty);
+  const float sin_theta = sin_pi((float(y) + 0.5f) / float(env.height));
+  return f * sin_theta * float(env.width) * float(env.height) / env.map_integral;
 }
 
 // Binary search for u between cdf[lo] and cdf[hi] (a non-decreasing array
@@ -169,12 +207,23 @@ TANDEM_HD float env_pdf_at(const KernelData& kd, Vec3 dir, Vec2 uv) {
   const float sin_theta =
       sqrtf((dir.x * dir.x + dir.z * dir.z) / (dir.x * dir.x + dir.y * dir.y + dir.z * dir.z));
   if (!(sin_theta > 0.0f) || !(env.map_integral > 0.0f)) return 0.0f;
-  return kd.env_texel_pdf[y * env.width + x] / (2.0f * kPi * kPi * sin_theta);
+  return env_pdf_uv_at(kd, uv, x, y) / (2.0f * kPi * kPi * sin_theta);
 }
 
 // Solid-angle pdf of env_sample returning dir.
 TANDEM_HD float env_pdf(const KernelData& kd, Vec3 dir) {
   return env_pdf_at(kd, dir, env_map_uv(kd, dir));
+}
+
+// Position in [0, 1) drawn by u from the density that is linear from
+// `start` to `mid` on [0, 1/2] and from `mid` to `end` on [1/2, 1] (the
+// lookup across a texel: its edges are half-way to the neighbours).
+TANDEM_HD float env_sample_halves(float u, float start, float mid, float end) {
+  const float first = start + mid, second = mid + end;  // twice each half's area
+  const float p = first / (first + second);
+  if (u < p) return 0.5f * sample_linear(p > 0.0f ? u / p : 0.0f, start, mid);
+  const float rest = (u - p) / (1.0f - p);
+  return 0.5f + 0.5f * sample_linear(rest < 1.0f ? rest : 0.99999994f, mid, end);
 }
 
 struct EnvSample {
@@ -200,13 +249,31 @@ TANDEM_HD EnvSample env_sample(const KernelData& kd, float u1, float u2) {
   // Continuous position inside the chosen texel (reuse the leftover of u).
   const float my0 = kd.env_marginal_cdf[y], my1 = kd.env_marginal_cdf[y + 1];
   const float mx0 = row[x], mx1 = row[x + 1];
-  const float dy = my1 > my0 ? (u1 - my0) / (my1 - my0) : 0.5f;
-  const float dx = mx1 > mx0 ? (u2 - mx0) / (mx1 - mx0) : 0.5f;
-  const float u = (float(x) + saturate(dx)) / float(env.width);
-  const float v = (float(y) + saturate(dy)) / float(env.height);
+  const float dy = saturate(my1 > my0 ? (u1 - my0) / (my1 - my0) : 0.5f);
+  const float dx = saturate(mx1 > mx0 ? (u2 - mx0) / (mx1 - mx0) : 0.5f);
+  // The point inside the texel follows the lookup's luminance there
+  // (env_pdf_uv_at): piecewise bilinear between the texel's centre and its
+  // neighbours'. First its row position t by the luminance averaged along
+  // the row (linear in t on each half of the texel), then its column
+  // position s along the row at t (linear on each half too).
+  const EnvNeighbours n = env_neighbours(env, x, y);
+  auto row_mean = [&](uint32_t r) {
+    return 0.125f * env_lum(kd, n.xm, r) + 0.75f * env_lum(kd, x, r) +
+           0.125f * env_lum(kd, n.xp, r);
+  };
+  const float m_up = row_mean(n.ym), m_mid = row_mean(y), m_down = row_mean(n.yp);
+  const float t = env_sample_halves(dy, 0.5f * (m_up + m_mid), m_mid, 0.5f * (m_mid + m_down));
+  // Rows r0 (the upper neighbour or this one) and r1 mixed at t.
+  const uint32_t r0 = t < 0.5f ? n.ym : y, r1 = t < 0.5f ? y : n.yp;
+  const float a = t < 0.5f ? t + 0.5f : t - 0.5f;
+  auto at_t = [&](uint32_t c) { return (1 - a) * env_lum(kd, c, r0) + a * env_lum(kd, c, r1); };
+  const float g_left = at_t(n.xm), g_mid = at_t(x), g_right = at_t(n.xp);
+  const float sx = env_sample_halves(dx, 0.5f * (g_left + g_mid), g_mid, 0.5f * (g_mid + g_right));
+  const float u = (float(x) + sx) / float(env.width);
+  const float v = (float(y) + t) / float(env.height);
   s.dir = rotate_y_cs(equirect_to_direction(u, v), env.rotation_cos, env.rotation_sin);
   const float sin_theta = sin_pi(v);
-  const float pdf_uv = kd.env_texel_pdf[y * env.width + x];
+  const float pdf_uv = env_pdf_uv_at(kd, make_vec2(u, v), x, y);
   s.pdf = sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
   // At the sampled (u, v) itself, not at the coordinates of s.dir turned
   // back (a rotation, two arctangents and a square root to land within

@@ -35,8 +35,7 @@ TANDEM_KERNEL_BEGIN
   X(float, env_marginal_cdf)         /* height + 1 entries */                           \
   X(float, env_conditional_cdf)      /* height * (width + 1) entries */                 \
   X(uint32_t, env_marginal_guide)    /* height + 1 entries: see find_interval_guided */ \
-  X(uint32_t, env_conditional_guide) /* height * (width + 1) entries */                 \
-  X(float, env_texel_pdf)            /* width * height: env_texel_pdf_uv per texel */
+  X(uint32_t, env_conditional_guide) /* height * (width + 1) entries */
 
 #define TANDEM_BVH_ARRAYS(X)                                                                      \
   X(KBlasRoot, blas_roots)      /* one per mesh */                                                \

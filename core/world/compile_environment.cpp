@@ -18,7 +18,6 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
   out.env_conditional_cdf.clear();
   out.env_marginal_guide.clear();
   out.env_conditional_guide.clear();
-  out.env_texel_pdf.clear();
   if (!e.texels.empty() && e.width > 0 && e.height > 0) {
     k.has_map = 1;
     k.width = e.width;
@@ -30,7 +29,7 @@ void SceneCompiler::compile_environment(const Scene& scene, KernelScene& out, Sc
   }
   delta.env_texels.reallocated = delta.env_marginal_cdf.reallocated =
       delta.env_conditional_cdf.reallocated = delta.env_marginal_guide.reallocated =
-          delta.env_conditional_guide.reallocated = delta.env_texel_pdf.reallocated = true;
+          delta.env_conditional_guide.reallocated = true;
   delta.constants = true;
 }
 

@@ -92,13 +92,6 @@ void build_environment_tables(KernelScene& ks) {
                       ks.env_conditional_guide.data() + size_t(y) * (w + 1));
     }
   }
-  // After map_integral: the per-texel pdf divides by it.
-  ks.env_texel_pdf.resize(size_t(w) * h);
-  const KernelData with_integral = ks.view();
-  for (uint32_t y = 0; y < h; ++y) {
-    for (uint32_t x = 0; x < w; ++x)
-      ks.env_texel_pdf[size_t(y) * w + x] = env_texel_pdf_uv(with_integral, x, y);
-  }
 }
 
 }  // namespace tandem
