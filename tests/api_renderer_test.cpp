@@ -474,20 +474,27 @@ TEST(ApiRenderer, AnInstanceScaledToZeroIsNotDrawn) {
   EXPECT_GT(mean_abs_difference(hidden.image_linear(), before), 1e-3);
 }
 
-// A file whose node lies beyond the float range the tracers take is a
-// kFile error naming it, not an abort inside Embree.
-TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {
-  tandem::TempDir dir("api_gltf_range");
-  const fs::path file = dir.path() / "far.gltf";
-  // One triangle at x = 1e20 (positions inline as base64 of 9 floats).
-  std::ofstream(file) << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":36,"uri":)"
+// A glTF file of one triangle (positions inline as base64 of 9 floats),
+// with `top` ("key": value, ...) added to the file's object and `node` to
+// its one node's.
+void write_triangle_gltf(const fs::path& file, const std::string& top, const std::string& node) {
+  std::ofstream(file) << R"({"asset":{"version":"2.0"},)" << top
+                      << R"("buffers":[{"byteLength":36,"uri":)"
                          R"("data:application/octet-stream;base64,)"
                          R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
                          R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
                          R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
                          R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
-                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0,)"
-                         R"("translation":[1e20,0,0]}],"scenes":[{"nodes":[0]}]})";
+                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0)"
+                      << node << R"(}],"scenes":[{"nodes":[0]}]})";
+}
+
+// A file whose node lies beyond the float range the tracers take is a
+// kFile error naming it, not an abort inside Embree.
+TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {
+  tandem::TempDir dir("api_gltf_range");
+  const fs::path file = dir.path() / "far.gltf";
+  write_triangle_gltf(file, "", R"(,"translation":[1e20,0,0])");
   tandem::Renderer r(small_options());
   try {
     r.load_gltf(file.string());
@@ -506,15 +513,7 @@ TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {
 TEST(ApiRenderer, TheLibrarySaysNothingUnlessItsHostAsks) {
   tandem::TempDir dir("api_log");
   const fs::path file = dir.path() / "vendor.gltf";
-  std::ofstream(file) << R"({"asset":{"version":"2.0"},"extensionsUsed":["VENDOR_sparkles"],)"
-                         R"("buffers":[{"byteLength":36,"uri":)"
-                         R"("data:application/octet-stream;base64,)"
-                         R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
-                         R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
-                         R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
-                         R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
-                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],)"
-                         R"("scenes":[{"nodes":[0]}]})";
+  write_triangle_gltf(file, R"("extensionsUsed":["VENDOR_sparkles"],)", "");
   auto load = [&] {
     tandem::RendererOptions o = small_options();
     o.backend = tandem::BackendChoice::kAuto;  // without a GPU: a fallback to tell
