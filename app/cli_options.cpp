@@ -13,6 +13,9 @@ OptionGroup help_options() {
 OptionGroup scene_options() {
   return {
       {"gltf-scene", true, "glTF scene index (default: the file's default scene)", "N"},
+      {"camera", true,
+       "use the scene's camera N (0 = its first; `tandem info` lists them; default: the first)",
+       "N"},
       {"allow-outside-uris", false,
        "let glTF buffer/image URIs name files outside the scene file's folder"},
   };

@@ -90,6 +90,13 @@ int run_info(const std::vector<std::string>& argv) {
   } else {
     std::printf("camera:     none (render frames the bounds automatically)\n");
   }
+  // The file's cameras, which --camera N picks among.
+  if (gltf.scene_cameras > 1) {
+    std::printf("cameras:    %zu in the scene, chosen with --camera N\n", gltf.scene_cameras);
+    for (size_t i = 0; i < gltf.camera_names.size(); ++i)
+      std::printf("  %zu: %s\n", i, gltf.camera_names[i].c_str());
+    if (gltf.camera_names.size() < gltf.scene_cameras) std::printf("  ...\n");
+  }
   // The file's extensions and what becomes of each here.
   if (!gltf.extensions_used.empty() || !gltf.extensions_required.empty()) {
     std::vector<std::string> names = gltf.extensions_used;

@@ -69,6 +69,7 @@ SceneRequest parse_scene_request(const ParsedArgs& args, const std::string& spec
   r.spec = spec;
   const std::string& command = args.command();
   if (args.has("gltf-scene")) r.load.gltf_scene = args.get_int("gltf-scene", -1, 0, 1 << 20);
+  if (args.has("camera")) r.load.camera = args.get_int("camera", -1, 0, 1 << 20);
   r.load.allow_outside_uris = args.has("allow-outside-uris");
   EnvironmentRequest& e = r.environment;
   if (args.has("env") && args.has("env-color")) {

@@ -190,8 +190,10 @@ class SceneBuilder {
   const std::vector<Instance>& instances() const { return instances_; }
   std::vector<Mesh>& new_meshes() { return new_meshes_; }
   const std::vector<Light>& lights() const { return lights_; }
-  bool has_camera() const { return has_camera_; }
-  const Camera& camera() const { return camera_; }
+  // The cameras of the scene's nodes in walk order (degenerate ones left
+  // out), and a line about each for `tandem info`.
+  const std::vector<Camera>& cameras() const { return cameras_; }
+  const std::vector<std::string>& camera_names() const { return camera_names_; }
   const std::vector<gltf::WalkedNode>& walked() const { return walked_; }
   const std::vector<GltfInstanceBinding>& bindings() const { return bindings_; }
   const std::vector<gltf::DeformedNode>& deformed() const { return deformed_; }
@@ -202,6 +204,7 @@ class SceneBuilder {
   // Names are for people: a longer one is cut (it is copied to every
   // instance of the node, and EXT_mesh_gpu_instancing makes many).
   static constexpr size_t kMaxNameBytes = 256;
+  static constexpr size_t kMaxCameraNames = 100;
   std::string node_name(int index, const tinygltf::Node& node) const {
     if (node.name.empty()) return "node " + std::to_string(index);
     if (node.name.size() <= kMaxNameBytes) return node.name;
@@ -326,7 +329,7 @@ class SceneBuilder {
         add_instance(node_name(index, node), mesh, world, index);
       }
     }
-    if (node.camera >= 0 && !has_camera_) set_camera(index, node, world);
+    if (node.camera >= 0) add_camera(index, node, world);
     const auto light = node.extensions.find("KHR_lights_punctual");
     if (light != node.extensions.end())
       add_light(index, light->second.Get("light").Get<int>(), world);
@@ -381,7 +384,7 @@ class SceneBuilder {
     return true;
   }
 
-  void set_camera(int index, const tinygltf::Node& node, const glm::dmat4& world) {
+  void add_camera(int index, const tinygltf::Node& node, const glm::dmat4& world) {
     const tinygltf::Camera& gc = ctx_.model.cameras[size_t(node.camera)];
     Camera cam;
     // glTF cameras look down their local -Z with +Y up.
@@ -421,8 +424,14 @@ class SceneBuilder {
         cam.aspect_ratio > 100.0f) {
       cam.aspect_ratio = 0.0f;
     }
-    camera_ = cam;
-    has_camera_ = true;
+    cameras_.push_back(cam);
+    if (camera_names_.size() >= kMaxCameraNames) return;  // a hostile file's millions
+    char fov[32];
+    std::snprintf(fov, sizeof(fov), "%.1f", double(cam.yfov) * 180.0 / 3.141592653589793);
+    camera_names_.push_back(node_name(index, node) +
+                            (cam.type == CameraType::kOrthographic
+                                 ? std::string(", orthographic")
+                                 : ", perspective, " + std::string(fov) + " degrees vertical"));
   }
 
   void add_light(int index, int light_index, const glm::dmat4& world) {
@@ -464,8 +473,8 @@ class SceneBuilder {
   std::vector<Mesh> new_meshes_;
   std::vector<Instance> instances_;
   std::vector<Light> lights_;
-  Camera camera_;
-  bool has_camera_ = false;
+  std::vector<Camera> cameras_;
+  std::vector<std::string> camera_names_;
   bool needs_default_material_ = false;
   std::vector<gltf::WalkedNode> walked_;
   std::vector<GltfInstanceBinding> bindings_;  // one per instance, in order
@@ -687,8 +696,14 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     deform_gltf_meshes(animations, animations.nodes,
                        gltf_world_transforms(animations, animations.nodes), scene);
   }
-  if (builder.has_camera()) {
-    Camera cam = builder.camera();
+  const std::vector<Camera>& cameras = builder.cameras();
+  if (options.camera >= 0 && size_t(options.camera) >= cameras.size()) {
+    fail(label, "camera " + std::to_string(options.camera) + " was asked for, but the scene has " +
+                    std::to_string(cameras.size()) + " camera" + (cameras.size() == 1 ? "" : "s") +
+                    (cameras.empty() ? "" : " (0 to " + std::to_string(cameras.size() - 1) + ")"));
+  }
+  if (!cameras.empty()) {
+    Camera cam = cameras[size_t(std::max(options.camera, 0))];
     const SceneBounds bounds = scene.bounds();
     if (!bounds.empty) {
       // Focus on the plane through the scene's centre; if that is behind the
@@ -726,6 +741,12 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     s.images_unavailable = materials.images_unavailable;
     s.samplers = model.samplers.size();
     s.cameras = model.cameras.size();
+    s.scene_cameras = builder.cameras().size();
+    s.camera_names = builder.camera_names();
+    s.camera_list.assign(
+        builder.cameras().begin(),
+        builder.cameras().begin() +
+            std::ptrdiff_t(std::min(builder.cameras().size(), s.camera_names.size())));
     s.lights = model.lights.size();
     s.animations = model.animations.size();
     s.skins = model.skins.size();

@@ -62,6 +62,10 @@ struct GltfOptions {
   // of the scene file, so a downloaded scene cannot read other files; this
   // lets them point anywhere.
   bool allow_outside_uris = false;
+  // Which of the scene's cameras (its camera nodes in walk order, as
+  // GltfSummary::camera_names lists them) to use; -1: the first, if any.
+  // One beyond them is an InputError.
+  int camera = -1;
   GltfLimits limits;
 };
 
@@ -86,6 +90,11 @@ struct GltfSummary {
   size_t lights = 0;      // KHR_lights_punctual lights defined in the file
   size_t animations = 0;  // loaded only when GltfOptions::animations is set
   size_t skins = 0;       // skins in the file
+  // The loaded scene's camera nodes (what GltfOptions::camera counts), and
+  // a line about each of the first 100 (node name and projection).
+  size_t scene_cameras = 0;
+  std::vector<std::string> camera_names;
+  std::vector<Camera> camera_list;  // the same first 100, as the scene would take them
   std::vector<std::string> extensions_used;
   std::vector<std::string> extensions_required;
 };

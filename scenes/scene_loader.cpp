@@ -16,7 +16,13 @@ namespace tandem {
 
 Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
   const std::string prefix = "builtin:";
-  if (spec.rfind(prefix, 0) == 0) return make_builtin_scene(spec.substr(prefix.size()));
+  if (spec.rfind(prefix, 0) == 0) {
+    if (options.camera > 0) {
+      throw InputError(spec + ": camera " + std::to_string(options.camera) +
+                       " was asked for, but a built-in scene has one camera (0)");
+    }
+    return make_builtin_scene(spec.substr(prefix.size()));
+  }
   const std::filesystem::path path(spec);
   std::string ext = path.extension().string();
   for (char& c : ext)
@@ -29,6 +35,7 @@ Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
   gltf.scene_index = options.gltf_scene;
   gltf.allow_outside_uris = options.allow_outside_uris;
   gltf.animations = options.animations;
+  gltf.camera = options.camera;
   return load_gltf(path, gltf, options.gltf_summary);
 }
 

@@ -18,6 +18,9 @@ struct SceneLoadOptions {
   // When set, a glTF file's node animations are loaded into it (see
   // scene_animator.h to play them).
   GltfAnimations* animations = nullptr;
+  // Which of a glTF scene's cameras to use (GltfOptions::camera; -1: the
+  // first). A built-in scene has one: camera 0.
+  int camera = -1;
   // When set, a glTF file's summary (gltf_loader.h) is written here.
   GltfSummary* gltf_summary = nullptr;
 };

@@ -134,6 +134,29 @@ TEST(CliTest, InfoListsTheFilesExtensionsAndWhatBecomesOfThem) {
       << r.output;
 }
 
+// The file's cameras are listed and chosen by index; one beyond them is a
+// clear error before anything renders.
+TEST(CliTest, InfoListsTheCamerasAndCameraChoosesOne) {
+  const std::string toy_car = shell_quote((kShared / "gltf/ToyCar/glTF/ToyCar.gltf").string());
+  const RunResult info = run_tandem("info " + toy_car);
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("cameras:    8 in the scene, chosen with --camera N"),
+            std::string::npos)
+      << info.output;
+  EXPECT_NE(info.output.find("  1: Camera002, perspective, 23.5 degrees vertical"),
+            std::string::npos)
+      << info.output;
+  const RunResult second = run_tandem("info " + toy_car + " --camera 1");
+  EXPECT_NE(second.output.find("camera:     perspective at (-0.04333, 0.0236, 0.0761)"),
+            std::string::npos)
+      << second.output;
+  const RunResult beyond = run_tandem("render " + toy_car + " --camera 8 --output x.png");
+  EXPECT_EQ(beyond.exit_code, 1) << beyond.output;
+  EXPECT_NE(beyond.output.find("camera 8 was asked for, but the scene has 8 cameras (0 to 7)"),
+            std::string::npos)
+      << beyond.output;
+}
+
 // Without a GPU, auto says so once (however many backend lists the run
 // makes), and not at all under --quiet or with --backend cpu.
 TEST(CliTest, AutoBackendFallsBackToCpuWithNotice) {

@@ -438,6 +438,42 @@ TEST_F(GltfHandMade, CameraAndLightsFromNodes) {
   EXPECT_TRUE(near(scene.lights()[2].position, {4, 5, 6}));
 }
 
+// --camera N: the scene's camera nodes in walk order, listed in the
+// summary; one beyond them is an error naming the count.
+TEST_F(GltfHandMade, ACameraIsChosenByItsIndexInTheScene) {
+  const std::string text = triangle_gltf(R"(
+      "cameras": [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.1}},
+                  {"type": "orthographic", "orthographic": {"xmag": 3, "ymag": 2, "znear": 0.1, "zfar": 100}}],
+      "nodes": [{"mesh": 0},
+                {"name": "front", "translation": [0, 0, 10], "camera": 0},
+                {"name": "high", "translation": [0, 5, 10], "camera": 1},
+                {"name": "side", "translation": [10, 0, 0], "rotation": [0, 0.70710678, 0, 0.70710678], "camera": 0}],
+      "scenes": [{"nodes": [0, 1, 2, 3]}])");
+  GltfSummary summary;
+  const Scene first = load_gltf(write("cameras.gltf", text), {}, &summary);
+  EXPECT_TRUE(near(first.camera().position, {0, 0, 10}));
+  ASSERT_EQ(summary.scene_cameras, 3u);
+  ASSERT_EQ(summary.camera_names.size(), 3u);
+  EXPECT_EQ(summary.camera_names[0], "front, perspective, 57.3 degrees vertical");
+  EXPECT_EQ(summary.camera_names[1], "high, orthographic");
+  ASSERT_EQ(summary.camera_list.size(), 3u);
+  GltfOptions o;
+  o.camera = 2;
+  const Scene side = load("cameras.gltf", text, o);
+  EXPECT_TRUE(near(side.camera().position, {10, 0, 0}));
+  EXPECT_TRUE(near(side.camera().forward, {-1, 0, 0}));
+  EXPECT_EQ(side.camera().position, summary.camera_list[2].position);
+  o.camera = 3;
+  try {
+    load("cameras.gltf", text, o);
+    ADD_FAILURE() << "loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("camera 3 was asked for, but the scene has 3 cameras"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(GltfHandMade, UnsupportedExtensionsWarnOrFail) {
   testing::internal::CaptureStderr();
   const Scene scene = load("used.gltf", triangle_gltf(R"(

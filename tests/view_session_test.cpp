@@ -96,6 +96,41 @@ TEST(ViewSession, ResetCameraGoesBackToTheSceneCamera) {
   EXPECT_EQ(session.initial_camera().position, initial.position);
 }
 
+// C steps through the file's cameras (ToyCar has eight), wrapping, and
+// Home/R then return to the one chosen; --camera N starts at camera N.
+TEST(ViewSession, TheFilesCamerasAreSteppedThroughAndResetReturnsToTheChosenOne) {
+  const std::string toy_car =
+      (std::filesystem::path(TANDEM_SHARED_DIR) / "scenes/gltf/ToyCar/glTF/ToyCar.gltf").string();
+  ViewSession session(small(toy_car));
+  ASSERT_EQ(session.file_camera_count(), 8u);
+  EXPECT_EQ(session.file_camera_index(), 0);
+  const Camera first = session.camera();
+  session.next_file_camera();
+  EXPECT_EQ(session.file_camera_index(), 1);
+  const Camera second = session.camera();
+  EXPECT_NE(second.position, first.position);
+  Camera moved = second;
+  moved.position += glm::vec3(1.0f, 0.0f, 0.0f);
+  session.set_camera(moved);
+  session.reset_camera();
+  EXPECT_EQ(session.camera().position, second.position);
+  for (int i = 0; i < 7; ++i)
+    session.next_file_camera();
+  EXPECT_EQ(session.file_camera_index(), 0);
+  EXPECT_EQ(session.camera().position, first.position);
+
+  ViewOptions o = small(toy_car);
+  o.scene_load.camera = 1;
+  ViewSession at_one(o);
+  EXPECT_EQ(at_one.file_camera_index(), 1);
+  EXPECT_EQ(at_one.camera().position, second.position);
+  // A scene without cameras of its own: C does nothing.
+  ViewSession cornell(small("builtin:cornell"));
+  const Camera c = cornell.camera();
+  cornell.next_file_camera();
+  EXPECT_EQ(cornell.camera().position, c.position);
+}
+
 TEST(ViewSession, StillFramesConvergeExactlyAtTheTargetAndMotionRestarts) {
   ViewOptions o = small("builtin:cornell");
   o.target_spp = 20;

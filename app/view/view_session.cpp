@@ -7,6 +7,7 @@
 
 #include "app/view/image_filters.h"
 #include "core/util/errors.h"
+#include "scenes/gltf_loader.h"
 
 namespace tandem {
 
@@ -31,7 +32,11 @@ ViewSession::ViewSession(const ViewOptions& options)
   GltfAnimations animations;
   SceneRequest request{options.scene, options.scene_load, options.environment, true};
   request.load.animations = &animations;  // tandem-view plays node animations
+  GltfSummary gltf;
+  request.load.gltf_summary = &gltf;  // the file's cameras, for C
   scene_ = load_requested_scene(request, "tandem-view");
+  file_cameras_ = std::move(gltf.camera_list);
+  camera_index_ = std::max(options.scene_load.camera, 0);
   animator_ = make_scene_animator(scene_, std::move(animations));
   if (!scene_.has_camera()) {
     scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,
@@ -72,6 +77,17 @@ bool ViewSession::advance_scene(double t) {
 
 void ViewSession::set_camera(const Camera& camera) {
   scene_.edit_camera() = camera;
+}
+
+void ViewSession::next_file_camera() {
+  if (file_cameras_.size() < 2) return;
+  camera_index_ = (camera_index_ + 1) % int(file_cameras_.size());
+  // Where the loader focused the first one: the lens keeps its setting.
+  Camera c = file_cameras_[size_t(camera_index_)];
+  c.aperture_radius = scene_.camera().aperture_radius;
+  c.focus_distance = scene_.camera().focus_distance;
+  set_camera(c);
+  initial_camera_ = scene_.camera();  // Home/R return to the chosen one
 }
 
 bool ViewSession::converged() const {

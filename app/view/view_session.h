@@ -75,6 +75,11 @@ class ViewSession {
   // The camera the scene was loaded with (or framed on load): Home/R.
   const Camera& initial_camera() const { return initial_camera_; }
   void reset_camera() { set_camera(initial_camera_); }
+  // The glTF file's cameras (its scene's camera nodes, `--camera N`): the
+  // next one, which Home/R then return to; nothing with fewer than two.
+  void next_file_camera();
+  size_t file_camera_count() const { return file_cameras_.size(); }
+  int file_camera_index() const { return camera_index_; }
 
   // One frame of the core tracer's loop, the same for the window, the
   // headless script and `bench --frames`: renders the scene as it is now
@@ -178,6 +183,8 @@ class ViewSession {
   Scene scene_;
   std::unique_ptr<SceneAnimator> animator_;
   Camera initial_camera_;
+  std::vector<Camera> file_cameras_;  // the first 100 of the file's, as loaded
+  int camera_index_ = 0;
   double scene_time_ = 0.0;
   bool scene_posed_ = false;  // posed since the last rendered frame
   double last_pose_seconds_ = 0.0;

@@ -28,7 +28,8 @@ using Clock = std::chrono::steady_clock;
 const char* const kHelp =
     "Fly (default):  W/A/S/D move, Q/E down/up, Shift faster, left-drag look\n"
     "Orbit (Tab):    left-drag orbit, right-drag pan, wheel zoom\n"
-    "Home/R reset the camera    P pause scene motion    F1 this help    F12 screenshot (PNG)\n"
+    "Home/R reset the camera    C the file's next camera    P pause scene motion\n"
+    "F1 this help    F12 screenshot (PNG)\n"
     "N denoiser (SVGF) on/off   B cycle the shown buffer (image, albedo, normal, depth,\n"
     "motion, variance, history length)\n"
     "Esc quit. Nothing moving: samples accumulate up to the target spp, then rendering stops.\n"
@@ -331,6 +332,11 @@ bool run_view_window(ViewSession& session, const WindowRunOptions& opt, std::str
           break;
         case SDLK_HOME:
         case SDLK_r:
+          reset_camera = true;
+          break;
+        case SDLK_c:
+          // The file's next camera, then taken over like Home/R's.
+          session.next_file_camera();
           reset_camera = true;
           break;
         case SDLK_F12: {
