@@ -204,7 +204,10 @@ int run_render(const std::vector<std::string>& argv) {
   GltfAnimations animations;
   SceneRequest scene_load = scene_request;
   if (frame_range) scene_load.load.animations = &animations;
+  const auto load_start = std::chrono::steady_clock::now();
   Scene scene = load_requested_scene(scene_load, "tandem");
+  const double load_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   std::unique_ptr<SceneAnimator> animator = make_scene_animator(scene, std::move(animations));
   // (An empty glTF scene has been reported by the loader already.)
 
@@ -372,10 +375,10 @@ int run_render(const std::vector<std::string>& argv) {
     }
     std::fprintf(
         stderr,
-        "tandem: %ux%u, %u spp, max depth %u on %s (%d threads): %.2f s, %.2f M samples/s, "
-        "%.1f Mrays/s -> %s\n",
+        "tandem: %ux%u, %u spp, max depth %u on %s (%d threads): loaded in %.2f s, rendered in "
+        "%.2f s, %.2f M samples/s, %.1f Mrays/s -> %s\n",
         settings.width, settings.height, spp, settings.max_depth, names.c_str(), worker_threads,
-        seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6,
+        load_seconds, seconds, double(samples) / seconds * 1e-6, double(rays) / seconds * 1e-6,
         frame_range && range.count() > 1 ? output_spec.c_str() : output.c_str());
   }
   if (distributed) finish_distributed();

@@ -84,6 +84,7 @@ TEST(CliTest, RendersPngExrAndPfm) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     ASSERT_TRUE(fs::exists(out));
     EXPECT_NE(r.output.find("Mrays/s"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(" threads): loaded in "), std::string::npos) << r.output;
     const tandem::ImageRGB img = tandem::read_image(out);
     EXPECT_EQ(img.width, 24u);
     EXPECT_EQ(img.height, 16u);

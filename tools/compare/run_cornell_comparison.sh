@@ -103,9 +103,9 @@ render_tandem() {  # seed output log [spp]
   ${cpu_timer[@]:+"${cpu_timer[@]}" "$3.cpu"} "$tandem" render "$scene" --backend cpu --width "$width" --height "$height" --spp "${4:-$spp}" \
     --max-depth "$depth" --threads "$threads" --seed "$1" --output "$2" 2>"$3"
   t1=$(now)
-  # "tandem: 256x256, 1024 spp, max depth 8 on cpu (2 threads): 81.23 s, ..."
+  # "tandem: 256x256, 1024 spp, max depth 8 on cpu (2 threads): loaded in 0.01 s, rendered in 81.23 s, ..."
   local secs
-  secs=$(sed -n 's/^tandem: .* threads): \([0-9.]*\) s,.*/\1/p' "$3" | tail -n 1)
+  secs=$(sed -n 's/^tandem: .* rendered in \([0-9.]*\) s,.*/\1/p' "$3" | tail -n 1)
   [[ -n "$secs" ]] || { cat "$3" >&2; echo "error: no summary line from tandem" >&2; exit 1; }
   echo "$secs $(echo "$t1 - $t0" | bc -l) $(cpu_seconds "$3.cpu")"
 }
