@@ -15,7 +15,7 @@ case "$mode" in
 esac
 
 packages=(cmake ninja-build g++ pkg-config
-          libembree-dev libtbb-dev libglm-dev libtinygltf-dev libstb-dev
+          libembree-dev libtbb-dev libglm-dev libtinygltf-dev libstb-dev libopenexr-dev
           libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
           xvfb xauth
           libopenmpi-dev openmpi-bin
@@ -68,6 +68,11 @@ run_fuzzers() {
   for ext in exr pfm png; do
     ./build/release/app/tandem render builtin:cornell --width 6 --height 4 --spp 1 --quiet \
       --backend cpu --output "$corpus/image/seed.$ext"
+  done
+  # OpenEXR in the compressions users' files come in (ZIP above, by default).
+  for c in piz dwaa rle b44; do
+    ./build/release/app/tandem render builtin:cornell --width 40 --height 36 --spp 1 --quiet \
+      --backend cpu --exr-pixel half --exr-compression "$c" --output "$corpus/image/seed-$c.exr"
   done
   printf '#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n\200\100\000\201\000\000\200\202' \
     > "$corpus/image/seed.hdr"

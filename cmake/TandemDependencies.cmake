@@ -5,6 +5,9 @@ find_package(embree 3 REQUIRED)
 find_package(TBB REQUIRED)
 find_package(glm REQUIRED)
 find_package(TinyGLTF REQUIRED)
+# OpenEXR 3.1 (libopenexr-dev): every compression for environment maps,
+# `compare` inputs and .exr output.
+find_package(OpenEXR 3 REQUIRED)
 
 # stb ships headers in /usr/include/stb and one shared library with the
 # implementations (libstb-dev).

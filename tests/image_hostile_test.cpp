@@ -83,7 +83,7 @@ TEST(ImageHostile, ExrHeaderClaimingAHugeWindowFailsFastOnLength) {
   const std::string error = read_error(file);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  EXPECT_NE(error.find(file.string() + ": file is truncated: a 8192x8192 image needs"),
+  EXPECT_NE(error.find(file.string() + ": file is truncated or corrupt: the 8192x8192 OpenEXR"),
             std::string::npos)
       << error;
   EXPECT_LT(seconds, 0.5);  // nothing was allocated or zeroed
@@ -94,10 +94,10 @@ TEST(ImageHostile, ExrHeaderClaimingAHugeWindowFailsFastOnLength) {
             std::string::npos);
 }
 
-TEST(ImageHostile, ExrScanlineYNearIntLimitsIsCorruptNotOverflow) {
+TEST(ImageHostile, ExrWindowsAndScanlinesNearIntLimitsAreErrors) {
   TempDir dir("tandem_image");
   const fs::path file = dir.path() / "y.exr";
-  // Window starting at INT32_MIN + 1: y - ymin overflowed int32 before.
+  // A window at INT32_MIN + 1 (y - ymin overflowed int32 in our old reader).
   const int32_t box[4] = {0, INT32_MIN + 1, 0, INT32_MIN + 1};
   std::string data = exr_header(box);
   put<uint64_t>(data, data.size() + 8);
@@ -105,16 +105,57 @@ TEST(ImageHostile, ExrScanlineYNearIntLimitsIsCorruptNotOverflow) {
   put<uint32_t>(data, 4);
   put<float>(data, 1.0f);
   write_text(file, data);
-  EXPECT_NE(read_error(file).find("corrupt scanline block"), std::string::npos);
-  // A good one-pixel file reads back.
-  std::string good = exr_header(box);
+  EXPECT_EQ(read_error(file).rfind(file.string() + ": ", 0), 0u) << read_error(file);
+  // An offset window: a scanline block with the wrong y is corrupt, the right one reads.
+  const int32_t offset_box[4] = {-7, 1000, -7, 1000};
+  std::string bad = exr_header(offset_box);
+  put<uint64_t>(bad, bad.size() + 8);
+  put<int32_t>(bad, INT32_MAX);
+  put<uint32_t>(bad, 4);
+  put<float>(bad, 0.25f);
+  write_text(file, bad);
+  EXPECT_NE(read_error(file).find("scanline block at y 1000 is not in the file"), std::string::npos)
+      << read_error(file);
+  std::string good = exr_header(offset_box);
   put<uint64_t>(good, good.size() + 8);
-  put<int32_t>(good, INT32_MIN + 1);
+  put<int32_t>(good, 1000);
   put<uint32_t>(good, 4);
   put<float>(good, 0.25f);
   write_text(file, good);
   const ImageRGB img = read_image(file);
+  ASSERT_EQ(img.width, 1u);
   EXPECT_EQ(img.rgb[0], 0.25f);
+  EXPECT_EQ(img.rgb[2], 0.25f);  // R alone is grey
+}
+
+TEST(ImageHostile, ExrAttributeLargerThanTheFileIsRefusedBeforeAllocating) {
+  TempDir dir("tandem_image");
+  const fs::path file = dir.path() / "attribute.exr";
+  const int32_t box[4] = {0, 0, 0, 0};
+  std::string data = exr_header(box);
+  data.pop_back();  // reopen the header
+  // An attribute of a type no reader knows, claiming 800 MB.
+  put_attr(data, "junk", "blob", 800 << 20);
+  data.append(16, '\0');
+  write_text(file, data);
+  EXPECT_NE(read_error(file).find(file.string() +
+                                  ": OpenEXR header has an attribute of 838860800 bytes, more "
+                                  "than the rest of the file (16 bytes)"),
+            std::string::npos)
+      << read_error(file);
+}
+
+TEST(ImageHostile, OnlyPngAndJpegReachStb) {
+  TempDir dir("tandem_image");
+  // A 15-byte PNM header that made libstb's PNM decoder read past the
+  // buffer (found by the fuzzer): PNM, BMP, TGA and the like are refused.
+  const fs::path file = dir.path() / "texture.png";
+  write_text(file, std::string("P511  940\r515\r ", 15));
+  EXPECT_NE(read_error(file).find(file.string() + ": not an image format Tandem reads"),
+            std::string::npos)
+      << read_error(file);
+  write_text(file, std::string("BM") + std::string(60, '\1'));
+  EXPECT_NE(read_error(file).find("not an image format Tandem reads"), std::string::npos);
 }
 
 TEST(ImageHostile, TruncatedFilesAreErrorsInEveryFormat) {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include "core/kernel/tone_map.h"
 #include "core/util/errors.h"
@@ -16,6 +17,21 @@ ToneMap parse_tone_map(const std::string& name) {
   if (name == "aces") return ToneMap::kAces;
   if (name == "reinhard") return ToneMap::kReinhard;
   throw UsageError("unknown tone map '" + name + "' (expected standard, aces or reinhard)");
+}
+
+ExrPixelType parse_exr_pixel_type(const std::string& name) {
+  if (name == "float") return ExrPixelType::kFloat;
+  if (name == "half") return ExrPixelType::kHalf;
+  throw UsageError("unknown EXR pixel type '" + name + "' (expected float or half)");
+}
+
+ExrCompression parse_exr_compression(const std::string& name) {
+  static const char* const kNames[] = {"none",  "rle", "zips", "zip",  "piz",
+                                       "pxr24", "b44", "b44a", "dwaa", "dwab"};
+  for (size_t i = 0; i < std::size(kNames); ++i)
+    if (name == kNames[i]) return ExrCompression(i);
+  throw UsageError("unknown EXR compression '" + name +
+                   "' (expected none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab)");
 }
 
 // The curves live in kernel code so the CUDA backend tone maps on the

@@ -35,14 +35,30 @@ ToneMap parse_tone_map(const std::string& name);
 // Exposure (in stops) + tone curve + sRGB encoding to 8-bit RGB.
 std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_stops, ToneMap curve);
 
+// How .exr output stores its pixels: 32-bit float keeps every value a
+// render produces; half (16-bit) is what texture and compositing tools
+// usually take, at half the size, and clamps above 65504.
+enum class ExrPixelType { kFloat, kHalf };
+// OpenEXR's compressions, by their names in the format. ZIP is lossless
+// and what Blender writes by default; DWAA/DWAB and B44 are lossy.
+enum class ExrCompression { kNone, kRle, kZips, kZip, kPiz, kPxr24, kB44, kB44a, kDwaa, kDwab };
+
+// Parse "float" | "half" and "none" | "rle" | "zips" | "zip" | "piz" |
+// "pxr24" | "b44" | "b44a" | "dwaa" | "dwab"; throw UsageError otherwise.
+ExrPixelType parse_exr_pixel_type(const std::string& name);
+ExrCompression parse_exr_compression(const std::string& name);
+
 struct ImageWriteOptions {
   float exposure = 0.0f;  // stops, PNG only
   ToneMap tone_map = ToneMap::kStandard;
+  ExrPixelType exr_pixel_type = ExrPixelType::kFloat;     // EXR only
+  ExrCompression exr_compression = ExrCompression::kZip;  // EXR only
 };
 
 // Chooses the format from the extension: .png (tone mapped sRGB), .exr
-// (32-bit float RGB, uncompressed) or .pfm (32-bit float RGB). Throws
-// InputError naming the file for unknown extensions or write failures.
+// (linear RGB, ZIP-compressed float by default) or .pfm (32-bit float
+// RGB). Throws InputError naming the file for unknown extensions or write
+// failures.
 void write_image(const std::filesystem::path& path, const ImageRGB& image,
                  const ImageWriteOptions& options = {});
 
@@ -73,8 +89,9 @@ struct ImageReadLimits {
   const char* advice = nullptr;  // what to do instead, after "; "
 };
 
-// Reads .hdr (Radiance RGBE), .exr (uncompressed scanline, half/float), .pfm,
-// and 8-bit formats stb_image supports (decoded from sRGB to linear).
+// Reads .hdr (Radiance RGBE), .exr (any compression, scanline or tiled,
+// half or float, the first RGB layer of a multi-part file), .pfm,
+// PNG and JPEG (8-bit, decoded from sRGB to linear).
 // Throws InputError naming the file and the reason.
 ImageRGB read_image(const std::filesystem::path& path, const ImageReadLimits& limits = {});
 // The same for bytes in memory; `name` names them in messages and its

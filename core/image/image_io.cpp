@@ -1,7 +1,6 @@
-// Image writers. EXR and PFM are written by our own small codecs
-// (uncompressed float scanlines are all Tandem needs, and this keeps
-// OpenEXR out of the dependency list); PNG goes through stb. The readers
-// are in image_read.cpp.
+// Image writers. EXR goes through the OpenEXR library (image_exr.cpp), PNG
+// through stb, PFM through our own few lines. The readers are in
+// image_read.cpp.
 #include <fcntl.h>
 #include <stb_image_write.h>
 #include <sys/stat.h>
@@ -16,6 +15,7 @@
 #include <string>
 
 #include "core/image/image.h"
+#include "core/image/image_exr.h"
 #include "core/util/errors.h"
 #include "core/util/interrupt.h"
 
@@ -115,65 +115,6 @@ void put(std::vector<uint8_t>& out, T v) {
   out.resize(at + sizeof(T));
   std::memcpy(out.data() + at, &v, sizeof(T));
 }
-void put_str(std::vector<uint8_t>& out, const char* s) {
-  out.insert(out.end(), s, s + std::strlen(s) + 1);
-}
-
-void put_attribute_header(std::vector<uint8_t>& out, const char* name, const char* type,
-                          int32_t size) {
-  put_str(out, name);
-  put_str(out, type);
-  put(out, size);
-}
-
-// OpenEXR 2.0 single-part scanline file, NO_COMPRESSION, FLOAT B/G/R.
-std::vector<uint8_t> encode_exr(const ImageRGB& img) {
-  std::vector<uint8_t> out;
-  put<uint32_t>(out, 20000630u);              // magic
-  put<uint32_t>(out, 2u);                     // version 2, no flags
-  const char* channels[3] = {"B", "G", "R"};  // channel list must be sorted
-  put_attribute_header(out, "channels", "chlist", 3 * (2 + 16) + 1);
-  for (const char* c : channels) {
-    put_str(out, c);
-    put<int32_t>(out, 2);   // FLOAT
-    put<uint32_t>(out, 0);  // pLinear + reserved
-    put<int32_t>(out, 1);
-    put<int32_t>(out, 1);
-  }
-  out.push_back(0);
-  put_attribute_header(out, "compression", "compression", 1);
-  out.push_back(0);
-  const int32_t box[4] = {0, 0, int32_t(img.width) - 1, int32_t(img.height) - 1};
-  for (const char* name : {"dataWindow", "displayWindow"}) {
-    put_attribute_header(out, name, "box2i", 16);
-    for (int32_t v : box)
-      put(out, v);
-  }
-  put_attribute_header(out, "lineOrder", "lineOrder", 1);
-  out.push_back(0);
-  put_attribute_header(out, "pixelAspectRatio", "float", 4);
-  put(out, 1.0f);
-  put_attribute_header(out, "screenWindowCenter", "v2f", 8);
-  put(out, 0.0f);
-  put(out, 0.0f);
-  put_attribute_header(out, "screenWindowWidth", "float", 4);
-  put(out, 1.0f);
-  out.push_back(0);  // end of header
-
-  const uint64_t line_bytes = uint64_t(img.width) * 3 * sizeof(float);
-  const uint64_t table_end = out.size() + uint64_t(img.height) * 8;
-  for (uint32_t y = 0; y < img.height; ++y)
-    put<uint64_t>(out, table_end + y * (8 + line_bytes));
-  for (uint32_t y = 0; y < img.height; ++y) {
-    put<int32_t>(out, int32_t(y));
-    put<uint32_t>(out, uint32_t(line_bytes));
-    for (int c = 2; c >= 0; --c) {  // B, G, R
-      for (uint32_t x = 0; x < img.width; ++x)
-        put(out, img.pixel(x, y)[c]);
-    }
-  }
-  return out;
-}
 
 // Portable float map: little-endian (negative scale), rows bottom to top.
 std::vector<uint8_t> encode_pfm(const ImageRGB& img) {
@@ -262,7 +203,15 @@ void write_image(const fs::path& path, const ImageRGB& image, const ImageWriteOp
     write_png_rgb8(path, image.width, image.height,
                    tone_map_to_srgb8(image, options.exposure, options.tone_map));
   } else if (ext == ".exr") {
-    write_file_atomically(path, encode_exr(image));
+    std::vector<uint8_t> bytes;
+    try {
+      bytes = encode_exr(image, options.exr_pixel_type, options.exr_compression);
+    } catch (const std::bad_alloc&) {
+      throw InputError(path.string() + ": not enough memory to encode the OpenEXR image");
+    } catch (const std::exception& e) {
+      throw InputError(path.string() + ": OpenEXR encoding failed: " + e.what());
+    }
+    write_file_atomically(path, bytes);
   } else if (ext == ".pfm") {
     write_file_atomically(path, encode_pfm(image));
   } else {

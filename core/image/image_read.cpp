@@ -1,6 +1,6 @@
-// Image readers. EXR (uncompressed scanlines), PFM and Radiance HDR are
-// decoded by our own small codecs, PNG/JPEG by stb after our own header
-// check. Files come from users and downloads, so nothing in a header is
+// Image readers. PFM and Radiance HDR are decoded by our own small codecs,
+// EXR by the OpenEXR library (image_exr.cpp), PNG/JPEG by stb after our
+// own header check. Files come from users and downloads, so nothing in a header is
 // trusted: every field, and the file length it implies, is checked in
 // 64-bit arithmetic before pixels are allocated, and a truncated file is an
 // error, never a partly black image.
@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "core/image/image.h"
+#include "core/image/image_exr.h"
 #include "core/kernel/srgb_table.h"
 #include "core/util/errors.h"
 
@@ -28,7 +29,7 @@ namespace fs = std::filesystem;
 namespace {
 
 [[noreturn]] void fail(const std::string& name, const std::string& why) {
-  throw InputError(name + ": " + why);
+  fail_image(name, why);
 }
 
 std::string dims(uint64_t w, uint64_t h) {
@@ -37,22 +38,7 @@ std::string dims(uint64_t w, uint64_t h) {
 
 void check_pixels(const std::string& name, const char* format, uint64_t w, uint64_t h,
                   const ImageReadLimits& limits) {
-  if (w < 1 || h < 1) fail(name, std::string(format) + " image has no pixels (" + dims(w, h) + ")");
-  // w and h are each below 2^32 here, so the product cannot overflow.
-  if (w > UINT32_MAX || h > UINT32_MAX || w * h > limits.max_pixels) {
-    std::string use;
-    if (limits.use != nullptr) use = std::string(" for ") + limits.use;
-    if (limits.bytes_per_pixel_in_use > 0 && w <= UINT32_MAX && h <= UINT32_MAX) {
-      const double gib = double(w * h) * limits.bytes_per_pixel_in_use / double(1u << 30);
-      char text[96];
-      std::snprintf(text, sizeof text, " (it would take about %.1f GiB of memory)", gib);
-      use += text;
-    }
-    if (limits.advice != nullptr) use += std::string("; ") + limits.advice;
-    fail(name, std::string(format) + " header claims " + dims(w, h) +
-                   " pixels, over the limit of " + std::to_string(limits.max_pixels) + " pixels" +
-                   use);
-  }
+  check_image_pixels(name, format, w, h, limits);
 }
 
 uint32_t be32(const uint8_t* p) {
@@ -67,21 +53,6 @@ uint32_t crc32(const uint8_t* p, size_t n) {
       c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
   }
   return ~c;
-}
-
-float half_to_float(uint16_t h) {
-  const uint32_t sign = uint32_t(h >> 15) << 31;
-  const uint32_t exp = (h >> 10) & 0x1fu;
-  const uint32_t mant = h & 0x3ffu;
-  float f;
-  if (exp == 0) {
-    f = std::ldexp(float(mant), -24);
-  } else if (exp == 31) {
-    f = mant ? NAN : INFINITY;
-  } else {
-    f = std::ldexp(float(mant | 0x400u), int(exp) - 25);
-  }
-  return sign ? -f : f;
 }
 
 class ByteReader {
@@ -118,123 +89,6 @@ class ByteReader {
   size_t size_;
   const std::string& name_;
 };
-
-ImageRGB decode_exr(const uint8_t* bytes, size_t size, const std::string& name,
-                    const ImageReadLimits& limits) {
-  ByteReader r(bytes, size, name);
-  if (r.get<uint32_t>() != 20000630u) r.fail("not an OpenEXR file (bad magic number)");
-  const uint32_t version = r.get<uint32_t>();
-  if ((version & 0xffu) != 2 || (version & 0x1e00u) != 0) {
-    r.fail("only single-part scanline OpenEXR files are supported");
-  }
-  struct Channel {
-    std::string name;
-    int32_t type;
-  };
-  std::vector<Channel> channels;
-  int compression = -1;
-  bool have_window = false, have_channels = false;
-  int32_t box[4] = {0, 0, -1, -1};
-  while (true) {
-    const std::string attr = r.get_str();
-    if (attr.empty()) break;
-    const std::string type = r.get_str();
-    const int32_t attr_size = r.get<int32_t>();
-    if (attr_size < 0) r.fail("attribute '" + attr + "' has a negative size");
-    r.need(uint64_t(attr_size));
-    const size_t end = r.pos + size_t(attr_size);
-    ByteReader a(bytes, end, name);  // reads of this attribute stop at its end
-    a.pos = r.pos;
-    if (attr == "channels") {
-      have_channels = true;
-      while (true) {
-        const std::string cname = a.get_str();
-        if (cname.empty()) break;
-        const int32_t ptype = a.get<int32_t>();
-        a.get<uint32_t>();
-        if (a.get<int32_t>() != 1 || a.get<int32_t>() != 1) {
-          r.fail("subsampled channels are not supported");
-        }
-        if (ptype != 1 && ptype != 2) {
-          r.fail("channel '" + cname + "' is not half or float (only those are supported)");
-        }
-        if (channels.size() >= 64) r.fail("more than 64 channels");
-        channels.push_back({cname, ptype});
-      }
-    } else if (attr == "compression") {
-      compression = a.get<uint8_t>();
-    } else if (attr == "dataWindow") {
-      for (int32_t& v : box)
-        v = a.get<int32_t>();
-      have_window = true;
-    }
-    r.pos = end;
-  }
-  if (!have_channels || !have_window || compression < 0) {
-    r.fail("the header lacks a channels, compression or dataWindow attribute");
-  }
-  if (compression != 0) {
-    r.fail("compressed OpenEXR files are not supported (save without compression)");
-  }
-  const int64_t w = int64_t(box[2]) - box[0] + 1, h = int64_t(box[3]) - box[1] + 1;
-  if (w <= 0 || h <= 0)
-    r.fail("invalid data window " +
-           dims(uint64_t(std::max<int64_t>(w, 0)), uint64_t(std::max<int64_t>(h, 0))));
-  check_pixels(name, "OpenEXR", uint64_t(w), uint64_t(h), limits);
-  int src[3] = {-1, -1, -1};
-  uint64_t pixel_bytes = 0;
-  std::vector<uint64_t> channel_offset;
-  for (size_t i = 0; i < channels.size(); ++i) {
-    channel_offset.push_back(pixel_bytes);
-    pixel_bytes += channels[i].type == 1 ? 2 : 4;
-    if (channels[i].name == "R") src[0] = int(i);
-    if (channels[i].name == "G") src[1] = int(i);
-    if (channels[i].name == "B") src[2] = int(i);
-  }
-  if (src[0] < 0) r.fail("no R channel");
-  // The offset table and every scanline block (y, size, pixels) must be in
-  // the file: check the length before allocating the image.
-  const uint64_t line_bytes = uint64_t(w) * pixel_bytes;
-  const uint64_t needed = uint64_t(h) * 8 + uint64_t(h) * (8 + line_bytes);
-  if (needed > r.left()) {
-    r.fail("file is truncated: a " + dims(uint64_t(w), uint64_t(h)) + " image needs " +
-           std::to_string(needed) + " more bytes after the header, the file has " +
-           std::to_string(r.left()));
-  }
-  ImageRGB img{uint32_t(w), uint32_t(h)};
-  std::vector<uint64_t> offsets(static_cast<size_t>(h));
-  for (auto& o : offsets)
-    o = r.get<uint64_t>();
-  std::vector<bool> seen(static_cast<size_t>(h), false);
-  for (int64_t line = 0; line < h; ++line) {
-    const uint64_t offset = offsets[size_t(line)];
-    if (offset > size || size - offset < 8) r.fail("scanline offset out of range");
-    r.pos = size_t(offset);
-    const int64_t y = int64_t(r.get<int32_t>()) - int64_t(box[1]);
-    const uint32_t block = r.get<uint32_t>();
-    if (y < 0 || y >= h || uint64_t(block) != line_bytes) r.fail("corrupt scanline block");
-    if (seen[size_t(y)]) r.fail("scanline " + std::to_string(y) + " appears twice");
-    seen[size_t(y)] = true;
-    r.need(block);
-    const uint8_t* data = bytes + r.pos;
-    for (int c = 0; c < 3; ++c) {
-      const int ch = src[c] >= 0 ? src[c] : src[0];
-      const uint8_t* base = data + channel_offset[size_t(ch)] * uint64_t(w);
-      for (int64_t x = 0; x < w; ++x) {
-        float v;
-        if (channels[size_t(ch)].type == 2) {
-          std::memcpy(&v, base + x * 4, 4);
-        } else {
-          uint16_t hv;
-          std::memcpy(&hv, base + x * 2, 2);
-          v = half_to_float(hv);
-        }
-        img.pixel(uint32_t(x), uint32_t(y))[c] = v;
-      }
-    }
-  }
-  return img;
-}
 
 ImageRGB decode_pfm(const uint8_t* bytes, size_t size, const std::string& name,
                     const ImageReadLimits& limits) {
@@ -386,7 +240,7 @@ ImageRGB decode_hdr(const uint8_t* bytes, size_t size, const std::string& name,
   return img;
 }
 
-// PNG, JPEG and whatever else stb reads, 8 bits, sRGB-decoded to linear.
+// PNG and JPEG through stb, 8 bits, sRGB-decoded to linear.
 ImageRGB decode_8bit(const uint8_t* bytes, size_t size, const std::string& name,
                      const ImageReadLimits& limits) {
   const EncodedImageInfo info = probe_encoded_image(bytes, size);
@@ -394,15 +248,15 @@ ImageRGB decode_8bit(const uint8_t* bytes, size_t size, const std::string& name,
                        : info.format == EncodedImageInfo::kJpeg ? "JPEG"
                                                                 : "image";
   if (size > size_t(INT_MAX)) fail(name, "file too large for the image decoder (over 2 GiB)");
-  int w = 0, h = 0, comp = 0;
-  if (info.format != EncodedImageInfo::kUnknown) {
-    if (!info.header_ok) fail(name, info.problem);
-    check_pixels(name, format, info.width, info.height, limits);
-  } else if (!stbi_info_from_memory(bytes, int(size), &w, &h, &comp)) {
+  // Only PNG and JPEG reach stb: its other decoders (PNM, BMP, TGA, PSD,
+  // GIF, PIC) are not what Tandem documents and not hardened (the fuzzer
+  // made a 15-byte PNM header read past the buffer in libstb).
+  if (info.format == EncodedImageInfo::kUnknown) {
     fail(name, "not an image format Tandem reads (.exr, .pfm, .hdr, .png, .jpg)");
-  } else {
-    check_pixels(name, format, uint64_t(std::max(w, 0)), uint64_t(std::max(h, 0)), limits);
   }
+  if (!info.header_ok) fail(name, info.problem);
+  check_pixels(name, format, info.width, info.height, limits);
+  int w = 0, h = 0, comp = 0;
   unsigned char* data = stbi_load_from_memory(bytes, int(size), &w, &h, &comp, 3);
   if (!data) {
     // The header was checked above, so stb's "too large" and the like
@@ -479,6 +333,30 @@ std::string check_jpeg_tables(const uint8_t* data, size_t size) {
 }
 
 }  // namespace
+
+void fail_image(const std::string& name, const std::string& why) {
+  throw InputError(name + ": " + why);
+}
+
+void check_image_pixels(const std::string& name, const char* format, uint64_t w, uint64_t h,
+                        const ImageReadLimits& limits) {
+  if (w < 1 || h < 1) fail(name, std::string(format) + " image has no pixels (" + dims(w, h) + ")");
+  // w and h are each below 2^32 here, so the product cannot overflow.
+  if (w > UINT32_MAX || h > UINT32_MAX || w * h > limits.max_pixels) {
+    std::string use;
+    if (limits.use != nullptr) use = std::string(" for ") + limits.use;
+    if (limits.bytes_per_pixel_in_use > 0 && w <= UINT32_MAX && h <= UINT32_MAX) {
+      const double gib = double(w * h) * limits.bytes_per_pixel_in_use / double(1u << 30);
+      char text[96];
+      std::snprintf(text, sizeof text, " (it would take about %.1f GiB of memory)", gib);
+      use += text;
+    }
+    if (limits.advice != nullptr) use += std::string("; ") + limits.advice;
+    fail(name, std::string(format) + " header claims " + dims(w, h) +
+                   " pixels, over the limit of " + std::to_string(limits.max_pixels) + " pixels" +
+                   use);
+  }
+}
 
 EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
   EncodedImageInfo info;

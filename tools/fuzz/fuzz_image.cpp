@@ -1,6 +1,7 @@
 // libFuzzer entry for the image readers (environment maps, textures and
-// `compare` inputs): EXR, PFM and HDR by our own decoders, PNG/JPEG by stb
-// after our header probe. The format is chosen from the content, as
+// `compare` inputs): EXR through the OpenEXR library after its header and
+// chunk table are checked, PFM and HDR by our own decoders, PNG/JPEG by
+// stb after our header probe. The format is chosen from the content, as
 // read_image does for a file whose extension says nothing.
 #include <cstdint>
 
