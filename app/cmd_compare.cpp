@@ -189,7 +189,15 @@ void print_test(const char* label, const BlockTest& t) {
   std::printf("  outliers:     %zu of %zu blocks with max |z| > %.2f (limit %zu)\n",
               t.outlier_blocks, t.blocks, kBlockOutlierZ, allowed_outlier_blocks(t.blocks));
   std::printf("  mean z:       %+.4f (limit +-%.4f)\n", t.mean_z, t.mean_z_tolerance());
-  std::printf("  max |z|:      %.2f (limit %.0f; block at x %u, y %u, channel %c)\n", t.max_abs_z,
+  // A block whose difference is the same in every pixel has no noise to
+  // measure it against: its z is infinite (a constant offset, not noise).
+  char max_z[32];
+  if (t.max_abs_z >= 1e300) {
+    std::snprintf(max_z, sizeof max_z, "inf (a constant difference)");
+  } else {
+    std::snprintf(max_z, sizeof max_z, "%.2f", t.max_abs_z);
+  }
+  std::printf("  max |z|:      %s (limit %.0f; block at x %u, y %u, channel %c)\n", max_z,
               kMaxBlockZ, t.worst_x, t.worst_y, "RGB"[t.worst_channel]);
   std::printf(
       "  global z:     R %+.2f  G %+.2f  B %+.2f (limit +-%.0f; whole-image mean difference "

@@ -61,6 +61,11 @@ const std::vector<OptionSpec>& render_options() {
            "output file: .png (tone mapped sRGB), .exr or .pfm (linear radiance, without "
            "--exposure and --tonemap)",
            "FILE", "render.png"},
+          {"exr-pixel", true, "pixel type of .exr output: float | half", "T", "float"},
+          {"exr-compression", true,
+           "compression of .exr output: zip | piz | dwaa | dwab | zips | rle | pxr24 | b44 | "
+           "b44a | none (dwa and b44 are lossy)",
+           "C", "zip"},
       },
       scene_options(),
       environment_options(),
@@ -105,6 +110,27 @@ std::string lower_extension(const std::string& path) {
 
 // After SIGINT/SIGTERM during the render: say so, optionally keep the image,
 // and exit as the shell expects for that signal (128 + its number).
+// The scene's bounds over its whole animation (64 evenly spaced times of
+// one loop; the frames of `range` where it has no fixed length), for the
+// automatic camera. Every frame lies within one loop, so frame N framed
+// alone gets the same camera as frame N of any sequence. Leaves the scene
+// posed at one of those times: the caller poses the first frame.
+SceneBounds animated_bounds(SceneAnimator& animator, const RenderFrames& range, Scene& scene) {
+  SceneBounds bounds;
+  const double duration = animator.duration();
+  constexpr uint32_t kSamples = 64;
+  const uint32_t samples = duration > 0.0 ? kSamples : std::min(range.count(), kSamples);
+  for (uint32_t i = 0; i < samples; ++i) {
+    const double u = samples == 1 ? 0.0 : double(i) / double(samples - 1);
+    const double t = duration > 0.0
+                         ? u * duration
+                         : range.time(range.first + uint32_t(u * (range.count() - 1)) * range.step);
+    animator.pose(t, scene);
+    bounds.extend(scene.bounds());
+  }
+  return bounds;
+}
+
 int finish_interrupted(int sig, const CoreTracer& tracer, uint32_t spp, const std::string& output,
                        const ImageWriteOptions& write_options, bool save) {
   const uint32_t done = tracer.accumulated_spp();
@@ -156,6 +182,8 @@ int run_render(const std::vector<std::string>& argv) {
   ImageWriteOptions write_options;
   write_options.exposure = args.get_float("exposure", -50.0f, 50.0f);
   write_options.tone_map = parse_tone_map(args.get_string("tonemap"));
+  write_options.exr_pixel_type = parse_exr_pixel_type(args.get_string("exr-pixel"));
+  write_options.exr_compression = parse_exr_compression(args.get_string("exr-compression"));
   const std::string output_spec = args.get_string("output");
   const std::optional<RenderFrames> frame_range = parse_render_frames(
       args.value("frame"), args.value("frames"), args.value("fps"), output_spec);
@@ -195,8 +223,14 @@ int run_render(const std::vector<std::string>& argv) {
                                         : "--tonemap",
                  both ? "apply" : "applies", output.c_str(), both ? "them" : "it");
   }
+  if (ext != ".exr" && (args.has("exr-pixel") || args.has("exr-compression"))) {
+    std::fprintf(stderr,
+                 "tandem: warning: --exr-pixel and --exr-compression apply only to .exr "
+                 "output; %s is not one\n",
+                 output.c_str());
+  }
   if (auto aov = args.value("aov")) {
-    if (frame_range && frame_range->count() > 1)
+    if (frame_range && (frame_range->count() > 1 || frame_range->whole_animation))
       throw UsageError("render: --aov writes one frame's feature buffers; use it with --frame N");
     check_aov_directory(*aov);
   }
@@ -210,6 +244,15 @@ int run_render(const std::vector<std::string>& argv) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   std::unique_ptr<SceneAnimator> animator = make_scene_animator(scene, std::move(animations));
   // (An empty glTF scene has been reported by the loader already.)
+  RenderFrames range = frame_range.value_or(RenderFrames{});
+  if (range.whole_animation) {
+    resolve_whole_animation(range, animator->duration());
+    check_render_outputs(output_spec, range, inputs);
+  }
+  if (frame_range && !quiet) {
+    const std::string past_end = frames_past_end_notice(range, animator->duration());
+    if (!past_end.empty()) std::fprintf(stderr, "tandem: %s\n", past_end.c_str());
+  }
 
   // Resolution: explicit, or from the camera's aspect ratio.
   const float aspect =
@@ -245,8 +288,13 @@ int run_render(const std::vector<std::string>& argv) {
   }
 
   if (!scene.has_camera()) {
-    scene.set_camera(frame_bounds_camera(scene.bounds(), 0.6911112f,
-                                         float(settings.width) / float(settings.height)));
+    // Framed over the frames being rendered, not only the rest pose: an
+    // animated object may leave the rest pose's bounds.
+    const SceneBounds bounds = frame_range && animator->animated()
+                                   ? animated_bounds(*animator, range, scene)
+                                   : scene.bounds();
+    scene.set_camera(
+        frame_bounds_camera(bounds, 0.6911112f, float(settings.width) / float(settings.height)));
   }
   if (args.has("aperture") || args.has("focus-distance")) {
     Camera& cam = scene.edit_camera();
@@ -270,7 +318,6 @@ int run_render(const std::vector<std::string>& argv) {
   // Animation frames: frame f is the scene posed at f / fps. The next
   // frame is posed while the last samples of this one render, so from one
   // frame to the next only the moved instances are committed.
-  const RenderFrames range = frame_range.value_or(RenderFrames{});
   if (frame_range) {
     if (!animator->animated() && !quiet)
       std::fprintf(stderr, "tandem: %s has no animation; every frame is the same image\n",
@@ -288,7 +335,7 @@ int run_render(const std::vector<std::string>& argv) {
   tracer.sync_scene(scene);
   // Ctrl-C / SIGTERM while rendering: finish the frame in flight, then stop.
   std::optional<GracefulStop> stop(std::in_place);
-  for (uint32_t frame = range.first; frame <= range.last; ++frame) {
+  for (uint32_t frame = range.first; frame <= range.final_frame(); frame += range.step) {
     const std::string frame_output = frame_range ? frame_output_name(output_spec, frame) : output;
     tracer.reset_accumulation();  // even if nothing moved since the last frame
     tracer_settings.samples_per_frame = per_frame;
@@ -303,8 +350,9 @@ int run_render(const std::vector<std::string>& argv) {
       }
       std::function<void(Scene&)> pose_next;
       // (Not with features: they are traced from the scene as this frame has it.)
-      if (frame < range.last && left <= tracer_settings.samples_per_frame && !with_features) {
-        const double next_time = range.time(frame + 1);
+      if (frame < range.final_frame() && left <= tracer_settings.samples_per_frame &&
+          !with_features) {
+        const double next_time = range.time(frame + range.step);
         pose_next = [&animator, next_time](Scene& s) { animator->pose(next_time, s); };
       }
       const FrameMetrics& m = tracer.render_frame(scene, pose_next);
@@ -324,7 +372,7 @@ int run_render(const std::vector<std::string>& argv) {
         t.planned_share = f.planned_share;  // the last frame's plan
       }
       if (bar.enabled())
-        bar.update((double(frame - range.first) + double(done) / double(spp)) /
+        bar.update((double(range.index(frame)) + double(done) / double(spp)) /
                    double(range.count()));
     }
     if (stop->requested()) {
@@ -343,7 +391,8 @@ int run_render(const std::vector<std::string>& argv) {
       if (args.has("denoise")) final_image = denoise_offline_image(features, final_image, spp);
     }
     write_image(frame_output, final_image, write_options);
-    if (with_features && frame < range.last) animator->pose(range.time(frame + 1), scene);
+    if (with_features && frame < range.final_frame())
+      animator->pose(range.time(frame + range.step), scene);
     if (frame_range && range.count() > 1 && !quiet && !bar.enabled())
       std::fprintf(stderr, "tandem: frame %u (t = %.4f s) -> %s\n", frame, range.time(frame),
                    frame_output.c_str());

@@ -2,8 +2,10 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
@@ -45,12 +47,23 @@ std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>
   RenderFrames r;
   if (frame) {
     r.first = r.last = parse_frame_number(*frame, "--frame", *frame);
+  } else if (*frames == "all") {
+    r.whole_animation = true;
   } else {
     const size_t dots = frames->find("..");
     if (dots == std::string::npos)
-      throw UsageError("render: --frames expects a range A..B, got '" + *frames + "'");
+      throw UsageError("render: --frames expects a range A..B, A..B..STEP or all, got '" + *frames +
+                       "'");
     r.first = parse_frame_number(frames->substr(0, dots), "--frames", *frames);
-    r.last = parse_frame_number(frames->substr(dots + 2), "--frames", *frames);
+    std::string rest = frames->substr(dots + 2);
+    const size_t step_dots = rest.find("..");
+    if (step_dots != std::string::npos) {
+      r.step = parse_frame_number(rest.substr(step_dots + 2), "--frames", *frames);
+      if (r.step == 0)
+        throw UsageError("render: --frames step must be 1 or more, got '" + *frames + "'");
+      rest = rest.substr(0, step_dots);
+    }
+    r.last = parse_frame_number(rest, "--frames", *frames);
     if (r.last < r.first)
       throw UsageError("render: --frames range '" + *frames + "' ends before it starts");
   }
@@ -61,12 +74,38 @@ std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>
       throw UsageError("render: --fps expects a frame rate > 0, got '" + *fps + "'");
     r.fps = v;
   }
-  if (r.count() > 1 && output.find('#') == std::string::npos) {
-    throw UsageError("render: --frames renders " + std::to_string(r.count()) +
-                     " frames; --output needs a frame-number pattern such as out_####.png, got '" +
+  if ((r.count() > 1 || r.whole_animation) && output.find('#') == std::string::npos) {
+    const std::string what =
+        r.whole_animation ? "every frame of the animation" : std::to_string(r.count()) + " frames";
+    throw UsageError("render: --frames renders " + what +
+                     "; --output needs a frame-number pattern such as out_####.png, got '" +
                      output + "'");
   }
   return r;
+}
+
+void resolve_whole_animation(RenderFrames& frames, double duration) {
+  frames.first = 0;
+  // The small tolerance keeps a duration of exactly k / fps at frame k.
+  const double last = duration > 0.0 ? std::floor(duration * frames.fps + 1e-6) : 0.0;
+  frames.last = uint32_t(std::min<double>(last, kMaxFrame));
+}
+
+std::string frames_past_end_notice(const RenderFrames& frames, double duration) {
+  if (duration <= 0.0) return "";
+  const uint32_t final_frame = frames.final_frame();
+  if (frames.time(final_frame) <= duration * (1.0 + 1e-9)) return "";
+  // The first frame of the range past the end.
+  uint32_t first_past = frames.first;
+  while (frames.time(first_past) <= duration * (1.0 + 1e-9))
+    first_past += frames.step;
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "frames %u..%u are past the end of the animation (%.4g s long: its last frame at "
+                "%g fps is %u); it loops, so they show it again from its start",
+                first_past, final_frame, duration, frames.fps,
+                uint32_t(std::floor(duration * frames.fps + 1e-6)));
+  return text;
 }
 
 std::string frame_output_name(const std::string& output, uint32_t frame) {
@@ -126,7 +165,7 @@ void check_render_outputs(const std::string& output, const std::optional<RenderF
   std::string last_folder;
   size_t last_length = 0;
   bool compare = false;
-  for (uint32_t f = range.first;; ++f) {
+  for (uint32_t f = range.first;; f += range.step) {
     const std::string path = frame_output_name(output, f);
     std::string folder = folder_of(path);
     if (f == range.first || folder != last_folder || path.size() != last_length) {
@@ -136,7 +175,7 @@ void check_render_outputs(const std::string& output, const std::optional<RenderF
       last_length = path.size();
     }
     if (compare) check_not_input(path);
-    if (f == range.last) break;
+    if (f == range.final_frame()) break;
   }
 }
 

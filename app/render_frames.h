@@ -1,7 +1,9 @@
-// `tandem render --frame N | --frames A..B [--fps F]`: which animation
-// frames to render and where each one goes, as Blender Cycles does it. Frame
-// f is the scene at time f / fps; a run of '#' in the output name is
-// replaced by the zero-padded frame number (out_####.png -> out_0001.png).
+// `tandem render --frame N | --frames A..B[..S] | --frames all [--fps F]`:
+// which animation frames to render and where each one goes, as Blender
+// Cycles does it. Frame f is the scene at time f / fps; every S-th frame
+// from A to B (S = 1 by default); `all` is frames 0 to the end of the
+// longest animation. A run of '#' in the output name is replaced by the
+// zero-padded frame number (out_####.png -> out_0001.png).
 #pragma once
 
 #include <cstdint>
@@ -12,16 +14,31 @@
 namespace tandem {
 
 struct RenderFrames {
-  uint32_t first = 0, last = 0;
+  uint32_t first = 0, last = 0, step = 1;
+  // `--frames all`: first and last come from the animation's length once
+  // the scene is loaded (resolve_whole_animation); until then 0..0.
+  bool whole_animation = false;
   double fps = 24.0;
-  uint32_t count() const { return last - first + 1; }
+  uint32_t count() const { return (last - first) / step + 1; }
+  // The last frame rendered (last itself only when the step lands on it).
+  uint32_t final_frame() const { return first + (count() - 1) * step; }
+  uint32_t index(uint32_t frame) const { return (frame - first) / step; }
   double time(uint32_t frame) const { return double(frame) / fps; }
 };
+
+// For `--frames all`: frames 0 up to the last one within `duration`
+// seconds (0..0 for a scene that does not move).
+void resolve_whole_animation(RenderFrames& frames, double duration);
+
+// The one line that says frames of `frames` lie past the end of an
+// animation of `duration` seconds (it loops, so they repeat its start), or
+// "" when none does or the scene does not move.
+std::string frames_past_end_notice(const RenderFrames& frames, double duration);
 
 // From the option values (each unset when not given): nullopt when neither
 // --frame nor --frames is given (a still render of the scene as loaded).
 // Throws UsageError for malformed values, both options at once, or several
-// frames with an output name that has no '#' pattern.
+// frames (or `all`) with an output name that has no '#' pattern.
 std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>& frame,
                                                 const std::optional<std::string>& frames,
                                                 const std::optional<std::string>& fps,

@@ -86,6 +86,9 @@ TEST(AppRenderFrames, BadFrameOptionsAreUsageErrors) {
       {"--frame 1 --frames 1..2 --output " + out, "not both"},
       {"--frames 3..1 --output " + out, "ends before it starts"},
       {"--frames 1-3 --output " + out, "range A..B"},
+      {"--frames 1..9..0 --output " + out, "step must be 1 or more"},
+      {"--frames 1..9..x --output " + out, "frame numbers"},
+      {"--frames all --output " + out, "every frame of the animation"},
       {"--frame -1 --output " + out, "frame numbers"},
       {"--frame 1 --fps 0 --output " + out, "--fps"},
       {"--fps 30 --output " + out, "--fps needs"},
@@ -96,6 +99,70 @@ TEST(AppRenderFrames, BadFrameOptionsAreUsageErrors) {
     EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
   }
   EXPECT_FALSE(fs::exists(dir.path() / "out.png"));
+}
+
+const std::string kBoxAnimated =
+    (fs::path(TANDEM_SHARED_DIR) / "scenes/gltf/BoxAnimated/glTF/BoxAnimated.gltf").string();
+
+TEST(AppRenderFrames, StepsAllAndFramesPastTheEnd) {
+  TempDir dir("tandem_render_frames_step");
+  const std::string base = "render " + shell_quote(kBoxAnimated) +
+                           " --width 8 --height 6 --spp 1 --max-depth 1 --backend cpu "
+                           "--env-color 1 --fps 2 ";
+  // Every 3rd frame of 1..8: 1, 4, 7 (8 is not on the step).
+  const auto stepped = run_tandem(base + "--frames 1..8..3 --output " +
+                                  shell_quote((dir.path() / "s_#.pfm").string()));
+  ASSERT_EQ(stepped.exit_code, 0) << stepped.output;
+  for (const char* f : {"s_1.pfm", "s_4.pfm", "s_7.pfm"})
+    EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
+  for (const char* f : {"s_2.pfm", "s_8.pfm"})
+    EXPECT_FALSE(fs::exists(dir.path() / f)) << f;
+  // The animation lasts 3.708 s: at 2 fps `all` is frames 0..7, and
+  // frames from 8 on (t = 4 s) say once that the animation loops.
+  EXPECT_EQ(stepped.output.find("past the end"), std::string::npos) << stepped.output;
+  const auto all = run_tandem(base + "--frames all --quiet --output " +
+                              shell_quote((dir.path() / "a_#.pfm").string()));
+  ASSERT_EQ(all.exit_code, 0) << all.output;
+  for (int f = 0; f <= 7; ++f)
+    EXPECT_TRUE(fs::exists(dir.path() / ("a_" + std::to_string(f) + ".pfm"))) << f;
+  EXPECT_FALSE(fs::exists(dir.path() / "a_8.pfm"));
+  const auto past =
+      run_tandem(base + "--frames 6..9 --output " + shell_quote((dir.path() / "p_#.pfm").string()));
+  ASSERT_EQ(past.exit_code, 0) << past.output;
+  EXPECT_NE(past.output.find("frames 8..9 are past the end of the animation (3.708 s long: its "
+                             "last frame at 2 fps is 7); it loops"),
+            std::string::npos)
+      << past.output;
+  // A frame past the end is the frame one loop earlier (t - 3.708 s).
+  EXPECT_EQ(read_image(dir.path() / "p_8.pfm").rgb.size(), 8u * 6 * 3);
+}
+
+// BoxAnimated lifts one box well above the other: the automatic camera
+// frames the whole animation, so no frame cuts it off. Against a white sky
+// every frame's border is sky, and the boxes are in every picture.
+TEST(AppRenderFrames, TheAutomaticCameraFramesTheWholeAnimation) {
+  TempDir dir("tandem_render_frames_framing");
+  const std::string pattern = (dir.path() / "f_##.pfm").string();
+  const auto r = run_tandem("render " + shell_quote(kBoxAnimated) +
+                            " --width 48 --height 36 --spp 1 --max-depth 1 --backend cpu "
+                            "--env-color 1 --quiet --frames 0..80..10 --output " +
+                            shell_quote(pattern));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (uint32_t f = 0; f <= 80; f += 10) {
+    const ImageRGB img =
+        read_image(dir.path() / ((f < 10 ? "f_0" : "f_") + std::to_string(f) + ".pfm"));
+    size_t object = 0, border_object = 0;
+    for (uint32_t y = 0; y < img.height; ++y) {
+      for (uint32_t x = 0; x < img.width; ++x) {
+        const bool sky = img.pixel(x, y)[0] == 1.0f && img.pixel(x, y)[2] == 1.0f;
+        object += !sky;
+        const bool border = x == 0 || y == 0 || x + 1 == img.width || y + 1 == img.height;
+        border_object += border && !sky;
+      }
+    }
+    EXPECT_GT(object, 40u) << "frame " << f;
+    EXPECT_EQ(border_object, 0u) << "frame " << f << ": the animation leaves the picture";
+  }
 }
 
 TEST(AppRenderFrames, AStaticSceneRendersEveryFrameAndSaysSo) {
