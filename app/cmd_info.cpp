@@ -1,5 +1,6 @@
 // `tandem info SCENE`: what a scene contains.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -96,6 +97,40 @@ int run_info(const std::vector<std::string>& argv) {
     for (size_t i = 0; i < gltf.camera_names.size(); ++i)
       std::printf("  %zu: %s\n", i, gltf.camera_names[i].c_str());
     if (gltf.camera_names.size() < gltf.scene_cameras) std::printf("  ...\n");
+  }
+  // The file's scenes (--gltf-scene N), animations, skins and morph targets.
+  if (gltf.scenes > 1) {
+    std::printf("scenes:     %zu, scene %d loaded (choose with --gltf-scene N)\n", gltf.scenes,
+                gltf.scene_loaded);
+    for (size_t i = 0; i < gltf.scene_names.size(); ++i)
+      std::printf("  %zu: %s\n", i,
+                  gltf.scene_names[i].empty() ? "(unnamed)" : gltf.scene_names[i].c_str());
+    if (gltf.scene_names.size() < gltf.scenes) std::printf("  ...\n");
+  }
+  if (!gltf.animation_list.empty()) {
+    std::printf(
+        "animations: %zu (render plays them all: --frames all, or --frames A..B at --fps)\n",
+        gltf.animations);
+    for (size_t i = 0; i < gltf.animation_list.size(); ++i) {
+      const GltfSummary::Animation& a = gltf.animation_list[i];
+      // The frames `--frames all` renders at the default rate.
+      const double last_frame = std::floor(a.seconds * 24.0 + 1e-6);
+      std::printf("  %zu: %s, %.4g s (frames 0..%.0f at 24 fps), %zu channels\n", i,
+                  a.name.empty() ? "(unnamed)" : a.name.c_str(), a.seconds, last_frame, a.channels);
+    }
+    if (gltf.animation_list.size() < gltf.animations) std::printf("  ...\n");
+  }
+  if (!gltf.skin_list.empty()) {
+    std::printf("skins:      %zu\n", gltf.skins);
+    for (size_t i = 0; i < gltf.skin_list.size(); ++i)
+      std::printf("  %zu: %s, %zu joints\n", i,
+                  gltf.skin_list[i].name.empty() ? "(unnamed)" : gltf.skin_list[i].name.c_str(),
+                  gltf.skin_list[i].joints);
+    if (gltf.skin_list.size() < gltf.skins) std::printf("  ...\n");
+  }
+  if (gltf.morph_meshes > 0) {
+    std::printf("morphs:     %zu meshes with morph targets (up to %zu targets)\n",
+                gltf.morph_meshes, gltf.most_morph_targets);
   }
   // The file's extensions and what becomes of each here.
   if (!gltf.extensions_used.empty() || !gltf.extensions_required.empty()) {

@@ -206,6 +206,10 @@ void load_animations(Context& ctx, AccessorCache& cache, const std::vector<Walke
                      bool channels = true);
 // Default morph weights of node `n`'s mesh: node.weights, else mesh.weights,
 // else zeros; one per morph target (empty without a mesh or targets).
+// The lists of `summary` that `tandem info` prints (scenes, animations
+// with their lengths, skins, morph targets), from a validated model.
+void describe_file_contents(const tinygltf::Model& model, GltfSummary& summary);
+
 std::vector<float> gltf_default_weights(const tinygltf::Model& m, const tinygltf::Node& n);
 
 // --- gltf_skin.cpp ------------------------------------------------------------------

@@ -752,6 +752,7 @@ Scene load_parsed(const std::string& label, tinygltf::Model& model, gltf::Encode
     s.skins = model.skins.size();
     s.extensions_used = model.extensionsUsed;
     s.extensions_required = model.extensionsRequired;
+    gltf::describe_file_contents(model, s);
   }
   return scene;
 }

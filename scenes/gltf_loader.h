@@ -97,6 +97,21 @@ struct GltfSummary {
   std::vector<Camera> camera_list;  // the same first 100, as the scene would take them
   std::vector<std::string> extensions_used;
   std::vector<std::string> extensions_required;
+  // What `tandem info` lists of the file (the first 100 of each).
+  std::vector<std::string> scene_names;  // "" where unnamed
+  struct Animation {
+    std::string name;
+    double seconds = 0.0;  // the last key time of its channels
+    size_t channels = 0;
+  };
+  std::vector<Animation> animation_list;
+  struct Skin {
+    std::string name;
+    size_t joints = 0;
+  };
+  std::vector<Skin> skin_list;
+  size_t morph_meshes = 0;        // meshes with morph targets
+  size_t most_morph_targets = 0;  // the most targets one primitive has
 };
 
 // Loads `path`. Throws InputError whose what() is "<path>: <reason>" for any

@@ -135,6 +135,32 @@ TEST(CliTest, InfoListsTheFilesExtensionsAndWhatBecomesOfThem) {
       << r.output;
 }
 
+// Scenes, animations with the frames `--frames all` renders, skins and
+// morph targets, as the samples declare them.
+TEST(CliTest, InfoListsScenesAnimationsSkinsAndMorphs) {
+  const auto info = [](const std::string& file) {
+    const RunResult r = run_tandem("info " + shell_quote((kShared / file).string()));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return r.output;
+  };
+  const std::string box = info("gltf/BoxAnimated/glTF/BoxAnimated.gltf");
+  EXPECT_NE(box.find("animations: 1 "), std::string::npos) << box;
+  EXPECT_NE(box.find("  0: (unnamed), 3.708 s (frames 0..88 at 24 fps), 2 channels"),
+            std::string::npos)
+      << box;
+  const std::string figure = info("skinned/RiggedFigure/glTF-Embedded/RiggedFigure.gltf");
+  EXPECT_NE(figure.find("skins:      1\n  0: Armature, 19 joints"), std::string::npos) << figure;
+  const std::string morph = info("skinned/SimpleMorph/glTF-Embedded/SimpleMorph.gltf");
+  EXPECT_NE(morph.find("morphs:     1 meshes with morph targets (up to 2 targets)"),
+            std::string::npos)
+      << morph;
+  const std::string scenes = info("gltf/MultipleScenes/glTF/MultipleScenes.gltf");
+  EXPECT_NE(scenes.find("scenes:     2, scene 1 loaded (choose with --gltf-scene N)"),
+            std::string::npos)
+      << scenes;
+  EXPECT_EQ(info("gltf/Box/glTF/Box.gltf").find("animations:"), std::string::npos);
+}
+
 // The file's cameras are listed and chosen by index; one beyond them is a
 // clear error before anything renders.
 TEST(CliTest, InfoListsTheCamerasAndCameraChoosesOne) {
