@@ -14,13 +14,19 @@ case "$mode" in
   *) echo "usage: ./setup.sh demo|test   (also: deps, build)" >&2; exit 2 ;;
 esac
 
+# What building `tandem` needs: all the demo installs. The rest (viewer,
+# tests, benchmarks, MPI, sanitizers, fuzzing) comes with the other modes.
 packages=(cmake ninja-build g++ pkg-config
           libembree-dev libtbb-dev libglm-dev libtinygltf-dev libstb-dev libopenexr-dev
-          libsdl2-dev libimgui-dev libgtest-dev libbenchmark-dev
-          xvfb xauth
-          libopenmpi-dev openmpi-bin
-          clang libclang-rt-14-dev clang-format
-          python3)
+          libpng-dev)
+if [ "$mode" != demo ]; then
+  packages+=(libsdl2-dev libimgui-dev
+             libgtest-dev libbenchmark-dev
+             xvfb xauth
+             libopenmpi-dev openmpi-bin
+             clang libclang-rt-14-dev clang-format
+             python3)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -89,8 +95,19 @@ run_fuzzers() {
     grep -E '^stat::number_of_executed_units|^Done' "$findings/$target.log" || true
   done
 }
-cmake --preset release >/dev/null
-cmake --build --preset release -j "$jobs"
+case "$mode" in
+  demo)
+    # Only the executables: the demo needs neither the test binaries nor
+    # the benchmarks (most of a full build). `./setup.sh test` later turns
+    # the tests back on in the same build folder.
+    cmake --preset release -DTANDEM_BUILD_TESTS=OFF >/dev/null
+    cmake --build --preset release -j "$jobs" --target tandem
+    ;;
+  *)
+    cmake --preset release -DTANDEM_BUILD_TESTS=ON >/dev/null
+    cmake --build --preset release -j "$jobs"
+    ;;
+esac
 
 case "$mode" in
   demo)

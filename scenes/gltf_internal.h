@@ -185,6 +185,11 @@ MaterialResult convert_materials(Context& ctx, const EncodedImages& encoded);
 // RGBA8 (grey -> RGB = grey, missing alpha -> 255, 16 bit -> 8 bit rounded).
 // Returns false when the layout is not one of those.
 bool image_to_rgba8(const tinygltf::Image& image, std::vector<uint32_t>& out);
+// An 8-bit PNG (any colour type, interlaced or not) to packed RGBA8 through
+// libpng (gltf_png.cpp). False with `error` set when libpng refuses it
+// (16-bit PNGs included: those go through stb).
+bool decode_png_rgba8(const unsigned char* bytes, size_t size, uint32_t& width, uint32_t& height,
+                      std::vector<uint32_t>& rgba8, std::string& error);
 // The same for `size` bytes of decoded pixels.
 bool pixels_to_rgba8(const unsigned char* data, size_t size, int width, int height, int channels,
                      int bits, std::vector<uint32_t>& out);
