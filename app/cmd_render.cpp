@@ -110,27 +110,6 @@ std::string lower_extension(const std::string& path) {
 
 // After SIGINT/SIGTERM during the render: say so, optionally keep the image,
 // and exit as the shell expects for that signal (128 + its number).
-// The scene's bounds over its whole animation (64 evenly spaced times of
-// one loop; the frames of `range` where it has no fixed length), for the
-// automatic camera. Every frame lies within one loop, so frame N framed
-// alone gets the same camera as frame N of any sequence. Leaves the scene
-// posed at one of those times: the caller poses the first frame.
-SceneBounds animated_bounds(SceneAnimator& animator, const RenderFrames& range, Scene& scene) {
-  SceneBounds bounds;
-  const double duration = animator.duration();
-  constexpr uint32_t kSamples = 64;
-  const uint32_t samples = duration > 0.0 ? kSamples : std::min(range.count(), kSamples);
-  for (uint32_t i = 0; i < samples; ++i) {
-    const double u = samples == 1 ? 0.0 : double(i) / double(samples - 1);
-    const double t = duration > 0.0
-                         ? u * duration
-                         : range.time(range.first + uint32_t(u * (range.count() - 1)) * range.step);
-    animator.pose(t, scene);
-    bounds.extend(scene.bounds());
-  }
-  return bounds;
-}
-
 int finish_interrupted(int sig, const CoreTracer& tracer, uint32_t spp, const std::string& output,
                        const ImageWriteOptions& write_options, bool save) {
   const uint32_t done = tracer.accumulated_spp();
@@ -290,9 +269,8 @@ int run_render(const std::vector<std::string>& argv) {
   if (!scene.has_camera()) {
     // Framed over the frames being rendered, not only the rest pose: an
     // animated object may leave the rest pose's bounds.
-    const SceneBounds bounds = frame_range && animator->animated()
-                                   ? animated_bounds(*animator, range, scene)
-                                   : scene.bounds();
+    // (Over one loop, so frame N is framed the same alone or in a sequence.)
+    const SceneBounds bounds = frame_range ? animation_bounds(*animator, scene) : scene.bounds();
     scene.set_camera(
         frame_bounds_camera(bounds, 0.6911112f, float(settings.width) / float(settings.height)));
   }

@@ -78,4 +78,17 @@ std::unique_ptr<SceneAnimator> make_scene_animator(const Scene& scene, GltfAnima
   return std::make_unique<StaticAnimator>();
 }
 
+SceneBounds animation_bounds(SceneAnimator& animator, Scene& scene) {
+  const double duration = animator.duration();
+  if (!animator.animated() || !(duration > 0.0)) return scene.bounds();
+  constexpr int kPoses = 64;
+  SceneBounds bounds;
+  for (int i = 0; i < kPoses; ++i) {
+    animator.pose(duration * double(i) / double(kPoses - 1), scene);
+    bounds.extend(scene.bounds());
+  }
+  animator.pose(0.0, scene);
+  return bounds;
+}
+
 }  // namespace tandem

@@ -35,4 +35,10 @@ class SceneAnimator {
 std::unique_ptr<SceneAnimator> make_scene_animator(const Scene& scene,
                                                    GltfAnimations animations = {});
 
+// The scene's bounds over one loop of its animation (64 evenly spaced
+// poses), for an automatic camera that keeps a moving object in the
+// picture; the bounds as they are when nothing moves or the motion has no
+// fixed length. Leaves the scene posed at t = 0 when it poses it.
+SceneBounds animation_bounds(SceneAnimator& animator, Scene& scene);
+
 }  // namespace tandem

@@ -39,7 +39,8 @@ ViewSession::ViewSession(const ViewOptions& options)
   camera_index_ = std::max(options.scene_load.camera, 0);
   animator_ = make_scene_animator(scene_, std::move(animations));
   if (!scene_.has_camera()) {
-    scene_.set_camera(frame_bounds_camera(scene_.bounds(), 0.6911112f,
+    // Over the whole animation, which the viewer plays.
+    scene_.set_camera(frame_bounds_camera(animation_bounds(*animator_, scene_), 0.6911112f,
                                           float(options.width) / float(options.height)));
   }
   initial_camera_ = scene_.camera();
