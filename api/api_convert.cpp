@@ -309,6 +309,8 @@ void check_options(const RendererOptions& o, const char* what) {
   if (o.samples_per_frame == 0 || o.samples_per_frame > kMaxSamplesPerFrame)
     invalid(std::string(what) + ": samples_per_frame must be in [1, 4096]");
   if (o.max_depth > kMaxDepth) invalid(std::string(what) + ": max_depth must be at most 1024");
+  if (o.threads > 4096 || o.reserve_cores > 4096)
+    invalid(std::string(what) + ": threads and reserve_cores must each be at most 4096");
   switch (o.backend) {
     case BackendChoice::kAuto:
     case BackendChoice::kCpu:

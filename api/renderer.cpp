@@ -10,6 +10,10 @@
 #include <stdexcept>
 #include <utility>
 
+#include <tbb/global_control.h>
+
+#include <thread>
+
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
@@ -166,14 +170,32 @@ Transform operator*(const Transform& a, const Transform& b) {
   return t;
 }
 
+// The CPU threads `o` allows: threads (0 = one per core) less the cores
+// reserved for the host, at least 1.
+uint32_t thread_budget(const RendererOptions& o) {
+  const uint32_t cores = std::max(1u, std::thread::hardware_concurrency());
+  const uint32_t threads = o.threads > 0 ? o.threads : cores;
+  return threads > o.reserve_cores ? threads - o.reserve_cores : 1u;
+}
+
 struct Renderer::Impl {
   RendererOptions options;
+  // TBB's process-wide limit while this renderer lives: every CPU stage of
+  // the engine runs on TBB (the texture decoders read the same limit).
+  std::optional<tbb::global_control> thread_limit;
   Scene scene;
   std::unique_ptr<CoreTracer> tracer;
   std::vector<std::string> last_backend_names;  // of the last completed frame
   bool in_flight = false;
   bool image_valid = false;
   uint64_t frames = 0;
+
+  void apply_thread_budget() {
+    thread_limit.reset();
+    const uint32_t budget = thread_budget(options);
+    if (budget < std::max(1u, std::thread::hardware_concurrency()) || options.threads > 0)
+      thread_limit.emplace(tbb::global_control::max_allowed_parallelism, budget);
+  }
 
   TracerSettings tracer_settings() const {
     TracerSettings s;
@@ -231,6 +253,7 @@ Renderer::Renderer(const RendererOptions& options) : impl_(std::make_unique<Impl
   if (!g_host_chose_logging) set_log_level(LogLevel::kQuiet);  // before the backends speak
   api_detail::check_options(options, "Renderer");
   impl_->options = options;
+  impl_->apply_thread_budget();
   impl_->create_tracer();
 }
 
@@ -338,6 +361,7 @@ void Renderer::set_options(const RendererOptions& options) {
     im.require_idle("set_options (a new backend)");
     const RendererOptions old = im.options;
     im.options = options;
+    im.apply_thread_budget();
     try {
       im.create_tracer();
     } catch (...) {
@@ -345,6 +369,11 @@ void Renderer::set_options(const RendererOptions& options) {
       throw;
     }
     return;
+  }
+  if (options.threads != im.options.threads || options.reserve_cores != im.options.reserve_cores) {
+    im.require_idle("set_options (a new thread budget)");
+    im.options = options;
+    im.apply_thread_budget();
   }
   im.options = options;
   // A frame in flight keeps its settings; these apply from the next one.
@@ -402,6 +431,21 @@ FrameInfo Renderer::end_frame() {
   info.accumulation_reset = m.accumulation_reset;
   info.seconds = m.total_seconds;
   info.rays = m.rays();
+  info.threads =
+      uint32_t(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  uint64_t samples = 0;
+  for (const BackendFrameMetrics& b : m.backends)
+    samples += b.samples;
+  for (const BackendFrameMetrics& b : m.backends) {
+    BackendFrameStats s;
+    s.name = b.name;
+    s.share = samples > 0 ? double(b.samples) / double(samples) : 0.0;
+    s.seconds = b.seconds;
+    s.rays = b.rays;
+    s.mrays_per_second = b.seconds > 0.0 ? double(b.rays) / b.seconds * 1e-6 : 0.0;
+    s.upload_bytes = b.commit_bytes;
+    info.backends.push_back(std::move(s));
+  }
   return info;
 }
 
@@ -427,6 +471,32 @@ uint32_t Renderer::height() const {
 std::vector<float> Renderer::image_linear() const {
   impl_->require_image("image_linear");
   return impl_->tracer->image().rgb;
+}
+
+void Renderer::copy_image_linear(float* out, size_t count) const {
+  impl_->require_image("copy_image_linear");
+  const ImageRGB& img = impl_->tracer->image();
+  if (out == nullptr) invalid("copy_image_linear: the buffer is null");
+  if (count < img.rgb.size()) {
+    invalid("copy_image_linear: the buffer holds " + std::to_string(count) + " floats; the " +
+            std::to_string(img.width) + "x" + std::to_string(img.height) + " image needs " +
+            std::to_string(img.rgb.size()));
+  }
+  std::copy(img.rgb.begin(), img.rgb.end(), out);
+}
+
+void Renderer::copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops,
+                                ToneCurve curve) const {
+  impl_->require_image("copy_image_srgb8");
+  if (!std::isfinite(exposure_stops)) invalid("copy_image_srgb8: exposure_stops is not finite");
+  const ImageRGB& img = impl_->tracer->image();
+  if (out == nullptr) invalid("copy_image_srgb8: the buffer is null");
+  if (count < img.rgb.size()) {
+    invalid("copy_image_srgb8: the buffer holds " + std::to_string(count) + " bytes; the " +
+            std::to_string(img.width) + "x" + std::to_string(img.height) + " image needs " +
+            std::to_string(img.rgb.size()));
+  }
+  tone_map_to_srgb8_into(img, exposure_stops, to_tone_map(curve), out);
 }
 
 std::vector<uint8_t> Renderer::image_srgb8(float exposure_stops, ToneCurve curve) const {

@@ -221,7 +221,8 @@ std::vector<std::unique_ptr<Backend>> create_backends(BackendKind kind,
   std::string reason;
   switch (kind) {
     case BackendKind::kCuda: {
-      if (!cuda_device_available(&reason)) throw InputError("--backend cuda: " + reason);
+      if (!cuda_device_available(&reason))
+        throw InputError("the cuda backend cannot run: " + reason);
       // Asked for by name: failures reach the user instead of a fallback,
       // unless the user listed other backends beside it.
       std::unique_ptr<Backend> cuda = std::make_unique<CudaBackend>(options.kernel);

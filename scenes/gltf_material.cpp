@@ -13,6 +13,8 @@
 #include <set>
 #include <string_view>
 #include <thread>
+
+#include <tbb/global_control.h>
 #include <tuple>
 #include <utility>
 
@@ -380,8 +382,13 @@ class MaterialConverter {
         }
       }
     };
-    const size_t threads =
-        std::min<size_t>(jobs.size(), std::max(1u, std::thread::hardware_concurrency()));
+    // As many threads as TBB's limit allows (an embedding host's thread
+    // budget is a tbb::global_control; without one it is every core).
+    const size_t allowed =
+        tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+    const size_t threads = std::min<size_t>(
+        jobs.size(),
+        std::max<size_t>(1, std::min<size_t>(allowed, std::thread::hardware_concurrency())));
     std::vector<std::thread> pool;
     for (size_t t = 1; t < threads; ++t)
       pool.emplace_back(worker);

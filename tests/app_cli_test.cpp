@@ -213,7 +213,8 @@ TEST(CliTest, CudaBackendWithoutDeviceExitsOne) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   // One clear line: which option failed and why (no driver, no device, a
   // driver too old, or a build without CUDA), not a CUDA error dump.
-  EXPECT_NE(r.output.find("tandem: error: --backend cuda: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("tandem: error: the cuda backend cannot run: "), std::string::npos)
+      << r.output;
   const bool explained = r.output.find("driver") != std::string::npos ||
                          r.output.find("no CUDA device") != std::string::npos ||
                          r.output.find("no CUDA backend") != std::string::npos ||

@@ -175,15 +175,35 @@ struct RendererOptions {
   uint32_t samples_per_frame = 1;       // per pixel and frame, [1, 4096]
   uint32_t max_depth = 8;               // scattering events per path; 1 = direct light only
   uint32_t seed = 0;                    // same seed and scene: same image, bit for bit
+  // The CPU threads the renderer may use (BVH builds, the CPU backend's
+  // tiles, texture decoding, the film): `threads` (0 = one per core) less
+  // `reserve_cores` left to the host (its game loop), at least 1; each in
+  // [0, 4096]. The budget is process-wide while the Renderer lives (TBB's
+  // global limit: with several Renderers the smallest budget holds). The
+  // image does not depend on it.
+  uint32_t threads = 0;
+  uint32_t reserve_cores = 0;
+};
+
+// What one backend did in a frame.
+struct BackendFrameStats {
+  std::string name;      // "cpu", "cuda", "host"
+  double share = 0.0;    // of the frame's samples, 0..1
+  double seconds = 0.0;  // rendering
+  uint64_t rays = 0;
+  double mrays_per_second = 0.0;
+  uint64_t upload_bytes = 0;  // scene and BVH changes sent to this backend
 };
 
 // What one frame did.
 struct FrameInfo {
-  uint64_t frame = 0;               // counts every frame rendered by this renderer
-  uint32_t accumulated_spp = 0;     // samples per pixel in the image now
-  bool accumulation_reset = false;  // a scene or settings change restarted accumulation
-  double seconds = 0.0;             // wall time of the frame, begin to end
-  uint64_t rays = 0;                // rays traced by all backends
+  uint64_t frame = 0;                       // counts every frame rendered by this renderer
+  uint32_t accumulated_spp = 0;             // samples per pixel in the image now
+  bool accumulation_reset = false;          // a scene or settings change restarted accumulation
+  double seconds = 0.0;                     // wall time of the frame, begin to end
+  uint64_t rays = 0;                        // rays traced by all backends
+  uint32_t threads = 0;                     // CPU threads the frame could use (the budget)
+  std::vector<BackendFrameStats> backends;  // each backend's part of the frame
 };
 
 enum class ToneCurve { kStandard, kAces, kReinhard };
@@ -310,9 +330,18 @@ class Renderer {
   uint32_t height() const;
   // Linear RGB radiance, width() * height() * 3 floats.
   std::vector<float> image_linear() const;
+  // The same into the caller's buffer of `count` floats (at least
+  // width() * height() * 3), without an allocation: for a game that
+  // uploads the frame into its own texture. Errors: kInvalidArgument for a
+  // null or short buffer, kInvalidState as above.
+  void copy_image_linear(float* out, size_t count) const;
   // Exposure (stops), tone curve and sRGB encoding: width() * height() * 3 bytes.
   std::vector<uint8_t> image_srgb8(float exposure_stops = 0.0f,
                                    ToneCurve curve = ToneCurve::kStandard) const;
+  // The same into the caller's buffer of `count` bytes (at least
+  // width() * height() * 3). Errors: as copy_image_linear.
+  void copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops = 0.0f,
+                        ToneCurve curve = ToneCurve::kStandard) const;
   // Writes the image: .png (tone mapped as image_srgb8), .exr or .pfm
   // (linear), atomically (a failed write leaves no partial file). Errors:
   // kFile naming the path (unknown extension, missing directory, write

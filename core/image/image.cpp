@@ -42,8 +42,14 @@ static_assert(uint32_t(ToneMap::kStandard) == kToneMapStandard &&
               "ToneMap and KToneMap must agree");
 
 std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_stops, ToneMap curve) {
-  const float scale = std::exp2(exposure_stops);
   std::vector<uint8_t> out(image.rgb.size());
+  tone_map_to_srgb8_into(image, exposure_stops, curve, out.data());
+  return out;
+}
+
+void tone_map_to_srgb8_into(const ImageRGB& image, float exposure_stops, ToneMap curve,
+                            uint8_t* out) {
+  const float scale = std::exp2(exposure_stops);
   // Threaded: the viewer tone maps every frame it shows, and at 1280x720
   // one core takes ~40 ms (a pow per channel), most of an input slice.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, image.rgb.size(), size_t(1) << 15),
@@ -51,7 +57,6 @@ std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_sto
                       for (size_t i = r.begin(); i != r.end(); ++i)
                         out[i] = tone_map_channel_srgb8(image.rgb[i], scale, uint32_t(curve));
                     });
-  return out;
 }
 
 double relative_mse(const ImageRGB& image, const ImageRGB& ref) {

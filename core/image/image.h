@@ -34,6 +34,9 @@ ToneMap parse_tone_map(const std::string& name);
 
 // Exposure (in stops) + tone curve + sRGB encoding to 8-bit RGB.
 std::vector<uint8_t> tone_map_to_srgb8(const ImageRGB& image, float exposure_stops, ToneMap curve);
+// The same into `out` (image.rgb.size() bytes).
+void tone_map_to_srgb8_into(const ImageRGB& image, float exposure_stops, ToneMap curve,
+                            uint8_t* out);
 
 // How .exr output stores its pixels: 32-bit float keeps every value a
 // render produces; half (16-bit) is what texture and compositing tools
