@@ -26,6 +26,7 @@
 #include "core/util/log.h"
 #include "core/world/scene_ranges.h"
 #include "scenes/gltf_loader.h"
+#include "scenes/scene_loader.h"
 #include "tracer/core_tracer.h"
 
 #ifndef TANDEM_VERSION_STRING
@@ -326,9 +327,74 @@ void Renderer::set_environment_color(float r, float g, float b) {
   env.color = glm::vec3(r, g, b);
 }
 
+namespace {
+
+void check_environment_scale(float intensity, float rotation, const char* what) {
+  if (!std::isfinite(intensity) || intensity < 0.0f)
+    invalid(std::string(what) + ": intensity must be a finite number >= 0");
+  if (!std::isfinite(rotation) || std::fabs(rotation) > 1e6f)
+    invalid(std::string(what) + ": rotation must be finite radians within 1e6");
+}
+
+}  // namespace
+
+void Renderer::set_environment_map(const std::string& path, float intensity, float rotation) {
+  check_environment_scale(intensity, rotation, "set_environment_map");
+  // Loaded into a copy of the environment: a failure leaves the scene's.
+  Scene probe;
+  guarded([&] { load_environment_map(probe, path, intensity); });
+  Environment env = probe.environment();
+  env.rotation = rotation;
+  impl_->scene.edit_environment() = std::move(env);
+}
+
+void Renderer::set_environment_pixels(uint32_t width, uint32_t height, const float* rgb,
+                                      float intensity, float rotation) {
+  const char* what = "set_environment_pixels";
+  check_environment_scale(intensity, rotation, what);
+  if (rgb == nullptr) invalid(std::string(what) + ": the pixels are null");
+  if (width == 0 || height == 0 || uint64_t(width) * height > kMaxEnvironmentPixels) {
+    invalid(std::string(what) + ": " + std::to_string(width) + "x" + std::to_string(height) +
+            " is empty or more than " + std::to_string(kMaxEnvironmentPixels) + " pixels");
+  }
+  ImageRGB image{width, height};
+  for (size_t i = 0; i < image.rgb.size(); ++i) {
+    if (!std::isfinite(rgb[i]) || rgb[i] < 0.0f) {
+      invalid(std::string(what) + ": value " + std::to_string(i) + " is not a finite number >= 0");
+    }
+    image.rgb[i] = rgb[i];
+  }
+  Scene probe;
+  guarded([&] { tandem::set_environment_map(probe, image, "the pixels", intensity); },
+          Error::Kind::kInvalidArgument);
+  Environment env = probe.environment();
+  env.rotation = rotation;
+  impl_->scene.edit_environment() = std::move(env);
+}
+
+void Renderer::use_default_sky(float intensity, float rotation) {
+  check_environment_scale(intensity, rotation, "use_default_sky");
+  Scene probe;
+  guarded([&] {
+    tandem::set_environment_map(probe, default_environment_image(), kDefaultEnvironmentName,
+                                intensity);
+  });
+  Environment env = probe.environment();
+  env.rotation = rotation;
+  impl_->scene.edit_environment() = std::move(env);
+}
+
 void Renderer::load_gltf(const std::string& path) {
   impl_->require_idle("load_gltf");
   Scene loaded = guarded([&] { return tandem::load_gltf(path); });
+  if (impl_->options.default_sky) {
+    guarded([&] {
+      tandem::set_environment_map(loaded, default_environment_image(), kDefaultEnvironmentName,
+                                  1.0f);
+    });
+    log_info(path + ": lit by the built-in sky (" + kDefaultEnvironmentName +
+             "); RendererOptions::default_sky = false turns it off");
+  }
   // A new tracer compiles the new scene from scratch (its compiler's
   // bookkeeping describes the old one).
   impl_->scene = std::move(loaded);

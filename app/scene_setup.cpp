@@ -13,10 +13,6 @@
 
 namespace tandem {
 
-// Generated at build time from data/env/sky.hdr (cmake/EmbedFile.cmake).
-extern const unsigned char kDefaultEnvironmentHdr[];
-extern const unsigned long kDefaultEnvironmentHdrSize;
-
 namespace {
 
 // Radiance is accumulated in float over many samples: a colour times an
@@ -87,11 +83,6 @@ SceneRequest parse_scene_request(const ParsedArgs& args, const std::string& spec
 bool uses_default_environment(const SceneRequest& request) {
   return request.default_environment && !is_builtin(request.spec) && !request.environment.map &&
          !request.environment.color;
-}
-
-ImageRGB default_environment_image() {
-  return read_image_from_memory(kDefaultEnvironmentHdr, size_t(kDefaultEnvironmentHdrSize),
-                                kDefaultEnvironmentName);
 }
 
 Scene load_requested_scene(const SceneRequest& request, const std::string& program) {

@@ -52,9 +52,4 @@ bool uses_default_environment(const SceneRequest& request);
 // Throws InputError naming the file and the reason.
 Scene load_requested_scene(const SceneRequest& request, const std::string& program);
 
-// The default sky, decoded from the bytes embedded at build time.
-ImageRGB default_environment_image();
-// Where the default sky's source lives in the repository (for messages).
-constexpr const char* kDefaultEnvironmentName = "data/env/sky.hdr";
-
 }  // namespace tandem

@@ -103,4 +103,13 @@ void set_environment_map(Scene& scene, const ImageRGB& img, const std::string& p
   }
 }
 
+// Generated at build time from data/env/sky.hdr (cmake/EmbedFile.cmake).
+extern const unsigned char kDefaultEnvironmentHdr[];
+extern const unsigned long kDefaultEnvironmentHdrSize;
+
+ImageRGB default_environment_image() {
+  return read_image_from_memory(kDefaultEnvironmentHdr, size_t(kDefaultEnvironmentHdrSize),
+                                kDefaultEnvironmentName);
+}
+
 }  // namespace tandem

@@ -43,4 +43,11 @@ void load_environment_map(Scene& scene, const std::string& path, float intensity
 void set_environment_map(Scene& scene, const ImageRGB& image, const std::string& source,
                          float intensity);
 
+// The default sky that lights a glTF scene no environment was given for
+// (the CLI, the viewer and the API's load_gltf), decoded from the bytes
+// embedded at build time.
+ImageRGB default_environment_image();
+// Where the default sky's source lives in the repository (for messages).
+constexpr const char* kDefaultEnvironmentName = "data/env/sky.hdr";
+
 }  // namespace tandem

@@ -474,21 +474,6 @@ TEST(ApiRenderer, AnInstanceScaledToZeroIsNotDrawn) {
   EXPECT_GT(mean_abs_difference(hidden.image_linear(), before), 1e-3);
 }
 
-// A glTF file of one triangle (positions inline as base64 of 9 floats),
-// with `top` ("key": value, ...) added to the file's object and `node` to
-// its one node's.
-void write_triangle_gltf(const fs::path& file, const std::string& top, const std::string& node) {
-  std::ofstream(file) << R"({"asset":{"version":"2.0"},)" << top
-                      << R"("buffers":[{"byteLength":36,"uri":)"
-                         R"("data:application/octet-stream;base64,)"
-                         R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
-                         R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
-                         R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
-                         R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
-                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0)"
-                      << node << R"(}],"scenes":[{"nodes":[0]}]})";
-}
-
 // A file whose node lies beyond the float range the tracers take is a
 // kFile error naming it, not an abort inside Embree.
 TEST(ApiRenderer, GltfScenesBeyondTheTraceableRangeAreFileErrors) {

@@ -4,6 +4,9 @@
 #include <tandem/tandem.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
 #include <vector>
 
 namespace tandem_api_test {
@@ -65,6 +68,22 @@ inline tandem::InstanceId build_scene(tandem::Renderer& r, bool place_square = t
   cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
   r.set_camera(cam);
   return moving;
+}
+
+// A glTF file of one triangle (positions inline as base64 of 9 floats),
+// with `top` ("key": value, ...) added to the file's object and `node` to
+// its one node's.
+inline void write_triangle_gltf(const std::filesystem::path& file, const std::string& top,
+                                const std::string& node) {
+  std::ofstream(file) << R"({"asset":{"version":"2.0"},)" << top
+                      << R"("buffers":[{"byteLength":36,"uri":)"
+                         R"("data:application/octet-stream;base64,)"
+                         R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],)"
+                         R"("bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{)"
+                         R"("bufferView":0,"componentType":5126,"type":"VEC3","count":3,)"
+                         R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
+                         R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0)"
+                      << node << R"(}],"scenes":[{"nodes":[0]}]})";
 }
 
 inline double mean(const std::vector<float>& v) {

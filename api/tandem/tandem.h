@@ -183,6 +183,11 @@ struct RendererOptions {
   // image does not depend on it.
   uint32_t threads = 0;
   uint32_t reserve_cores = 0;
+  // Whether load_gltf lights the file's scene with the built-in sky (an
+  // HDR sky with a sun, the one `tandem render` uses), as the command line
+  // does for every glTF scene no environment is given for. Without it a
+  // file with no lights of its own renders black.
+  bool default_sky = true;
 };
 
 // What one backend did in a frame.
@@ -269,10 +274,23 @@ class Renderer {
   // A constant sky: radiance (linear RGB, W/(m^2 sr), >= 0) arriving from
   // every direction that hits no surface; (0, 0, 0), the default, is black.
   void set_environment_color(float r, float g, float b);
+  // An equirectangular environment map (its top row is straight up, +y)
+  // lighting the scene, importance-sampled, scaled by `intensity` (>= 0)
+  // and turned by `rotation` radians about +y. From a file (.hdr, .exr of
+  // any compression, .pfm, .png, .jpg; read now, up to 8192x4096), from
+  // the caller's pixels (width * height * 3 linear RGB floats, copied), or
+  // the built-in sky. Errors: kFile naming the file (missing, malformed,
+  // too large), kInvalidArgument for bad pixels, sizes, intensity or
+  // rotation (NaN, infinite, negative, a radiance beyond float's range).
+  void set_environment_map(const std::string& path, float intensity = 1.0f, float rotation = 0.0f);
+  void set_environment_pixels(uint32_t width, uint32_t height, const float* rgb,
+                              float intensity = 1.0f, float rotation = 0.0f);
+  void use_default_sky(float intensity = 1.0f, float rotation = 0.0f);
 
   // Replaces the whole scene by the default scene of a .gltf/.glb file
   // (meshes, instances in glTF node order, materials, lights, camera when
-  // the file has one, otherwise one that frames the scene). Previous ids
+  // the file has one, otherwise one that frames the scene), lit by the
+  // built-in sky unless RendererOptions::default_sky is off. Previous ids
   // become invalid. Errors: kFile naming the file and the reason (missing,
   // malformed, over the loader's memory budgets); kInvalidState during a frame.
   void load_gltf(const std::string& path);
