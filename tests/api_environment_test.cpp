@@ -22,18 +22,6 @@ namespace fs = std::filesystem;
 using tandem::Error;
 using namespace tandem_api_test;
 
-template <class F>
-std::string error_of(Error::Kind kind, F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    EXPECT_EQ(int(e.kind()), int(kind)) << e.what();
-    return e.what();
-  }
-  ADD_FAILURE() << "no tandem::Error was thrown";
-  return "";
-}
-
 // An 8x4 sky: bright above the horizon, dim below, warmer towards +x.
 std::vector<float> sky_pixels() {
   std::vector<float> rgb(8 * 4 * 3);

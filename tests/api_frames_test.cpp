@@ -16,18 +16,6 @@ namespace {
 using tandem::Error;
 using namespace tandem_api_test;
 
-template <class F>
-std::string error_of(Error::Kind kind, F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    EXPECT_EQ(int(e.kind()), int(kind)) << e.what();
-    return e.what();
-  }
-  ADD_FAILURE() << "no tandem::Error was thrown";
-  return "";
-}
-
 TEST(ApiFrames, TheThreadBudgetHoldsWhileTheRendererLivesAndChangesNoPixel) {
   std::vector<float> unlimited, budgeted;
   uint32_t all_threads = 0;

@@ -3,6 +3,8 @@
 
 #include <tandem/tandem.h>
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -84,6 +86,19 @@ inline void write_triangle_gltf(const std::filesystem::path& file, const std::st
                          R"("min":[0,0,0],"max":[1,1,0]}],"meshes":[{"primitives":[{)"
                          R"("attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0)"
                       << node << R"(}],"scenes":[{"nodes":[0]}]})";
+}
+
+// Runs `f`, which must throw a tandem::Error of `kind`; returns its message.
+template <class F>
+std::string error_of(tandem::Error::Kind kind, F&& f) {
+  try {
+    f();
+  } catch (const tandem::Error& e) {
+    EXPECT_EQ(int(e.kind()), int(kind)) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "no tandem::Error was thrown";
+  return "";
 }
 
 inline double mean(const std::vector<float>& v) {
