@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 #include "core/kernel/math.h"
@@ -192,8 +193,58 @@ std::shared_ptr<const MeshPose> vertices_pose(const MeshData& vertices, size_t m
   return std::make_shared<GivenVertices>(std::move(given));
 }
 
-Material to_material(const MaterialDesc& d, const char* what) {
+namespace {
+
+TextureRef texture_slot(TextureId id, size_t textures, const char* what, const char* slot) {
+  TextureRef ref;
+  if (id.index == TextureId::kNone) return ref;
+  if (id.index >= textures) {
+    invalid(std::string(what) + ": " + slot + " " + std::to_string(id.index) +
+            " does not exist (there are " + std::to_string(textures) + " textures)");
+  }
+  ref.texture = int32_t(id.index);
+  return ref;
+}
+
+WrapMode to_wrap(TextureWrap w, const char* what) {
+  switch (w) {
+    case TextureWrap::kRepeat:
+      return WrapMode::kRepeat;
+    case TextureWrap::kClampToEdge:
+      return WrapMode::kClampToEdge;
+    case TextureWrap::kMirroredRepeat:
+      return WrapMode::kMirroredRepeat;
+  }
+  invalid(std::string(what) + ": unknown wrap mode");
+}
+
+}  // namespace
+
+Texture to_texture(const TextureDesc& d, const char* what) {
+  if (d.rgba8 == nullptr) invalid(std::string(what) + ": rgba8 is null");
+  if (d.width == 0 || d.height == 0 || d.width > kMaxResolution || d.height > kMaxResolution) {
+    invalid(std::string(what) + ": a " + std::to_string(d.width) + "x" + std::to_string(d.height) +
+            " texture is empty or wider or taller than 16384");
+  }
+  Texture t;
+  t.width = d.width;
+  t.height = d.height;
+  t.wrap_s = to_wrap(d.wrap_u, what);
+  t.wrap_t = to_wrap(d.wrap_v, what);
+  t.nearest = d.nearest;
+  t.rgba8.resize(size_t(d.width) * d.height);
+  std::memcpy(t.rgba8.data(), d.rgba8, t.rgba8.size() * 4);  // R, G, B, A bytes: R low
+  return t;
+}
+
+Material to_material(const MaterialDesc& d, size_t textures, const char* what) {
   Material m;
+  m.base_color_texture = texture_slot(d.base_color_texture, textures, what, "base_color_texture");
+  m.metallic_roughness_texture =
+      texture_slot(d.metallic_roughness_texture, textures, what, "metallic_roughness_texture");
+  m.emissive_texture = texture_slot(d.emission_texture, textures, what, "emission_texture");
+  m.transmission_texture =
+      texture_slot(d.transmission_texture, textures, what, "transmission_texture");
   for (int i = 0; i < 3; ++i)
     check_range(d.base_color[i], 0.0f, 1.0f, what, "base_color");
   check_range(d.roughness, 0.0f, 1.0f, what, "roughness");

@@ -16,7 +16,9 @@ namespace tandem::api_detail {
 
 // `what` names the call in messages, e.g. "add_mesh".
 Mesh to_mesh(const MeshData& data, uint32_t material, const char* what);
-Material to_material(const MaterialDesc& desc, const char* what);
+// `textures`: how many the scene has (the slots' ids are checked against it).
+Material to_material(const MaterialDesc& desc, size_t textures, const char* what);
+Texture to_texture(const TextureDesc& desc, const char* what);
 Light to_light(const LightDesc& desc, const char* what);
 // The image's aspect ratio comes from the render settings, not the camera.
 Camera to_camera(const CameraDesc& desc, const char* what);

@@ -262,14 +262,19 @@ Renderer::~Renderer() = default;  // CoreTracer's destructor joins a frame in fl
 Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
+TextureId Renderer::add_texture(const TextureDesc& texture) {
+  Texture t = api_detail::to_texture(texture, "add_texture");
+  return {impl_->scene.add_texture(std::move(t))};
+}
+
 MaterialId Renderer::add_material(const MaterialDesc& material) {
-  Material m = api_detail::to_material(material, "add_material");
+  Material m = api_detail::to_material(material, impl_->scene.textures().size(), "add_material");
   return {impl_->scene.add_material(std::move(m))};
 }
 
 void Renderer::set_material(MaterialId id, const MaterialDesc& material) {
   const uint32_t i = checked(id, impl_->scene.materials().size(), "set_material", "material");
-  Material m = api_detail::to_material(material, "set_material");
+  Material m = api_detail::to_material(material, impl_->scene.textures().size(), "set_material");
   impl_->scene.edit_material(i) = std::move(m);
 }
 
@@ -418,6 +423,9 @@ uint32_t Renderer::instance_count() const {
 }
 uint32_t Renderer::light_count() const {
   return uint32_t(impl_->scene.lights().size());
+}
+uint32_t Renderer::texture_count() const {
+  return uint32_t(impl_->scene.textures().size());
 }
 
 void Renderer::set_options(const RendererOptions& options) {

@@ -94,6 +94,11 @@ struct InstanceId {
 struct LightId {
   uint32_t index = 0;
 };
+// A texture, or none (the default: a material slot without a texture).
+struct TextureId {
+  static constexpr uint32_t kNone = 0xffffffffu;
+  uint32_t index = kNone;
+};
 
 // Object-to-world transform: a column-major 4x4 matrix (m[12..14] is the
 // translation, within 1e9 of the origin), affine (last row 0 0 0 1). A
@@ -126,6 +131,19 @@ struct MeshData {
 };
 
 // The glTF metallic-roughness material (defaults: a matt light grey).
+enum class TextureWrap { kRepeat, kClampToEdge, kMirroredRepeat };
+
+// An 8-bit RGBA image for materials, copied by add_texture. Whether its RGB
+// is sRGB-encoded or linear follows from the slot that uses it (base colour
+// and emission: sRGB; metallic-roughness and transmission: linear), as in
+// glTF, so one texture may serve several materials.
+struct TextureDesc {
+  uint32_t width = 0, height = 0;  // each in [1, 16384]
+  const uint8_t* rgba8 = nullptr;  // width * height * 4 bytes, row 0 at the top
+  TextureWrap wrap_u = TextureWrap::kRepeat, wrap_v = TextureWrap::kRepeat;
+  bool nearest = false;  // nearest-texel magnification instead of bilinear
+};
+
 struct MaterialDesc {
   float base_color[3] = {0.8f, 0.8f, 0.8f};  // linear RGB reflectance, each in [0, 1]
   float roughness = 0.5f;                    // [0, 1]; GGX alpha = roughness^2
@@ -135,6 +153,12 @@ struct MaterialDesc {
   float transmission = 0.0f;                 // [0, 1]: 1 = clear glass-like dielectric
   float ior = 1.5f;                          // index of refraction, [1, 5]
   bool double_sided = false;                 // emission and shading on both faces
+  // Textures (add_texture) read at the mesh's uvs (uv (0, 0) is the
+  // image's top-left corner, as in glTF), each multiplying its factor above:
+  // base colour (RGB; A is ignored), metallic-roughness (G roughness, B
+  // metallic), emission (RGB), transmission (R). A mesh without uvs reads
+  // texel (0, 0).
+  TextureId base_color_texture, metallic_roughness_texture, emission_texture, transmission_texture;
 };
 
 enum class LightKind { kPoint, kSpot, kDirectional };
@@ -230,7 +254,11 @@ class Renderer {
   // Every edit below may be made at any time, also between begin_frame()
   // and end_frame(): it reaches the next frame and restarts accumulation.
 
-  // Adds a material. Errors: kInvalidArgument for NaN or out-of-range fields.
+  // Adds a texture for materials to use. Errors: kInvalidArgument for null
+  // pixels, an empty or oversized image, or an unknown wrap mode.
+  TextureId add_texture(const TextureDesc& texture);
+  // Adds a material. Errors: kInvalidArgument for NaN or out-of-range
+  // fields, or a texture that does not exist.
   MaterialId add_material(const MaterialDesc& material);
   // Changes a material. Errors: kInvalidArgument for an unknown id or bad fields.
   void set_material(MaterialId id, const MaterialDesc& material);
@@ -301,6 +329,7 @@ class Renderer {
   uint32_t mesh_count() const;
   uint32_t instance_count() const;
   uint32_t light_count() const;
+  uint32_t texture_count() const;
 
   // --- settings ------------------------------------------------------------
   // Changes the options; a new resolution, depth or seed restarts
