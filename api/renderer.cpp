@@ -21,9 +21,12 @@
 #include "api/tandem/tandem.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
+#include "core/render/denoise_blend.h"
 #include "core/render/device_error.h"
+#include "core/render/temporal_denoiser.h"
 #include "core/util/errors.h"
 #include "core/util/log.h"
+#include "core/world/motion_history.h"
 #include "core/world/scene_ranges.h"
 #include "scenes/gltf_loader.h"
 #include "scenes/scene_loader.h"
@@ -187,6 +190,14 @@ struct Renderer::Impl {
   Scene scene;
   std::unique_ptr<CoreTracer> tracer;
   std::vector<std::string> last_backend_names;  // of the last completed frame
+  // The denoiser (RendererOptions::denoise) and the feature pass.
+  MotionHistory motion;
+  std::vector<PixelFeatures> features;
+  uint64_t features_frame = 0;  // frames + 1 of the frame `features` belong to; 0: none
+  TemporalDenoiser denoiser;
+  ImageRGB accumulated;  // the image after the previous frame, for its samples
+  uint32_t accumulated_spp = 0;
+  ImageRGB denoised;  // blended as image_denoised() returns it
   bool in_flight = false;
   bool image_valid = false;
   uint64_t frames = 0;
@@ -218,6 +229,29 @@ struct Renderer::Impl {
         Error::Kind::kDevice);
     image_valid = false;
     last_backend_names.clear();
+  }
+
+  // After a frame: its features, the filter of its own samples, and the
+  // blend with the accumulated image (the viewer's recipe).
+  void denoise_frame(bool restarted) {
+    const ImageRGB now = tracer->image();
+    const uint32_t spp = tracer->accumulated_spp();
+    if (restarted || now.width != accumulated.width || now.height != accumulated.height) {
+      accumulated_spp = 0;
+      denoiser.reset();
+    }
+    const bool have =
+        guarded([&] { return tracer->render_features(motion, features); }, Error::Kind::kDevice);
+    features_frame = have ? frames + 1 : 0;
+    if (have) {
+      const ImageRGB own = frame_samples(now, spp, accumulated, accumulated_spp);
+      const ImageRGB filtered = denoiser.process(features, own);
+      denoised = blend_images(filtered, now, accumulated_blend_weight(spp));
+    } else {
+      denoised = now;  // no feature pass (a GPU-only list): the image as it is
+    }
+    accumulated = now;
+    accumulated_spp = spp;
   }
 
   void require_idle(const char* what) const {
@@ -496,6 +530,7 @@ FrameInfo Renderer::end_frame() {
   const FrameMetrics& m = guarded([&]() -> const FrameMetrics& { return im.tracer->end_frame(); },
                                   Error::Kind::kDevice);
   im.image_valid = true;
+  if (im.options.denoise) im.denoise_frame(m.accumulation_reset);
   im.last_backend_names.clear();
   for (const BackendFrameMetrics& b : m.backends)
     im.last_backend_names.push_back(b.name);
@@ -571,6 +606,46 @@ void Renderer::copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops
             std::to_string(img.rgb.size()));
   }
   tone_map_to_srgb8_into(img, exposure_stops, to_tone_map(curve), out);
+}
+
+std::vector<float> Renderer::image_denoised() const {
+  impl_->require_image("image_denoised");
+  if (!impl_->options.denoise)
+    throw Error(Error::Kind::kInvalidState, "image_denoised: RendererOptions::denoise is off");
+  return impl_->denoised.rgb;
+}
+
+FeatureBuffers Renderer::features() {
+  Impl& im = *impl_;
+  im.require_image("features");
+  if (im.features_frame != im.frames) {
+    const bool have = guarded([&] { return im.tracer->render_features(im.motion, im.features); },
+                              Error::Kind::kDevice);
+    if (!have) {
+      throw Error(Error::Kind::kDevice,
+                  "features: no backend of this renderer traces feature buffers (a GPU-only "
+                  "renderer); BackendChoice::kCpu or kHetero do");
+    }
+    im.features_frame = im.frames;
+  }
+  FeatureBuffers out;
+  out.width = im.tracer->film().width();
+  out.height = im.tracer->film().height();
+  const size_t n = im.features.size();
+  out.albedo.resize(3 * n);
+  out.normal.resize(3 * n);
+  out.depth.resize(n);
+  out.motion.resize(2 * n);
+  for (size_t i = 0; i < n; ++i) {
+    const PixelFeatures& p = im.features[i];
+    out.albedo[3 * i] = p.albedo.x, out.albedo[3 * i + 1] = p.albedo.y,
+                   out.albedo[3 * i + 2] = p.albedo.z;
+    out.normal[3 * i] = p.normal.x, out.normal[3 * i + 1] = p.normal.y,
+                   out.normal[3 * i + 2] = p.normal.z;
+    out.depth[i] = p.depth;
+    out.motion[2 * i] = p.motion.x, out.motion[2 * i + 1] = p.motion.y;
+  }
+  return out;
 }
 
 std::vector<uint8_t> Renderer::image_srgb8(float exposure_stops, ToneCurve curve) const {

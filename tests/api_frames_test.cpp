@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -90,6 +92,77 @@ TEST(ApiFrames, TheImageIsWrittenIntoTheCallersBuffers) {
   error_of(Error::Kind::kInvalidArgument, [&] { r.copy_image_srgb8(nullptr, srgb.size()); });
   error_of(Error::Kind::kInvalidArgument,
            [&] { r.copy_image_srgb8(srgb.data(), srgb.size(), std::nanf("")); });
+}
+
+TEST(ApiFrames, FeatureBuffersDescribeTheFirstHits) {
+  tandem::Renderer r(small_options());
+  const tandem::InstanceId square = build_scene(r);
+  r.render_frame();
+  const tandem::FeatureBuffers f = r.features();
+  ASSERT_EQ(f.width, 48u);
+  ASSERT_EQ(f.height, 32u);
+  ASSERT_EQ(f.albedo.size(), 48u * 32 * 3);
+  ASSERT_EQ(f.motion.size(), 48u * 32 * 2);
+  size_t floor = 0, sky = 0, red = 0;
+  for (size_t i = 0; i < f.depth.size(); ++i) {
+    const float* a = &f.albedo[3 * i];
+    if (f.depth[i] == 0.0f) {
+      sky += a[0] == 1.0f && f.normal[3 * i + 1] == 0.0f;
+    } else if (std::fabs(a[0] - 0.8f) < 1e-3f && f.normal[3 * i + 1] > 0.99f) {
+      ++floor;  // the grey floor, facing up
+    } else if (std::fabs(a[0] - 0.9f) < 1e-3f && std::fabs(a[1] - 0.1f) < 1e-3f) {
+      ++red;
+    }
+  }
+  EXPECT_GT(floor, 200u);
+  EXPECT_GT(sky, 50u);
+  EXPECT_GT(red, 4u);
+  // The square moves: its pixels carry motion, the floor's none.
+  r.set_instance_transform(square, tandem::Transform::translation(-0.5f, 0.5f, 0.0f));
+  r.render_frame();
+  const tandem::FeatureBuffers moved = r.features();
+  size_t moving = 0;
+  for (size_t i = 0; i < moved.depth.size(); ++i)
+    moving += std::fabs(moved.motion[2 * i]) > 0.5f;
+  EXPECT_GT(moving, 4u);
+}
+
+// Under the built-in sky (noisy at a few samples; a point light alone is
+// sampled without noise), at the viewer's kind of resolution.
+TEST(ApiFrames, TheDenoisedImageIsCloserToTheConvergedOne) {
+  tandem::RendererOptions o = small_options();
+  o.width = 160;
+  o.height = 96;
+  auto make = [&](const tandem::RendererOptions& options) {
+    auto r = std::make_unique<tandem::Renderer>(options);
+    build_scene(*r);
+    r->use_default_sky();
+    return r;
+  };
+  o.samples_per_frame = 256;
+  const auto reference = make(o);
+  const std::vector<float> ref = (reference->render_frame(), reference->image_linear());
+  o.samples_per_frame = 1;
+  o.seed = 99;
+  const auto plain = make(o);
+  plain->render_frame();
+  EXPECT_EQ(error_of(Error::Kind::kInvalidState, [&] { plain->image_denoised(); })
+                .find("image_denoised: RendererOptions::denoise is off"),
+            0u);
+  o.denoise = true;
+  const auto denoised = make(o);
+  for (int i = 0; i < 2; ++i)
+    denoised->render_frame();
+  auto rel_mse = [&](const std::vector<float>& img) {
+    double s = 0.0;
+    for (size_t i = 0; i < img.size(); ++i)
+      s += (img[i] - ref[i]) * (img[i] - ref[i]) / (ref[i] * ref[i] + 0.01);
+    return s / double(img.size());
+  };
+  const double raw = rel_mse(denoised->image_linear());
+  const double filtered = rel_mse(denoised->image_denoised());
+  EXPECT_LT(filtered, 0.5 * raw) << "raw " << raw << ", denoised " << filtered;
+  std::printf("relMSE raw %.4f, denoised %.4f\n", raw, filtered);
 }
 
 TEST(ApiFrames, TheCudaErrorSpeaksOfTheApiNotOfCommandLineFlags) {

@@ -20,6 +20,7 @@
 
 #include "core/image/image.h"
 #include "core/kernel/features.h"
+#include "core/render/denoise_blend.h"
 
 namespace tandem {
 
@@ -38,24 +39,8 @@ const char* view_buffer_name(ViewBuffer b);
 // The buffer a name (view_buffer_name, or its first word) stands for.
 std::optional<ViewBuffer> parse_view_buffer(const std::string& name);
 
-constexpr uint32_t kDenoiseBlendStartSpp = 8;
-constexpr uint32_t kDenoiseBlendEndSpp = 64;
 // Motion of this many pixels per frame saturates the motion view.
 constexpr float kMotionViewPixels = 16.0f;
-
-// Weight of the accumulated image against the filtered one at `spp`
-// accumulated samples: 0 up to the start, 1 from the end, log-linear between
-// (each doubling of the samples moves it by the same step).
-float accumulated_blend_weight(uint32_t spp);
-
-// This frame's own samples from the accumulated means before and after it:
-// (now * spp_now - before * spp_before) / (spp_now - spp_before). With
-// spp_before == 0 (a restart) it is `now`.
-ImageRGB frame_samples(const ImageRGB& now, uint32_t spp_now, const ImageRGB& before,
-                       uint32_t spp_before);
-
-// a * (1 - t) + b * t per channel (same sizes).
-ImageRGB blend_images(const ImageRGB& a, const ImageRGB& b, float t);
 
 // 8-bit RGB of a debug view (not kImage) at the features' resolution.
 // `moments` (the denoiser's (m1, m2, length, 0) per pixel) may be empty:
