@@ -219,8 +219,15 @@ struct Renderer::Impl {
     return s;
   }
 
+  std::string gpu_unused;  // why kAuto/kHetero run without a GPU; empty otherwise
+
   // A new tracer compiles the whole scene on its first frame.
   void create_tracer() {
+    gpu_unused.clear();
+    if (options.backend == BackendChoice::kAuto || options.backend == BackendChoice::kHetero) {
+      std::string why;
+      if (!cuda_device_available(&why)) gpu_unused = why.empty() ? "no usable GPU" : why;
+    }
     tracer = guarded(
         [&] {
           return std::make_unique<CoreTracer>(create_backends(to_backend_kind(options.backend)),
@@ -497,6 +504,10 @@ std::string Renderer::backend_names() const {
   for (const std::string& n : impl_->last_backend_names)
     names += (names.empty() ? "" : "+") + n;
   return names;
+}
+
+std::string Renderer::gpu_unused_reason() const {
+  return impl_->gpu_unused;
 }
 
 void Renderer::reset_accumulation() {

@@ -167,6 +167,18 @@ TEST(ApiFrames, TheDenoisedImageIsCloserToTheConvergedOne) {
 
 TEST(ApiFrames, TheCudaErrorSpeaksOfTheApiNotOfCommandLineFlags) {
   if (tandem::cuda_available()) GTEST_SKIP() << "a CUDA device is available";
+  // Which backend runs, and why not the GPU, through the API.
+  tandem::RendererOptions automatic = small_options();
+  automatic.backend = tandem::BackendChoice::kAuto;
+  tandem::Renderer fallback(automatic);
+  std::string reason;
+  tandem::cuda_available(&reason);
+  EXPECT_EQ(fallback.gpu_unused_reason(), reason);
+  EXPECT_FALSE(reason.empty());
+  build_scene(fallback);
+  fallback.render_frame();
+  EXPECT_EQ(fallback.backend_names(), "cpu");
+  EXPECT_EQ(tandem::Renderer(small_options()).gpu_unused_reason(), "") << "kCpu was asked for";
   tandem::RendererOptions o = small_options();
   o.backend = tandem::BackendChoice::kCuda;
   const std::string message = error_of(Error::Kind::kDevice, [&] { tandem::Renderer r(o); });

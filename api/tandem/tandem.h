@@ -355,6 +355,10 @@ class Renderer {
   // Names of the backends that rendered the last frame, e.g. "cpu" or
   // "cuda+cpu"; empty before the first frame (and after a backend change).
   std::string backend_names() const;
+  // Why this renderer does not use a GPU that kAuto or kHetero would use
+  // ("no NVIDIA driver is installed", "this build of tandem has no CUDA
+  // backend", ...); empty when it uses one or BackendChoice::kCpu was asked.
+  std::string gpu_unused_reason() const;
   // Drops the accumulated samples; the next frame starts over.
   void reset_accumulation();
 
