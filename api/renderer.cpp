@@ -367,6 +367,9 @@ void Renderer::set_environment_color(float r, float g, float b) {
   for (float v : c) {
     if (!std::isfinite(v) || v < 0.0f)
       invalid("set_environment_color: each component must be a finite number >= 0");
+    // Radiance is summed in float over many samples: beyond this it
+    // becomes infinity and renders black (the command line's limit too).
+    if (v > 1e30f) invalid("set_environment_color: a radiance above 1e30 cannot be accumulated");
   }
   Environment& env = impl_->scene.edit_environment();
   env = Environment{};
