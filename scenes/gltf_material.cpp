@@ -79,6 +79,7 @@ struct DecodedImage {
 struct ImageShape {
   uint32_t width = 0, height = 0;
   int channels = 4, bytes_per_channel = 1;
+  bool png = false;
   uint64_t pixels() const { return uint64_t(width) * height; }
   // What the texture keeps: packed RGBA8.
   uint64_t kept_bytes() const { return pixels() * 4; }
@@ -109,6 +110,7 @@ bool image_shape(const unsigned char* bytes, size_t size, uint64_t max_pixels, I
     shape.height = info.height;
     shape.channels = info.channels;
     shape.bytes_per_channel = info.bytes_per_channel;
+    shape.png = info.format == EncodedImageInfo::kPng;
   } else {
     // glTF textures are PNG or JPEG; stb's other decoders (PNM, BMP, TGA,
     // ...) are not hardened against hostile files and are never reached.
@@ -125,16 +127,16 @@ bool image_shape(const unsigned char* bytes, size_t size, uint64_t max_pixels, I
 
 // Decodes 8-bit PNGs with libpng, the rest with stb directly (tinygltf's
 // decoder copies the decoded pixels once more): the memory it takes is at
-// most ImageShape::decode_bytes().
-DecodedImage decode_image(const unsigned char* bytes, size_t size) {
+// most ImageShape::decode_bytes(). `png8`: the header (image_shape) says
+// an 8-bit PNG.
+DecodedImage decode_image(const unsigned char* bytes, size_t size, bool png8) {
   DecodedImage out;
   if (size > size_t(INT_MAX)) {
     out.error = "the encoded image is larger than 2 GiB";
     return out;
   }
   // 8-bit PNGs, nearly every PNG texture, through libpng (twice as fast).
-  const EncodedImageInfo info = probe_encoded_image(bytes, size);
-  if (info.format == EncodedImageInfo::kPng && info.header_ok && info.bytes_per_channel == 1) {
+  if (png8) {
     out.ok = decode_png_rgba8(bytes, size, out.width, out.height, out.rgba8, out.error);
     return out;
   }
@@ -303,6 +305,7 @@ class MaterialConverter {
       const unsigned char* data;
       size_t size;
       uint64_t decode_bytes = 0;
+      bool png8 = false;  // an 8-bit PNG, decoded by libpng
     };
     uint64_t encoded_total = 0;
     std::pair<uint64_t, int> largest_decode{0, -1};
@@ -335,6 +338,7 @@ class MaterialConverter {
       // times as much): that is held to a limit of its own per image, and
       // the decoders together to the same amount at any one time.
       job.decode_bytes = shape.decode_bytes();
+      job.png8 = shape.png && shape.bytes_per_channel == 1;
       if (job.decode_bytes > ctx_.limits.max_image_decode_bytes) {
         decoded_[size_t(i)].error = "its " + shape.text() + " need " +
                                     format_bytes(job.decode_bytes) +
@@ -373,7 +377,7 @@ class MaterialConverter {
         DecodedImage& d = decoded_[size_t(job.image)];
         try {
           const DecodeMemory::Hold hold(decode_memory, job.decode_bytes);
-          d = decode_image(job.data, job.size);
+          d = decode_image(job.data, job.size, job.png8);
         } catch (const std::exception& e) {  // bad_alloc: must not escape a thread
           d = DecodedImage{};
           d.error = std::string("decoding failed (") +

@@ -223,11 +223,10 @@ ExrChoice choose_layer(exr_const_context_t ctxt, const std::string& name) {
     choice.height = uint64_t(h);
     for (size_t l = 1; l < layers.size(); ++l)
       choice.ignored.push_back("layer '" + layers[l] + "'");
-    bool has_rgb_channels = false;  // a Y image with chroma: RY/BY are not read
+    bool has_chroma = false;  // a Y image with chroma: RY/BY are not read
     for (const std::string& n : names)
-      has_rgb_channels |= n == prefix + "RY" || n == prefix + "BY";
-    if (!rgb && has_rgb_channels)
-      choice.ignored.push_back("chroma channels RY and BY (read as grey)");
+      has_chroma |= n == prefix + "RY" || n == prefix + "BY";
+    if (!rgb && has_chroma) choice.ignored.push_back("chroma channels RY and BY (read as grey)");
   }
   if (choice.part < 0) fail_image(name, "OpenEXR file has no colour image: " + why_none);
   return choice;
@@ -349,22 +348,21 @@ ImageRGB decode_exr(const uint8_t* data, size_t size, const std::string& name,
   init.read_fn = core_read;
   init.size_fn = core_size;
   init.error_handler_fn = core_error;
-  exr_context_t ctxt = nullptr;
-  if (exr_start_read(&ctxt, name.c_str(), &init) != EXR_ERR_SUCCESS) {
-    exr_finish(&ctxt);
-    const std::string why = stream.error.empty() ? "unreadable header" : stream.error;
-    fail_image(name, "not a valid OpenEXR file: " + why);
-  }
   ExrChoice choice;
-  try {
+  {
+    exr_context_t ctxt = nullptr;
+    struct Finish {  // the core's context ends with this scope, however it is left
+      exr_context_t& ctxt;
+      ~Finish() { exr_finish(&ctxt); }
+    } finish{ctxt};
+    if (exr_start_read(&ctxt, name.c_str(), &init) != EXR_ERR_SUCCESS) {
+      const std::string why = stream.error.empty() ? "unreadable header" : stream.error;
+      fail_image(name, "not a valid OpenEXR file: " + why);
+    }
     choice = choose_layer(ctxt, name);
     check_image_pixels(name, "OpenEXR", choice.width, choice.height, limits);
     check_chunks(ctxt, choice, stream, name);
-  } catch (...) {
-    exr_finish(&ctxt);
-    throw;
   }
-  exr_finish(&ctxt);
   if (!choice.ignored.empty()) {
     std::string others;
     for (const std::string& i : choice.ignored)

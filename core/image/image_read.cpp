@@ -28,17 +28,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-[[noreturn]] void fail(const std::string& name, const std::string& why) {
-  fail_image(name, why);
-}
-
 std::string dims(uint64_t w, uint64_t h) {
   return std::to_string(w) + "x" + std::to_string(h);
-}
-
-void check_pixels(const std::string& name, const char* format, uint64_t w, uint64_t h,
-                  const ImageReadLimits& limits) {
-  check_image_pixels(name, format, w, h, limits);
 }
 
 uint32_t be32(const uint8_t* p) {
@@ -55,41 +46,6 @@ uint32_t crc32(const uint8_t* p, size_t n) {
   return ~c;
 }
 
-class ByteReader {
- public:
-  ByteReader(const uint8_t* data, size_t size, const std::string& name)
-      : data_(data), size_(size), name_(name) {}
-  template <class T>
-  T get() {
-    need(sizeof(T));
-    T v;
-    std::memcpy(&v, data_ + pos, sizeof(T));
-    pos += sizeof(T);
-    return v;
-  }
-  std::string get_str() {
-    std::string s;
-    while (true) {
-      need(1);
-      const char c = char(data_[pos++]);
-      if (c == 0) return s;
-      if (s.size() > 255) fail("attribute name too long");
-      s.push_back(c);
-    }
-  }
-  void need(uint64_t n) const {
-    if (n > size_ || pos > size_ - n) fail("file is truncated");
-  }
-  size_t left() const { return size_ - pos; }
-  [[noreturn]] void fail(const std::string& why) const { tandem::fail(name_, why); }
-  size_t pos = 0;
-
- private:
-  const uint8_t* data_;
-  size_t size_;
-  const std::string& name_;
-};
-
 ImageRGB decode_pfm(const uint8_t* bytes, size_t size, const std::string& name,
                     const ImageReadLimits& limits) {
   // "PF" or "Pf", whitespace, width, height, scale, one whitespace byte.
@@ -105,17 +61,17 @@ ImageRGB decode_pfm(const uint8_t* bytes, size_t size, const std::string& name,
       std::strspn(htext, "0123456789") != std::strlen(htext) || std::strlen(wtext) > 10 ||
       std::strlen(htext) > 10 || !std::isfinite(scale) || scale == 0.0 ||
       size_t(consumed) >= text.size()) {
-    fail(name, "not a valid PFM header");
+    fail_image(name, "not a valid PFM header");
   }
   const uint64_t w = std::strtoull(wtext, nullptr, 10), h = std::strtoull(htext, nullptr, 10);
-  check_pixels(name, "PFM", w, h, limits);
+  check_image_pixels(name, "PFM", w, h, limits);
   const size_t data_start = size_t(consumed) + 1;
   const uint64_t comps = kind[1] == 'F' ? 3 : 1;
   const uint64_t need = w * h * comps * 4;
   if (size < data_start || size - data_start < need) {
-    fail(name, "PFM pixel data is truncated (" + dims(w, h) + " needs " + std::to_string(need) +
-                   " bytes, the file has " + std::to_string(size - std::min(size, data_start)) +
-                   ")");
+    fail_image(name, "PFM pixel data is truncated (" + dims(w, h) + " needs " +
+                         std::to_string(need) + " bytes, the file has " +
+                         std::to_string(size - std::min(size, data_start)) + ")");
   }
   const bool big_endian = scale > 0.0;
   ImageRGB img{uint32_t(w), uint32_t(h)};
@@ -151,20 +107,21 @@ ImageRGB decode_hdr(const uint8_t* bytes, size_t size, const std::string& name,
   auto line = [&](std::string& out) {
     out.clear();
     while (pos < size && bytes[pos] != '\n') {
-      if (out.size() > 4096) fail(name, "HDR header line too long");
+      if (out.size() > 4096) fail_image(name, "HDR header line too long");
       out.push_back(char(bytes[pos++]));
     }
-    if (pos >= size) fail(name, "HDR header is truncated");
+    if (pos >= size) fail_image(name, "HDR header is truncated");
     ++pos;
   };
   std::string text;
   line(text);
-  if (text != "#?RADIANCE" && text != "#?RGBE") fail(name, "not a Radiance HDR file");
+  if (text != "#?RADIANCE" && text != "#?RGBE") fail_image(name, "not a Radiance HDR file");
   while (true) {
     line(text);
     if (text.empty()) break;
     if (text.rfind("FORMAT=", 0) == 0 && text != "FORMAT=32-bit_rle_rgbe") {
-      fail(name, "HDR format '" + text.substr(7) + "' is not supported (only 32-bit_rle_rgbe)");
+      fail_image(name,
+                 "HDR format '" + text.substr(7) + "' is not supported (only 32-bit_rle_rgbe)");
     }
   }
   line(text);
@@ -174,32 +131,32 @@ ImageRGB decode_hdr(const uint8_t* bytes, size_t size, const std::string& name,
       size_t(consumed) != text.size() || std::strspn(wtext, "0123456789") != std::strlen(wtext) ||
       std::strspn(htext, "0123456789") != std::strlen(htext) || std::strlen(wtext) > 10 ||
       std::strlen(htext) > 10) {
-    fail(name, "HDR resolution line '" + text.substr(0, 64) +
-                   "' is not supported (expected \"-Y height +X width\")");
+    fail_image(name, "HDR resolution line '" + text.substr(0, 64) +
+                         "' is not supported (expected \"-Y height +X width\")");
   }
   const uint64_t w = std::strtoull(wtext, nullptr, 10), h = std::strtoull(htext, nullptr, 10);
-  check_pixels(name, "HDR", w, h, limits);
+  check_image_pixels(name, "HDR", w, h, limits);
   // The smallest a scanline can be: runs of at most 127 equal bytes per
   // channel, or 4 bytes per pixel when it cannot be run-length encoded.
   const bool rle_possible = w >= 8 && w < 32768;
   const uint64_t min_line =
       rle_possible ? std::min<uint64_t>(4 * w, 4 + 8 * ((w + 126) / 127)) : 4 * w;
   if (h * min_line > size - pos) {
-    fail(name, "HDR pixel data is truncated (" + dims(w, h) + " needs at least " +
-                   std::to_string(h * min_line) + " bytes, the file has " +
-                   std::to_string(size - pos) + ")");
+    fail_image(name, "HDR pixel data is truncated (" + dims(w, h) + " needs at least " +
+                         std::to_string(h * min_line) + " bytes, the file has " +
+                         std::to_string(size - pos) + ")");
   }
   ImageRGB img{uint32_t(w), uint32_t(h)};
   std::vector<uint8_t> rgbe(size_t(w) * 4);
   auto truncated = [&](uint64_t y) {
-    fail(name, "HDR pixel data is truncated (scanline " + std::to_string(y) + " of " +
-                   std::to_string(h) + ")");
+    fail_image(name, "HDR pixel data is truncated (scanline " + std::to_string(y) + " of " +
+                         std::to_string(h) + ")");
   };
   for (uint64_t y = 0; y < h; ++y) {
     if (rle_possible && size - pos >= 4 && bytes[pos] == 2 && bytes[pos + 1] == 2 &&
         !(bytes[pos + 2] & 0x80)) {
       if ((uint64_t(bytes[pos + 2]) << 8 | bytes[pos + 3]) != w) {
-        fail(name, "HDR scanline " + std::to_string(y) + " has the wrong width");
+        fail_image(name, "HDR scanline " + std::to_string(y) + " has the wrong width");
       }
       pos += 4;
       for (int c = 0; c < 4; ++c) {
@@ -210,13 +167,14 @@ ImageRGB decode_hdr(const uint8_t* bytes, size_t size, const std::string& name,
           if (count > 128) {
             count -= 128;
             if (pos >= size) truncated(y);
-            if (x + count > w) fail(name, "HDR scanline " + std::to_string(y) + " is corrupt");
+            if (x + count > w)
+              fail_image(name, "HDR scanline " + std::to_string(y) + " is corrupt");
             const uint8_t v = bytes[pos++];
             for (uint64_t k = 0; k < count; ++k)
               rgbe[size_t(x++) * 4 + size_t(c)] = v;
           } else {
             if (count == 0 || x + count > w) {
-              fail(name, "HDR scanline " + std::to_string(y) + " is corrupt");
+              fail_image(name, "HDR scanline " + std::to_string(y) + " is corrupt");
             }
             if (size - pos < count) truncated(y);
             for (uint64_t k = 0; k < count; ++k)
@@ -247,22 +205,22 @@ ImageRGB decode_8bit(const uint8_t* bytes, size_t size, const std::string& name,
   const char* format = info.format == EncodedImageInfo::kPng    ? "PNG"
                        : info.format == EncodedImageInfo::kJpeg ? "JPEG"
                                                                 : "image";
-  if (size > size_t(INT_MAX)) fail(name, "file too large for the image decoder (over 2 GiB)");
+  if (size > size_t(INT_MAX)) fail_image(name, "file too large for the image decoder (over 2 GiB)");
   // Only PNG and JPEG reach stb: its other decoders (PNM, BMP, TGA, PSD,
   // GIF, PIC) are not what Tandem documents and not hardened (the fuzzer
   // made a 15-byte PNM header read past the buffer in libstb).
   if (info.format == EncodedImageInfo::kUnknown) {
-    fail(name, "not an image format Tandem reads (.exr, .pfm, .hdr, .png, .jpg)");
+    fail_image(name, "not an image format Tandem reads (.exr, .pfm, .hdr, .png, .jpg)");
   }
-  if (!info.header_ok) fail(name, info.problem);
-  check_pixels(name, format, info.width, info.height, limits);
+  if (!info.header_ok) fail_image(name, info.problem);
+  check_image_pixels(name, format, info.width, info.height, limits);
   int w = 0, h = 0, comp = 0;
   unsigned char* data = stbi_load_from_memory(bytes, int(size), &w, &h, &comp, 3);
   if (!data) {
     // The header was checked above, so stb's "too large" and the like
     // here mean the data after it is corrupt.
-    fail(name, std::string("cannot decode ") + format + " data: corrupt or unsupported (" +
-                   stbi_failure_reason() + ")");
+    fail_image(name, std::string("cannot decode ") + format + " data: corrupt or unsupported (" +
+                         stbi_failure_reason() + ")");
   }
   struct Free {
     void operator()(unsigned char* p) const { stbi_image_free(p); }
@@ -340,7 +298,8 @@ void fail_image(const std::string& name, const std::string& why) {
 
 void check_image_pixels(const std::string& name, const char* format, uint64_t w, uint64_t h,
                         const ImageReadLimits& limits) {
-  if (w < 1 || h < 1) fail(name, std::string(format) + " image has no pixels (" + dims(w, h) + ")");
+  if (w < 1 || h < 1)
+    fail_image(name, std::string(format) + " image has no pixels (" + dims(w, h) + ")");
   // w and h are each below 2^32 here, so the product cannot overflow.
   if (w > UINT32_MAX || h > UINT32_MAX || w * h > limits.max_pixels) {
     std::string use;
@@ -352,9 +311,9 @@ void check_image_pixels(const std::string& name, const char* format, uint64_t w,
       use += text;
     }
     if (limits.advice != nullptr) use += std::string("; ") + limits.advice;
-    fail(name, std::string(format) + " header claims " + dims(w, h) +
-                   " pixels, over the limit of " + std::to_string(limits.max_pixels) + " pixels" +
-                   use);
+    fail_image(name, std::string(format) + " header claims " + dims(w, h) +
+                         " pixels, over the limit of " + std::to_string(limits.max_pixels) +
+                         " pixels" + use);
   }
 }
 
@@ -443,7 +402,7 @@ EncodedImageInfo probe_encoded_image(const uint8_t* data, size_t size) {
 
 ImageRGB read_image_from_memory(const uint8_t* data, size_t size, const std::string& name,
                                 const ImageReadLimits& limits) {
-  if (size == 0) fail(name, "file is empty");
+  if (size == 0) fail_image(name, "file is empty");
   std::string ext = fs::path(name).extension().string();
   for (char& c : ext)
     c = char(std::tolower(static_cast<unsigned char>(c)));
@@ -458,7 +417,7 @@ ImageRGB read_image_from_memory(const uint8_t* data, size_t size, const std::str
     if (hdr || ext == ".hdr") return decode_hdr(data, size, name, limits);
     return decode_8bit(data, size, name, limits);
   } catch (const std::bad_alloc&) {
-    fail(name, "not enough memory to decode the image");
+    fail_image(name, "not enough memory to decode the image");
   }
 }
 
@@ -466,28 +425,28 @@ ImageRGB read_image(const fs::path& path, const ImageReadLimits& limits) {
   const std::string name = path.string();
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st)) fail(name, "file not found");
-  if (fs::is_directory(st)) fail(name, "is a directory, not an image file");
-  if (!fs::is_regular_file(st)) fail(name, "not a regular file (a device, FIFO or socket)");
+  if (!fs::exists(st)) fail_image(name, "file not found");
+  if (fs::is_directory(st)) fail_image(name, "is a directory, not an image file");
+  if (!fs::is_regular_file(st)) fail_image(name, "not a regular file (a device, FIFO or socket)");
   const uintmax_t size = fs::file_size(path, ec);
-  if (ec) fail(name, "cannot read the file size (" + ec.message() + ")");
-  if (size == 0) fail(name, "file is empty");
+  if (ec) fail_image(name, "cannot read the file size (" + ec.message() + ")");
+  if (size == 0) fail_image(name, "file is empty");
   if (size > limits.max_file_bytes) {
-    fail(name, "file is " + std::to_string(size) + " bytes, over the limit of " +
-                   std::to_string(limits.max_file_bytes));
+    fail_image(name, "file is " + std::to_string(size) + " bytes, over the limit of " +
+                         std::to_string(limits.max_file_bytes));
   }
   std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) fail(name, std::string("cannot open the file (") + std::strerror(errno) + ")");
+  if (!f) fail_image(name, std::string("cannot open the file (") + std::strerror(errno) + ")");
   std::vector<uint8_t> bytes;
   try {
     bytes.resize(size_t(size));
   } catch (const std::bad_alloc&) {
     std::fclose(f);
-    fail(name, "not enough memory to read the file");
+    fail_image(name, "not enough memory to read the file");
   }
   const size_t got = std::fread(bytes.data(), 1, bytes.size(), f);
   std::fclose(f);
-  if (got != bytes.size()) fail(name, "cannot read the whole file");
+  if (got != bytes.size()) fail_image(name, "cannot read the whole file");
   return read_image_from_memory(bytes.data(), bytes.size(), name, limits);
 }
 
