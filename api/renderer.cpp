@@ -385,16 +385,25 @@ void check_environment_scale(float intensity, float rotation, const char* what) 
     invalid(std::string(what) + ": rotation must be finite radians within 1e6");
 }
 
+// Builds an environment with `set` (one of the scene loader's functions)
+// in a scene of its own, so that a failure leaves the renderer's as it
+// was, then takes it turned by `rotation`.
+template <class F>
+void install_environment(Scene& scene, float rotation, F&& set,
+                         Error::Kind error_kind = Error::Kind::kFile) {
+  Scene probe;
+  guarded([&] { set(probe); }, error_kind);
+  Environment env = probe.environment();
+  env.rotation = rotation;
+  scene.edit_environment() = std::move(env);
+}
+
 }  // namespace
 
 void Renderer::set_environment_map(const std::string& path, float intensity, float rotation) {
   check_environment_scale(intensity, rotation, "set_environment_map");
-  // Loaded into a copy of the environment: a failure leaves the scene's.
-  Scene probe;
-  guarded([&] { load_environment_map(probe, path, intensity); });
-  Environment env = probe.environment();
-  env.rotation = rotation;
-  impl_->scene.edit_environment() = std::move(env);
+  install_environment(impl_->scene, rotation,
+                      [&](Scene& s) { load_environment_map(s, path, intensity); });
 }
 
 void Renderer::set_environment_pixels(uint32_t width, uint32_t height, const float* rgb,
@@ -413,24 +422,17 @@ void Renderer::set_environment_pixels(uint32_t width, uint32_t height, const flo
     }
     image.rgb[i] = rgb[i];
   }
-  Scene probe;
-  guarded([&] { tandem::set_environment_map(probe, image, "the pixels", intensity); },
-          Error::Kind::kInvalidArgument);
-  Environment env = probe.environment();
-  env.rotation = rotation;
-  impl_->scene.edit_environment() = std::move(env);
+  install_environment(
+      impl_->scene, rotation,
+      [&](Scene& s) { tandem::set_environment_map(s, image, "the pixels", intensity); },
+      Error::Kind::kInvalidArgument);
 }
 
 void Renderer::use_default_sky(float intensity, float rotation) {
   check_environment_scale(intensity, rotation, "use_default_sky");
-  Scene probe;
-  guarded([&] {
-    tandem::set_environment_map(probe, default_environment_image(), kDefaultEnvironmentName,
-                                intensity);
+  install_environment(impl_->scene, rotation, [&](Scene& s) {
+    tandem::set_environment_map(s, default_environment_image(), kDefaultEnvironmentName, intensity);
   });
-  Environment env = probe.environment();
-  env.rotation = rotation;
-  impl_->scene.edit_environment() = std::move(env);
 }
 
 void Renderer::load_gltf(const std::string& path) {
@@ -596,30 +598,35 @@ std::vector<float> Renderer::image_linear() const {
   return impl_->tracer->image().rgb;
 }
 
+namespace {
+
+// A caller's buffer for the image of `film`: not null and large enough.
+void check_image_buffer(const void* out, size_t count, const Film& film, const char* what,
+                        const char* unit) {
+  if (out == nullptr) invalid(std::string(what) + ": the buffer is null");
+  const size_t needed = size_t(film.width()) * film.height() * 3;
+  if (count < needed) {
+    invalid(std::string(what) + ": the buffer holds " + std::to_string(count) + " " + unit +
+            "; the " + std::to_string(film.width()) + "x" + std::to_string(film.height()) +
+            " image needs " + std::to_string(needed));
+  }
+}
+
+}  // namespace
+
 void Renderer::copy_image_linear(float* out, size_t count) const {
   impl_->require_image("copy_image_linear");
-  const ImageRGB& img = impl_->tracer->image();
-  if (out == nullptr) invalid("copy_image_linear: the buffer is null");
-  if (count < img.rgb.size()) {
-    invalid("copy_image_linear: the buffer holds " + std::to_string(count) + " floats; the " +
-            std::to_string(img.width) + "x" + std::to_string(img.height) + " image needs " +
-            std::to_string(img.rgb.size()));
-  }
-  std::copy(img.rgb.begin(), img.rgb.end(), out);
+  const Film& film = impl_->tracer->film();
+  check_image_buffer(out, count, film, "copy_image_linear", "floats");
+  film.resolve_into(out);
 }
 
 void Renderer::copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops,
                                 ToneCurve curve) const {
   impl_->require_image("copy_image_srgb8");
   if (!std::isfinite(exposure_stops)) invalid("copy_image_srgb8: exposure_stops is not finite");
-  const ImageRGB& img = impl_->tracer->image();
-  if (out == nullptr) invalid("copy_image_srgb8: the buffer is null");
-  if (count < img.rgb.size()) {
-    invalid("copy_image_srgb8: the buffer holds " + std::to_string(count) + " bytes; the " +
-            std::to_string(img.width) + "x" + std::to_string(img.height) + " image needs " +
-            std::to_string(img.rgb.size()));
-  }
-  tone_map_to_srgb8_into(img, exposure_stops, to_tone_map(curve), out);
+  check_image_buffer(out, count, impl_->tracer->film(), "copy_image_srgb8", "bytes");
+  tone_map_to_srgb8_into(impl_->tracer->image(), exposure_stops, to_tone_map(curve), out);
 }
 
 std::vector<float> Renderer::image_denoised() const {

@@ -1,6 +1,5 @@
 // `tandem info SCENE`: what a scene contains.
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -8,6 +7,7 @@
 #include "app/cli_args.h"
 #include "app/cli_options.h"
 #include "app/commands.h"
+#include "app/render_frames.h"
 #include "app/scene_setup.h"
 #include "core/kernel/math.h"
 #include "core/util/errors.h"
@@ -114,9 +114,9 @@ int run_info(const std::vector<std::string>& argv) {
     for (size_t i = 0; i < gltf.animation_list.size(); ++i) {
       const GltfSummary::Animation& a = gltf.animation_list[i];
       // The frames `--frames all` renders at the default rate.
-      const double last_frame = std::floor(a.seconds * 24.0 + 1e-6);
-      std::printf("  %zu: %s, %.4g s (frames 0..%.0f at 24 fps), %zu channels\n", i,
-                  a.name.empty() ? "(unnamed)" : a.name.c_str(), a.seconds, last_frame, a.channels);
+      std::printf("  %zu: %s, %.4g s (frames 0..%u at 24 fps), %zu channels\n", i,
+                  a.name.empty() ? "(unnamed)" : a.name.c_str(), a.seconds,
+                  last_frame_within(a.seconds, RenderFrames{}.fps), a.channels);
     }
     if (gltf.animation_list.size() < gltf.animations) std::printf("  ...\n");
   }

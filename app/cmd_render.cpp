@@ -267,9 +267,9 @@ int run_render(const std::vector<std::string>& argv) {
   }
 
   if (!scene.has_camera()) {
-    // Framed over the frames being rendered, not only the rest pose: an
-    // animated object may leave the rest pose's bounds.
-    // (Over one loop, so frame N is framed the same alone or in a sequence.)
+    // With frames, over one loop of the animation, not only the rest pose
+    // (a moving object may leave it), so that frame N is framed the same
+    // alone or in a sequence.
     const SceneBounds bounds = frame_range ? animation_bounds(*animator, scene) : scene.bounds();
     scene.set_camera(
         frame_bounds_camera(bounds, 0.6911112f, float(settings.width) / float(settings.height)));

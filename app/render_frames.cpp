@@ -84,27 +84,32 @@ std::optional<RenderFrames> parse_render_frames(const std::optional<std::string>
   return r;
 }
 
+uint32_t last_frame_within(double duration, double fps) {
+  // The small tolerance keeps a duration of exactly k / fps at frame k.
+  const double last = duration > 0.0 ? std::floor(duration * fps + 1e-6) : 0.0;
+  return uint32_t(std::min<double>(last, kMaxFrame));
+}
+
 void resolve_whole_animation(RenderFrames& frames, double duration) {
   frames.first = 0;
-  // The small tolerance keeps a duration of exactly k / fps at frame k.
-  const double last = duration > 0.0 ? std::floor(duration * frames.fps + 1e-6) : 0.0;
-  frames.last = uint32_t(std::min<double>(last, kMaxFrame));
+  frames.last = last_frame_within(duration, frames.fps);
 }
 
 std::string frames_past_end_notice(const RenderFrames& frames, double duration) {
   if (duration <= 0.0) return "";
+  const uint32_t last_within = last_frame_within(duration, frames.fps);
   const uint32_t final_frame = frames.final_frame();
-  if (frames.time(final_frame) <= duration * (1.0 + 1e-9)) return "";
+  if (final_frame <= last_within) return "";
   // The first frame of the range past the end.
-  uint32_t first_past = frames.first;
-  while (frames.time(first_past) <= duration * (1.0 + 1e-9))
-    first_past += frames.step;
+  const uint32_t first_past =
+      frames.first > last_within
+          ? frames.first
+          : frames.first + ((last_within - frames.first) / frames.step + 1) * frames.step;
   char text[256];
   std::snprintf(text, sizeof text,
                 "frames %u..%u are past the end of the animation (%.4g s long: its last frame at "
                 "%g fps is %u); it loops, so they show it again from its start",
-                first_past, final_frame, duration, frames.fps,
-                uint32_t(std::floor(duration * frames.fps + 1e-6)));
+                first_past, final_frame, duration, frames.fps, last_within);
   return text;
 }
 

@@ -26,6 +26,10 @@ struct RenderFrames {
   double time(uint32_t frame) const { return double(frame) / fps; }
 };
 
+// The last frame whose time is within `duration` seconds at `fps` (0 for
+// a scene that does not move).
+uint32_t last_frame_within(double duration, double fps);
+
 // For `--frames all`: frames 0 up to the last one within `duration`
 // seconds (0..0 for a scene that does not move).
 void resolve_whole_animation(RenderFrames& frames, double duration);

@@ -45,6 +45,18 @@ inline tandem::RendererOptions small_options() {
   return o;
 }
 
+// The scene's point light above the origin and its camera looking at it
+// from above and in front.
+inline void add_light_and_camera(tandem::Renderer& r) {
+  tandem::LightDesc light;
+  light.position[1] = 4.0f;
+  light.intensity = 30.0f;
+  r.add_light(light);
+  tandem::CameraDesc cam;
+  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
+  r.set_camera(cam);
+}
+
 // A floor, a small red square above it and a light: the square's instance is
 // returned so tests can move it. Without `place_square` its mesh is added
 // but no instance of it (the id returned is then meaningless).
@@ -62,13 +74,7 @@ inline tandem::InstanceId build_scene(tandem::Renderer& r, bool place_square = t
   const tandem::InstanceId moving =
       place_square ? r.add_instance(block_mesh, tandem::Transform::translation(-1.0f, 0.5f, 0.0f))
                    : tandem::InstanceId{};
-  tandem::LightDesc light;
-  light.position[1] = 4.0f;
-  light.intensity = 30.0f;
-  r.add_light(light);
-  tandem::CameraDesc cam;
-  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
-  r.set_camera(cam);
+  add_light_and_camera(r);
   return moving;
 }
 

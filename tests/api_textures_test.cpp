@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -44,19 +45,13 @@ std::vector<float> render_floor(tandem::RendererOptions o, const std::vector<uin
   tandem::MaterialDesc grey;
   if (pixels != nullptr) {
     tandem::TextureDesc t;
-    t.width = t.height = pixels->size() == 64 ? 4 : 8;
+    t.width = t.height = uint32_t(std::lround(std::sqrt(double(pixels->size() / 4))));  // square
     t.rgba8 = pixels->data();
     t.nearest = nearest;
     grey.base_color_texture = r.add_texture(t);
   }
   r.add_instance(r.add_mesh(floor.data(), r.add_material(grey)), tandem::Transform::identity());
-  tandem::LightDesc light;
-  light.position[1] = 4.0f;
-  light.intensity = 30.0f;
-  r.add_light(light);
-  tandem::CameraDesc cam;
-  cam.position[0] = 0, cam.position[1] = 3, cam.position[2] = 5;
-  r.set_camera(cam);
+  add_light_and_camera(r);
   r.render_frame();
   return r.image_linear();
 }

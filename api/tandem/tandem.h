@@ -414,7 +414,9 @@ class Renderer {
   std::vector<uint8_t> image_srgb8(float exposure_stops = 0.0f,
                                    ToneCurve curve = ToneCurve::kStandard) const;
   // The same into the caller's buffer of `count` bytes (at least
-  // width() * height() * 3). Errors: as copy_image_linear.
+  // width() * height() * 3); the linear image is resolved on the way (one
+  // temporary of width() * height() * 3 floats). Errors: as
+  // copy_image_linear.
   void copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops = 0.0f,
                         ToneCurve curve = ToneCurve::kStandard) const;
   // Writes the image: .png (tone mapped as image_srgb8), .exr or .pfm

@@ -28,12 +28,16 @@ void Film::clear_rect(uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1) {
 
 ImageRGB Film::resolve() const {
   ImageRGB img(width_, height_);
+  resolve_into(img.rgb.data());
+  return img;
+}
+
+void Film::resolve_into(float* rgb) const {
   for (size_t i = 0; i < samples_.size(); ++i) {
     const double inv = samples_[i] ? 1.0 / double(samples_[i]) : 0.0;
     for (int c = 0; c < 3; ++c)
-      img.rgb[3 * i + c] = float(sum_[3 * i + c] * inv);
+      rgb[3 * i + c] = float(sum_[3 * i + c] * inv);
   }
-  return img;
 }
 
 }  // namespace tandem

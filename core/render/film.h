@@ -39,6 +39,8 @@ class Film {
 
   // Per-pixel mean radiance (black where no sample landed yet).
   ImageRGB resolve() const;
+  // The same into `rgb` (width() * height() * 3 floats), without allocating.
+  void resolve_into(float* rgb) const;
 
  private:
   uint32_t width_ = 0, height_ = 0;
