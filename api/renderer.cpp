@@ -18,6 +18,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "api/api_convert.h"
+#include "api/api_ids.h"
 #include "api/tandem/tandem.h"
 #include "backends/backend_factory.h"
 #include "core/image/image.h"
@@ -201,6 +202,26 @@ struct Renderer::Impl {
   bool in_flight = false;
   bool image_valid = false;
   uint64_t frames = 0;
+  // Ids to slots (api_ids.h). A removed instance's slot is hidden and kept
+  // for the next instance of its mesh: per mesh slot, those free slots and
+  // how many instances are alive.
+  api_detail::IdTable mesh_ids, instance_ids, light_ids;
+  std::vector<std::vector<uint32_t>> free_instance_slots;
+  std::vector<uint32_t> mesh_instances_alive;
+  uint32_t instances_alive = 0;
+
+  // Ids for the scene as it is now (a new one: loaded, cleared).
+  void reset_ids() {
+    mesh_ids.reset(uint32_t(scene.mesh_count()));
+    instance_ids.reset(uint32_t(scene.instances().size()));
+    light_ids.reset(uint32_t(scene.lights().size()));
+    free_instance_slots.assign(scene.mesh_count(), {});
+    mesh_instances_alive.assign(scene.mesh_count(), 0);
+    for (const Instance& inst : scene.instances()) {
+      if (inst.mesh < mesh_instances_alive.size()) ++mesh_instances_alive[inst.mesh];
+    }
+    instances_alive = uint32_t(scene.instances().size());
+  }
 
   void apply_thread_budget() {
     thread_limit.reset();
@@ -322,40 +343,97 @@ void Renderer::set_material(MaterialId id, const MaterialDesc& material) {
 MeshId Renderer::add_mesh(const MeshData& mesh, MaterialId material) {
   const uint32_t mat = checked(material, impl_->scene.materials().size(), "add_mesh", "material");
   Mesh m = api_detail::to_mesh(mesh, mat, "add_mesh");
-  return {impl_->scene.add_mesh(std::move(m))};
+  Impl& im = *impl_;
+  const uint32_t slot = im.scene.add_mesh(std::move(m));
+  im.free_instance_slots.emplace_back();
+  im.mesh_instances_alive.push_back(0);
+  return {im.mesh_ids.add(slot)};
+}
+
+void Renderer::remove_mesh(MeshId id) {
+  Impl& im = *impl_;
+  const uint32_t m = im.mesh_ids.slot(id.index, "remove_mesh", "mesh");
+  if (im.mesh_instances_alive[m] > 0) {
+    throw Error(Error::Kind::kInvalidState,
+                "remove_mesh: mesh " + std::to_string(id.index) + " still has " +
+                    std::to_string(im.mesh_instances_alive[m]) + " instance(s); remove them first");
+  }
+  // The mesh goes with its free (hidden) instance slots; later slots move.
+  im.instance_ids.remap(im.scene.remove_mesh(m));
+  im.mesh_ids.erase_slot(m);
+  im.free_instance_slots.erase(im.free_instance_slots.begin() + m);
+  im.mesh_instances_alive.erase(im.mesh_instances_alive.begin() + m);
+  for (std::vector<uint32_t>& slots : im.free_instance_slots)
+    slots.clear();
+  for (uint32_t i = 0; i < im.scene.instances().size(); ++i) {
+    if (im.scene.instances()[i].hidden)
+      im.free_instance_slots[im.scene.instances()[i].mesh].push_back(i);
+  }
 }
 
 void Renderer::set_mesh_vertices(MeshId id, const MeshData& vertices) {
-  const uint32_t i = checked(id, impl_->scene.mesh_count(), "set_mesh_vertices", "mesh");
+  const uint32_t i = impl_->mesh_ids.slot(id.index, "set_mesh_vertices", "mesh");
   // Checked before anything changes: a failed call changes nothing.
   impl_->scene.pose_mesh(i, api_detail::vertices_pose(vertices, impl_->scene.mesh_vertex_count(i),
                                                       "set_mesh_vertices"));
 }
 
 InstanceId Renderer::add_instance(MeshId mesh, const Transform& transform) {
-  const uint32_t m = checked(mesh, impl_->scene.mesh_count(), "add_instance", "mesh");
-  Instance inst;
-  inst.mesh = m;
-  inst.transform = api_detail::to_matrix(transform, "add_instance");
-  return {impl_->scene.add_instance(std::move(inst))};
+  Impl& im = *impl_;
+  const uint32_t m = im.mesh_ids.slot(mesh.index, "add_instance", "mesh");
+  const glm::mat4 matrix = api_detail::to_matrix(transform, "add_instance");
+  uint32_t slot;
+  std::vector<uint32_t>& free = im.free_instance_slots[m];
+  if (!free.empty()) {
+    // A removed instance of the same mesh: shown again where this one is
+    // (a TLAS update, as for a move).
+    slot = free.back();
+    free.pop_back();
+    im.scene.set_instance_transform(slot, matrix);
+    im.scene.set_instance_hidden(slot, false);
+  } else {
+    Instance inst;
+    inst.mesh = m;
+    inst.transform = matrix;
+    slot = im.scene.add_instance(std::move(inst));
+  }
+  ++im.mesh_instances_alive[m];
+  ++im.instances_alive;
+  return {im.instance_ids.add(slot)};
+}
+
+void Renderer::remove_instance(InstanceId id) {
+  Impl& im = *impl_;
+  const uint32_t slot = im.instance_ids.slot(id.index, "remove_instance", "instance");
+  const uint32_t m = im.scene.instances()[slot].mesh;
+  im.scene.set_instance_hidden(slot, true);
+  im.instance_ids.release(slot);
+  im.free_instance_slots[m].push_back(slot);
+  --im.mesh_instances_alive[m];
+  --im.instances_alive;
 }
 
 void Renderer::set_instance_transform(InstanceId id, const Transform& transform) {
-  const uint32_t i =
-      checked(id, impl_->scene.instances().size(), "set_instance_transform", "instance");
+  const uint32_t i = impl_->instance_ids.slot(id.index, "set_instance_transform", "instance");
   impl_->scene.set_instance_transform(i,
                                       api_detail::to_matrix(transform, "set_instance_transform"));
 }
 
 LightId Renderer::add_light(const LightDesc& light) {
   Light l = api_detail::to_light(light, "add_light");
-  return {impl_->scene.add_light(std::move(l))};
+  return {impl_->light_ids.add(impl_->scene.add_light(std::move(l)))};
 }
 
 void Renderer::set_light(LightId id, const LightDesc& light) {
-  const uint32_t i = checked(id, impl_->scene.lights().size(), "set_light", "light");
+  const uint32_t i = impl_->light_ids.slot(id.index, "set_light", "light");
   Light l = api_detail::to_light(light, "set_light");
   impl_->scene.edit_light(i) = std::move(l);
+}
+
+void Renderer::remove_light(LightId id) {
+  const uint32_t i = impl_->light_ids.slot(id.index, "remove_light", "light");
+  impl_->scene.remove_light(i);
+  impl_->light_ids.erase_slot(i);
 }
 
 void Renderer::set_camera(const CameraDesc& camera) {
@@ -449,12 +527,14 @@ void Renderer::load_gltf(const std::string& path) {
   // A new tracer compiles the new scene from scratch (its compiler's
   // bookkeeping describes the old one).
   impl_->scene = std::move(loaded);
+  impl_->reset_ids();
   impl_->create_tracer();
 }
 
 void Renderer::clear_scene() {
   impl_->require_idle("clear_scene");
   impl_->scene = Scene{};
+  impl_->reset_ids();
   impl_->create_tracer();
 }
 
@@ -465,7 +545,7 @@ uint32_t Renderer::mesh_count() const {
   return uint32_t(impl_->scene.mesh_count());
 }
 uint32_t Renderer::instance_count() const {
-  return uint32_t(impl_->scene.instances().size());
+  return impl_->instances_alive;
 }
 uint32_t Renderer::light_count() const {
   return uint32_t(impl_->scene.lights().size());
@@ -523,7 +603,7 @@ void Renderer::begin_frame() {
   Impl& im = *impl_;
   if (im.in_flight)
     throw Error(Error::Kind::kInvalidState, "begin_frame: the previous frame was not ended");
-  if (im.scene.instances().empty())
+  if (im.instances_alive == 0)
     throw Error(Error::Kind::kInvalidState, "begin_frame: the scene has no instance to render");
   im.place_camera();
   guarded([&] { im.tracer->begin_frame(im.scene); }, Error::Kind::kDevice);

@@ -26,8 +26,10 @@
 // Errors: every function that can fail throws tandem::Error (and nothing
 // else, bar std::bad_alloc), whose what() is one sentence naming the
 // argument or file and the reason. A failed call leaves the scene and the
-// options as they were. Identifiers (MeshId, ...) are indices into the renderer that made
-// them, valid until the scene is replaced (load_gltf, clear_scene).
+// options as they were. Identifiers (MeshId, ...) belong to the renderer
+// that made them and stay valid until their object is removed or the scene
+// is replaced (load_gltf, clear_scene); an id is never handed out twice, so
+// a stale one is refused (kInvalidArgument), never taken for another object.
 //
 // Threads: one Renderer is used from one thread at a time. It renders on
 // its own worker threads (the CPU backend uses every core through TBB).
@@ -81,7 +83,8 @@ void set_warnings_to_stderr(bool enabled);
 // `reason` is given, it is set to why (not built with CUDA, no GPU, ...).
 bool cuda_available(std::string* reason = nullptr);
 
-// Strongly typed indices (0, 1, 2, ... in order of creation).
+// Strongly typed ids (0, 1, 2, ... in order of creation, per kind; after
+// load_gltf, the file's objects in its order).
 struct MaterialId {
   uint32_t index = 0;
 };
@@ -289,6 +292,11 @@ class Renderer {
   // Errors: kInvalidArgument for an unknown id, another vertex count, null
   // positions, or non-finite values.
   void set_mesh_vertices(MeshId id, const MeshData& vertices);
+  // Removes a mesh that no instance uses any more (its memory is freed; the
+  // next frame recompiles the scene, as after add_mesh). Errors:
+  // kInvalidArgument for an unknown or removed id, kInvalidState while
+  // instances of it remain.
+  void remove_mesh(MeshId id);
 
   // Places a mesh in the world. Errors: kInvalidArgument for an unknown
   // mesh, or a transform with NaN/infinite entries, not affine, or a
@@ -299,12 +307,21 @@ class Renderer {
   // Moves an instance (the acceleration structure is refitted, not rebuilt).
   // Errors: as add_instance, and for an unknown instance.
   void set_instance_transform(InstanceId id, const Transform& transform);
+  // Removes an instance: from the next frame it is not drawn, lit or
+  // framed, at the cost of a move (a TLAS update). Its memory is kept for
+  // the next add_instance of the same mesh, so a game that spawns and
+  // despawns objects holds memory for the most alive at once. Errors:
+  // kInvalidArgument for an unknown or removed id.
+  void remove_instance(InstanceId id);
 
   // Adds or changes a light. Errors: kInvalidArgument for NaN, negative
   // intensity or colour, colour x intensity above 1e30, a position beyond
   // 1e9 of the origin, a zero direction, or bad cone angles.
   LightId add_light(const LightDesc& light);
   void set_light(LightId id, const LightDesc& light);
+  // Removes a light (the light list is rebuilt, not the scene). Errors:
+  // kInvalidArgument for an unknown or removed id.
+  void remove_light(LightId id);
 
   // Sets the camera (until then, the first frame places one that frames the
   // whole scene). The image's aspect ratio is width/height of the options,
@@ -339,6 +356,7 @@ class Renderer {
   // Empties the scene (ids become invalid). Errors: kInvalidState during a frame.
   void clear_scene();
 
+  // What the scene holds now (removed objects not counted).
   uint32_t material_count() const;
   uint32_t mesh_count() const;
   uint32_t instance_count() const;

@@ -40,6 +40,10 @@ KInstance SceneCompiler::compile_instance(const Scene& scene, uint32_t index) {
   KInstance k{};
   k.mesh = inst.mesh;
   k.handedness = 1.0f;
+  if (inst.hidden) {
+    k.flags = kInstanceHidden;  // as below, but asked for: nothing to say
+    return k;
+  }
   const InstanceState state = inst.mesh < scene.mesh_count()
                                   ? classify_instance(inst.transform, mesh_box(scene, inst.mesh))
                                   : InstanceState::kVisible;

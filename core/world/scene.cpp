@@ -31,6 +31,22 @@ void Scene::DirtySet::mark(uint32_t index, uint32_t bits) {
   m |= bits;
 }
 
+void Scene::DirtySet::erase(const std::vector<uint8_t>& removed) {
+  std::vector<uint32_t> new_index(mask.size(), kRemovedIndex);
+  uint32_t kept = 0;
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (removed[i]) continue;
+    new_index[i] = kept;
+    mask[kept++] = mask[i];
+  }
+  mask.resize(kept);
+  std::vector<uint32_t> kept_list;
+  for (uint32_t i : list) {
+    if (new_index[i] != kRemovedIndex) kept_list.push_back(new_index[i]);
+  }
+  list = std::move(kept_list);
+}
+
 void Scene::DirtySet::clear() {
   for (uint32_t i : list)
     mask[i] = 0;
@@ -80,6 +96,74 @@ void Scene::set_instance_transform(uint32_t instance, const glm::mat4& transform
   instances_.at(instance).transform = transform;
   instances_dirty_.mark(instance, kDirtyTransform);
   bounds_cache_.instance_changed(instance);
+}
+
+void Scene::set_instance_hidden(uint32_t instance, bool hidden) {
+  Instance& inst = instances_.at(instance);
+  if (inst.hidden == hidden) return;
+  inst.hidden = hidden;
+  // The TLAS drops or takes it as for a move.
+  instances_dirty_.mark(instance, kDirtyTransform);
+  bounds_cache_.instance_changed(instance);
+}
+
+void Scene::remove_light(uint32_t light) {
+  if (light >= lights_.size())
+    throw std::out_of_range("remove_light: light " + std::to_string(light) + " does not exist");
+  lights_.erase(lights_.begin() + light);
+  std::vector<uint8_t> removed(lights_.size() + 1, 0);
+  removed[light] = 1;
+  lights_dirty_.erase(removed);
+}
+
+namespace {
+
+// Keeps the elements of `v` whose `removed` flag is 0, in order.
+template <class T>
+void erase_flagged(std::vector<T>& v, const std::vector<uint8_t>& removed) {
+  size_t kept = 0;
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (removed[i]) continue;
+    if (kept != i) v[kept] = std::move(v[i]);  // not onto itself: that may empty it
+    ++kept;
+  }
+  v.resize(kept);
+}
+
+}  // namespace
+
+std::vector<uint32_t> Scene::remove_mesh(uint32_t mesh) {
+  if (mesh >= meshes_.size())
+    throw std::out_of_range("remove_mesh: mesh " + std::to_string(mesh) + " does not exist");
+  std::vector<uint8_t> mesh_removed(meshes_.size(), 0), instance_removed(instances_.size(), 0);
+  mesh_removed[mesh] = 1;
+  std::vector<uint32_t> remap(instances_.size(), kRemovedIndex);
+  uint32_t kept = 0;
+  for (size_t i = 0; i < instances_.size(); ++i) {
+    instance_removed[i] = instances_[i].mesh == mesh;
+    if (!instance_removed[i]) remap[i] = kept++;
+  }
+  erase_flagged(instances_, instance_removed);
+  for (Instance& inst : instances_) {
+    if (inst.mesh > mesh) --inst.mesh;
+  }
+  instances_dirty_.erase(instance_removed);
+  if (unwritten_poses_[mesh] != nullptr) --unwritten_count_;
+  erase_flagged(meshes_, mesh_removed);
+  erase_flagged(mesh_vertex_ranges_, mesh_removed);
+  erase_flagged(mesh_vertex_versions_, mesh_removed);
+  erase_flagged(mesh_deforms_, mesh_removed);
+  erase_flagged(unwritten_poses_, mesh_removed);
+  erase_flagged(poses_since_clear_, mesh_removed);
+  meshes_dirty_.erase(mesh_removed);
+  // Every index the cache keeps moved: it starts over (the next bounds()
+  // walks the scene once, as after loading).
+  bounds_cache_ = SceneBoundsCache{};
+  for (size_t m = 0; m < meshes_.size(); ++m)
+    bounds_cache_.mesh_added();
+  for (const Instance& inst : instances_)
+    bounds_cache_.instance_added(inst.mesh);
+  return remap;
 }
 
 void Scene::set_mesh_deforms(uint32_t mesh, bool deforms) {
@@ -194,7 +278,7 @@ size_t Scene::triangle_count_unique() const {
 size_t Scene::triangle_count_instanced() const {
   size_t n = 0;
   for (const Instance& i : instances_)
-    n += meshes_[i.mesh].triangles.size();
+    n += i.hidden ? 0 : meshes_[i.mesh].triangles.size();
   return n;
 }
 

@@ -93,6 +93,10 @@ struct Instance {
   std::string name;
   uint32_t mesh = 0;
   glm::mat4 transform{1.0f};  // object to world
+  // Not drawn, not lit, not in the bounds: as if it were not there, while
+  // its slot stays for reuse (a game's despawned object, see
+  // Scene::set_instance_hidden).
+  bool hidden = false;
 };
 
 enum class LightType : uint8_t { kPoint, kSpot, kDirectional };
@@ -157,6 +161,20 @@ class Scene {
 
   // --- editing (marks the object dirty) ------------------------------------
   void set_instance_transform(uint32_t instance, const glm::mat4& transform);
+  // Hides or shows an instance. Hiding is how objects are removed at the
+  // cost of a TLAS update: the slot (and its index) stays, and the caller
+  // may show it again with a new transform for the next object of its mesh,
+  // so memory follows the most objects alive at once, not all ever made.
+  void set_instance_hidden(uint32_t instance, bool hidden);
+  // Removes a light; later lights move down one index. The compiler then
+  // rebuilds the light list only (as for add_light), not the scene.
+  void remove_light(uint32_t light);
+  // Removes a mesh and every instance of it; later meshes and instances move
+  // down. Returns, for each instance index before the call, its index after
+  // it (kRemovedIndex for those removed). A change of the mesh list: the
+  // next compile is a full one.
+  static constexpr uint32_t kRemovedIndex = 0xffffffffu;
+  std::vector<uint32_t> remove_mesh(uint32_t mesh);
   Material& edit_material(uint32_t material);
   Light& edit_light(uint32_t light);
   // Caller may change vertex attributes in place but not the vertex count.
@@ -290,6 +308,9 @@ class Scene {
     std::vector<uint32_t> mask, list;
     uint32_t add(uint32_t bits);  // a new object; returns its index
     void mark(uint32_t index, uint32_t bits);
+    // Drops the objects `removed` (by index, each 0 or 1) from the mask
+    // and the list, renumbering the rest.
+    void erase(const std::vector<uint8_t>& removed);
     void clear();
   };
   DirtySet textures_dirty_, materials_dirty_, meshes_dirty_, instances_dirty_, lights_dirty_;

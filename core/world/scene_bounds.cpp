@@ -84,7 +84,8 @@ SceneBounds vertex_bounds(const glm::vec3* positions, size_t count, bool* all_fi
 
 SceneBounds instance_world_bounds(const Instance& inst, const SceneBounds& mb) {
   SceneBounds b;
-  if (mb.empty || classify_instance(inst.transform, mb) != InstanceState::kVisible) return b;
+  if (inst.hidden || mb.empty || classify_instance(inst.transform, mb) != InstanceState::kVisible)
+    return b;
   for (int c = 0; c < 8; ++c) {
     const glm::vec3 corner((c & 1) ? mb.hi.x : mb.lo.x, (c & 2) ? mb.hi.y : mb.lo.y,
                            (c & 4) ? mb.hi.z : mb.lo.z);

@@ -8,9 +8,11 @@
 namespace tandem {
 
 bool SceneCompiler::needs_full_build(const Scene& scene) const {
-  const size_t counts[5] = {scene.textures().size(), scene.materials().size(), scene.mesh_count(),
-                            scene.instances().size(), scene.lights().size()};
-  if (!compiled_once_ || !std::equal(counts, counts + 5, counts_)) return true;
+  // Not the light count: lights added or removed rebuild the light list
+  // only (compile()).
+  const size_t counts[4] = {scene.textures().size(), scene.materials().size(), scene.mesh_count(),
+                            scene.instances().size()};
+  if (!compiled_once_ || !std::equal(counts, counts + 4, counts_)) return true;
   // New texels move every later texture's offset.
   if (!scene.dirty_textures().empty()) return true;
   // New topology moves every later mesh's vertex and triangle offsets.
@@ -60,6 +62,8 @@ SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& sett
       compile_environment(scene, out, delta);
       needs.light_list = true;
     }
+    // Lights added or removed: their records and every light index after them.
+    if (scene.lights().size() != counts_[4]) needs.light_list = true;
     // Punctual lights, and the scene's size that directional powers scale with.
     needs.light_powers =
         !scene.dirty_lights().empty() || (delta.instances_changed() && scene_size_changed(scene));
