@@ -3,6 +3,7 @@
 // into tandem::Error at this boundary.
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <exception>
 #include <new>
@@ -251,8 +252,15 @@ struct Renderer::Impl {
     }
     tracer = guarded(
         [&] {
-          return std::make_unique<CoreTracer>(create_backends(to_backend_kind(options.backend)),
-                                              tracer_settings());
+          std::vector<std::unique_ptr<Backend>> backends =
+              create_backends(to_backend_kind(options.backend));
+          // A device that is there but would not start (out of memory, a
+          // driver fault) leaves kAuto/kHetero on the CPU too.
+          const bool cuda = std::any_of(backends.begin(), backends.end(),
+                                        [](const auto& b) { return b->name() == "cuda"; });
+          if (!cuda && gpu_unused.empty() && options.backend != BackendChoice::kCpu)
+            gpu_unused = "the CUDA backend failed to start";
+          return std::make_unique<CoreTracer>(std::move(backends), tracer_settings());
         },
         Error::Kind::kDevice);
     image_valid = false;
@@ -626,11 +634,25 @@ FrameInfo Renderer::end_frame() {
   const FrameMetrics& m = guarded([&]() -> const FrameMetrics& { return im.tracer->end_frame(); },
                                   Error::Kind::kDevice);
   im.image_valid = true;
-  if (im.options.denoise) im.denoise_frame(m.accumulation_reset);
-  im.last_backend_names.clear();
-  for (const BackendFrameMetrics& b : m.backends)
-    im.last_backend_names.push_back(b.name);
   FrameInfo info;
+  if (im.options.denoise) {
+    const auto t0 = std::chrono::steady_clock::now();
+    im.denoise_frame(m.accumulation_reset);
+    info.denoise_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  im.last_backend_names.clear();
+  for (const BackendFrameMetrics& b : m.backends) {
+    im.last_backend_names.push_back(b.name);
+    if (!b.failure.empty() && im.gpu_unused.empty()) {
+      im.gpu_unused = "the GPU failed (" + b.failure + "); rendering on the CPU";
+      info.gpu_failed = true;
+    }
+  }
+  info.compile_seconds = m.sync_scene_seconds;
+  info.bvh_seconds = m.update_accstruc_seconds;
+  info.upload_seconds = m.sync_accstruc_seconds;
+  info.render_seconds = m.render_seconds;
   info.frame = im.frames++;
   info.accumulated_spp = m.accumulated_spp;
   info.accumulation_reset = m.accumulation_reset;

@@ -36,6 +36,10 @@ class CpuFallbackBackend final : public Backend {
     std::lock_guard<std::mutex> lock(mutex_);
     return active_->traits();
   }
+  std::string failure() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return failure_;
+  }
 
   void sync(const KernelScene& scene, const SceneDelta& delta) override {
     sync_active(scene, nullptr, [&](Backend& b) { b.sync(scene, delta); });
@@ -152,6 +156,7 @@ class CpuFallbackBackend final : public Backend {
   // inside its sync().
   void fall_back_locked(const std::string& failure) {
     log_warning("the GPU failed (" + failure + "); rendering on the CPU from now on");
+    failure_ = failure;
     deferred_failure_.clear();
     fell_back_ = true;
     retired_ = std::move(active_);
@@ -173,6 +178,7 @@ class CpuFallbackBackend final : public Backend {
   std::atomic<bool> fell_back_{false};
   bool rendering_ = false;
   std::string deferred_failure_;
+  std::string failure_;  // why it fell back; empty before
 };
 
 // The CUDA backend for auto/hetero, or null (with a warning) when it cannot

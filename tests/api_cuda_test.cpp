@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <stdlib.h>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -77,6 +78,36 @@ TEST(CudaGpu, ApiOverlappedLoopGivesThePixelsOfThePlainLoop) {
     sequential = r.image_linear();
   }
   EXPECT_EQ(overlapped, sequential);
+}
+
+// A GPU lost in the middle of a run (the device fault injector, on the
+// simulated device in CI or on a real one): the frame is finished on the
+// CPU, FrameInfo says so once, gpu_unused_reason() names the failure, and
+// the game goes on rendering the scene it edits on the CPU.
+TEST(CudaGpu, AGpuLostMidRunIsReportedAndTheCpuGoesOn) {
+  TANDEM_API_REQUIRE_CUDA();
+  ::setenv("TANDEM_DEVICE_FAULT", "lost@40", 1);
+  tandem::RendererOptions o = small_options();
+  o.backend = tandem::BackendChoice::kAuto;
+  tandem::Renderer r(o);
+  ::unsetenv("TANDEM_DEVICE_FAULT");
+  const tandem::InstanceId block = build_scene(r);
+  EXPECT_EQ(r.gpu_unused_reason(), "");
+  int failed_frames = 0, frames_after = 0;
+  for (int f = 0; f < 12; ++f) {
+    r.set_instance_transform(block, tandem::Transform::translation(0.1f * float(f), 0.5f, 0));
+    const tandem::FrameInfo info = r.render_frame();
+    failed_frames += info.gpu_failed;
+    if (failed_frames > 0 && !info.gpu_failed) {
+      ++frames_after;
+      EXPECT_EQ(r.backend_names(), "cpu");
+    }
+    EXPECT_GT(mean(r.image_linear()), 0.01) << "frame " << f;
+  }
+  EXPECT_EQ(failed_frames, 1);
+  EXPECT_GT(frames_after, 0);
+  EXPECT_NE(r.gpu_unused_reason().find("the GPU failed (injected device fault"), std::string::npos)
+      << r.gpu_unused_reason();
 }
 
 }  // namespace

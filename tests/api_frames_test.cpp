@@ -69,6 +69,18 @@ TEST(ApiFrames, EachBackendsPartOfTheFrameIsReported) {
   EXPECT_EQ(cpu.rays, f.rays);
   EXPECT_GT(cpu.seconds, 0.0);
   EXPECT_GT(cpu.mrays_per_second, 0.0);
+  EXPECT_FALSE(f.gpu_failed);
+  // The stages: the first frame compiles the scene and gives it to Embree.
+  EXPECT_GT(f.compile_seconds, 0.0);
+  EXPECT_GT(f.upload_seconds, 0.0);
+  EXPECT_GE(f.render_seconds, cpu.seconds);
+  EXPECT_LE(f.compile_seconds + f.bvh_seconds + f.upload_seconds + f.render_seconds,
+            f.seconds * 1.001);
+  EXPECT_EQ(f.denoise_seconds, 0.0);
+  tandem::RendererOptions o = small_options();
+  o.denoise = true;
+  r.set_options(o);
+  EXPECT_GT(r.render_frame().denoise_seconds, 0.0);
 }
 
 TEST(ApiFrames, TheImageIsWrittenIntoTheCallersBuffers) {

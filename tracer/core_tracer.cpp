@@ -447,6 +447,7 @@ const FrameMetrics& CoreTracer::end_frame() {
   for (size_t b = 0; b < n; ++b) {
     BackendFrameMetrics& bm = m.backends[b];
     bm.name = backends_[b]->name();
+    bm.failure = backends_[b]->failure();
     bm.enabled = scheduler_.enabled(b);
     bm.tiles = f.stats[b].tiles;
     bm.stolen = stolen[b];

@@ -65,6 +65,7 @@ struct BackendFrameMetrics {
   // frame was still rendering (hidden by the overlap).
   double commit_copy_seconds = 0.0, commit_hidden_seconds = 0.0;
   bool completed_after_failure = false;  // the device failed; the CPU finished its tiles
+  std::string failure;                   // Backend::failure(): why it runs on the CPU now
   double mrays_per_second() const { return seconds > 0.0 ? double(rays) / seconds * 1e-6 : 0.0; }
 };
 

@@ -250,6 +250,18 @@ struct FrameInfo {
   uint64_t rays = 0;                        // rays traced by all backends
   uint32_t threads = 0;                     // CPU threads the frame could use (the budget)
   std::vector<BackendFrameStats> backends;  // each backend's part of the frame
+  // The stages of the frame, in seconds: the scene edits compiled into the
+  // renderers' arrays, Tandem's BVH updated (for the GPU; the CPU's Embree
+  // BVH is built in the next stage), the changes sent to the backends
+  // (each 0 when prepare_next_frame() did it during the previous frame),
+  // the render (begin to end of the slowest backend) and the denoiser.
+  double compile_seconds = 0.0, bvh_seconds = 0.0, upload_seconds = 0.0;
+  double render_seconds = 0.0, denoise_seconds = 0.0;
+  // The GPU failed during this frame (lost, out of memory, a kernel fault):
+  // the CPU finished the frame and renders from now on, and
+  // gpu_unused_reason() says what failed. Only under kAuto and kHetero;
+  // under kCuda end_frame() throws Error::kDevice instead.
+  bool gpu_failed = false;
 };
 
 enum class ToneCurve { kStandard, kAces, kReinhard };
@@ -375,7 +387,8 @@ class Renderer {
   std::string backend_names() const;
   // Why this renderer does not use a GPU that kAuto or kHetero would use
   // ("no NVIDIA driver is installed", "this build of tandem has no CUDA
-  // backend", ...); empty when it uses one or BackendChoice::kCpu was asked.
+  // backend", the failure of a GPU lost during a frame, ...); empty when it
+  // uses one or BackendChoice::kCpu was asked.
   std::string gpu_unused_reason() const;
   // Drops the accumulated samples; the next frame starts over.
   void reset_accumulation();

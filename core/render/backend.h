@@ -118,6 +118,9 @@ class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string name() const = 0;
+  // Why a backend that started on a device renders on the CPU now (the
+  // device's failure, as its warning said); empty while it runs as made.
+  virtual std::string failure() const { return {}; }
   virtual BackendTraits traits() const = 0;
 
   // Makes the backend's copy of the scene match `scene`, given what changed.
