@@ -196,6 +196,7 @@ std::shared_ptr<const MeshPose> vertices_pose(const MeshData& vertices, size_t m
 namespace {
 
 TextureRef texture_slot(TextureId id, size_t textures, const char* what, const char* slot) {
+  // The ids are the scene's texture indices (textures are never removed).
   TextureRef ref;
   if (id.index == TextureId::kNone) return ref;
   if (id.index >= textures) {
@@ -220,8 +221,9 @@ WrapMode to_wrap(TextureWrap w, const char* what) {
 
 }  // namespace
 
-Texture to_texture(const TextureDesc& d, const char* what) {
-  if (d.rgba8 == nullptr) invalid(std::string(what) + ": rgba8 is null");
+Texture to_texture(const TextureDesc& d, const char* what, float* peak) {
+  if ((d.rgba8 == nullptr) == (d.rgba32f == nullptr))
+    invalid(std::string(what) + ": give exactly one of rgba8 and rgba32f");
   if (d.width == 0 || d.height == 0 || d.width > kMaxResolution || d.height > kMaxResolution) {
     invalid(std::string(what) + ": a " + std::to_string(d.width) + "x" + std::to_string(d.height) +
             " texture is empty or wider or taller than 16384");
@@ -232,19 +234,89 @@ Texture to_texture(const TextureDesc& d, const char* what) {
   t.wrap_s = to_wrap(d.wrap_u, what);
   t.wrap_t = to_wrap(d.wrap_v, what);
   t.nearest = d.nearest;
-  t.rgba8.resize(size_t(d.width) * d.height);
-  std::memcpy(t.rgba8.data(), d.rgba8, t.rgba8.size() * 4);  // R, G, B, A bytes: R low
+  switch (d.color_space) {
+    case TextureColorSpace::kBySlot:
+      break;
+    case TextureColorSpace::kSrgb:
+      if (d.rgba32f != nullptr)
+        invalid(std::string(what) + ": a float texture is linear (color_space kSrgb)");
+      t.encoding = TextureEncoding::kSrgb;
+      break;
+    case TextureColorSpace::kLinear:
+      t.encoding = TextureEncoding::kLinear;
+      break;
+    default:
+      invalid(std::string(what) + ": unknown color_space");
+  }
+  const size_t n = size_t(d.width) * d.height;
+  *peak = 1.0f;
+  if (d.rgba8 != nullptr) {
+    t.rgba8.resize(n);
+    std::memcpy(t.rgba8.data(), d.rgba8, n * 4);  // R, G, B, A bytes: R low
+    return t;
+  }
+  t.rgba32f.resize(n);
+  for (size_t i = 0; i < 4 * n; ++i) {
+    const float v = d.rgba32f[i];
+    if (!(v >= 0.0f && v <= 1e6f)) {
+      invalid(std::string(what) + ": rgba32f value " + std::to_string(i) +
+              " is NaN or outside [0, 1e6]");
+    }
+    *peak = std::max(*peak, v);
+  }
+  std::memcpy(t.rgba32f.data(), d.rgba32f, n * 16);
   return t;
 }
 
-Material to_material(const MaterialDesc& d, size_t textures, const char* what) {
+Material to_material(const MaterialDesc& d, const std::vector<float>& texture_peaks,
+                     const char* what) {
   Material m;
-  m.base_color_texture = texture_slot(d.base_color_texture, textures, what, "base_color_texture");
-  m.metallic_roughness_texture =
-      texture_slot(d.metallic_roughness_texture, textures, what, "metallic_roughness_texture");
-  m.emissive_texture = texture_slot(d.emission_texture, textures, what, "emission_texture");
-  m.transmission_texture =
-      texture_slot(d.transmission_texture, textures, what, "transmission_texture");
+  const size_t textures = texture_peaks.size();
+  auto slot = [&](TextureId id, const char* name) {
+    return texture_slot(id, textures, what, name);
+  };
+  m.base_color_texture = slot(d.base_color_texture, "base_color_texture");
+  m.metallic_roughness_texture = slot(d.metallic_roughness_texture, "metallic_roughness_texture");
+  m.emissive_texture = slot(d.emission_texture, "emission_texture");
+  m.transmission_texture = slot(d.transmission_texture, "transmission_texture");
+  m.normal_texture = slot(d.normal_texture, "normal_texture");
+  m.clearcoat_texture = slot(d.clearcoat_texture, "clearcoat_texture");
+  m.clearcoat_roughness_texture =
+      slot(d.clearcoat_roughness_texture, "clearcoat_roughness_texture");
+  m.sheen_color_texture = slot(d.sheen_color_texture, "sheen_color_texture");
+  m.sheen_roughness_texture = slot(d.sheen_roughness_texture, "sheen_roughness_texture");
+  check_range(d.alpha, 0.0f, 1.0f, what, "alpha");
+  check_range(d.alpha_cutoff, 0.0f, 1.0f, what, "alpha_cutoff");
+  switch (d.alpha_mode) {
+    case MaterialAlpha::kOpaque:
+      m.alpha_mode = AlphaMode::kOpaque;
+      break;
+    case MaterialAlpha::kMask:
+      m.alpha_mode = AlphaMode::kMask;
+      break;
+    case MaterialAlpha::kBlend:
+      m.alpha_mode = AlphaMode::kBlend;
+      break;
+    default:
+      invalid(std::string(what) + ": unknown alpha_mode");
+  }
+  m.alpha_cutoff = d.alpha_cutoff;
+  check_range(d.specular, 0.0f, 1.0f, what, "specular");
+  check_range(d.clearcoat, 0.0f, 1.0f, what, "clearcoat");
+  check_range(d.clearcoat_roughness, 0.0f, 1.0f, what, "clearcoat_roughness");
+  check_range(d.sheen_roughness, 0.0f, 1.0f, what, "sheen_roughness");
+  check_range(d.normal_scale, -100.0f, 100.0f, what, "normal_scale");
+  for (int i = 0; i < 3; ++i) {
+    check_range(d.specular_color[i], 0.0f, 1.0f, what, "specular_color");
+    check_range(d.sheen_color[i], 0.0f, 1.0f, what, "sheen_color");
+  }
+  m.specular = d.specular;
+  m.specular_color = glm::vec3(d.specular_color[0], d.specular_color[1], d.specular_color[2]);
+  m.clearcoat = d.clearcoat;
+  m.clearcoat_roughness = d.clearcoat_roughness;
+  m.sheen_color = glm::vec3(d.sheen_color[0], d.sheen_color[1], d.sheen_color[2]);
+  m.sheen_roughness = d.sheen_roughness;
+  m.normal_scale = d.normal_scale;
   for (int i = 0; i < 3; ++i)
     check_range(d.base_color[i], 0.0f, 1.0f, what, "base_color");
   check_range(d.roughness, 0.0f, 1.0f, what, "roughness");
@@ -254,13 +326,17 @@ Material to_material(const MaterialDesc& d, size_t textures, const char* what) {
               "emission_strength");
   check_range(d.transmission, 0.0f, 1.0f, what, "transmission");
   check_range(d.ior, 1.0f, 5.0f, what, "ior");
-  m.base_color = glm::vec4(d.base_color[0], d.base_color[1], d.base_color[2], 1.0f);
+  m.base_color = glm::vec4(d.base_color[0], d.base_color[1], d.base_color[2], d.alpha);
   m.roughness = d.roughness;
   m.metallic = d.metallic;
   m.emissive = glm::vec3(d.emission[0], d.emission[1], d.emission[2]);
   m.emissive_strength = d.emission_strength;
-  check_radiance(std::max({d.emission[0], d.emission[1], d.emission[2]}), d.emission_strength, what,
-                 "emission times emission_strength");
+  // A float emission texture multiplies the radiance by up to its peak.
+  const float peak =
+      m.emissive_texture.texture >= 0 ? texture_peaks[size_t(m.emissive_texture.texture)] : 1.0f;
+  check_radiance(std::max({d.emission[0], d.emission[1], d.emission[2]}) * peak,
+                 d.emission_strength, what,
+                 "emission times emission_strength (times a float emission texture's peak)");
   m.transmission = d.transmission;
   m.ior = d.ior;
   m.double_sided = d.double_sided;

@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "api/tandem/tandem.h"
 #include "core/world/scene.h"
@@ -16,9 +17,13 @@ namespace tandem::api_detail {
 
 // `what` names the call in messages, e.g. "add_mesh".
 Mesh to_mesh(const MeshData& data, uint32_t material, const char* what);
-// `textures`: how many the scene has (the slots' ids are checked against it).
-Material to_material(const MaterialDesc& desc, size_t textures, const char* what);
-Texture to_texture(const TextureDesc& desc, const char* what);
+// `texture_peaks`: per texture of the scene, its largest texel value (1 for
+// 8-bit ones): the ids are checked against it, and emission times an
+// emission texture's peak must stay within what can be rendered.
+Material to_material(const MaterialDesc& desc, const std::vector<float>& texture_peaks,
+                     const char* what);
+// `peak`: set to the largest texel value (1 for 8-bit textures).
+Texture to_texture(const TextureDesc& desc, const char* what, float* peak);
 Light to_light(const LightDesc& desc, const char* what);
 // The image's aspect ratio comes from the render settings, not the camera.
 Camera to_camera(const CameraDesc& desc, const char* what);

@@ -210,6 +210,7 @@ struct Renderer::Impl {
   std::vector<std::vector<uint32_t>> free_instance_slots;
   std::vector<uint32_t> mesh_instances_alive;
   uint32_t instances_alive = 0;
+  std::vector<float> texture_peaks;  // per texture: its largest texel value (1 for 8-bit)
 
   // Ids for the scene as it is now (a new one: loaded, cleared).
   void reset_ids() {
@@ -222,6 +223,7 @@ struct Renderer::Impl {
       if (inst.mesh < mesh_instances_alive.size()) ++mesh_instances_alive[inst.mesh];
     }
     instances_alive = uint32_t(scene.instances().size());
+    texture_peaks.assign(scene.textures().size(), 1.0f);  // a file's textures are 8-bit
   }
 
   void apply_thread_budget() {
@@ -333,18 +335,20 @@ Renderer::Renderer(Renderer&&) noexcept = default;
 Renderer& Renderer::operator=(Renderer&&) noexcept = default;
 
 TextureId Renderer::add_texture(const TextureDesc& texture) {
-  Texture t = api_detail::to_texture(texture, "add_texture");
+  float peak = 1.0f;
+  Texture t = api_detail::to_texture(texture, "add_texture", &peak);
+  impl_->texture_peaks.push_back(peak);
   return {impl_->scene.add_texture(std::move(t))};
 }
 
 MaterialId Renderer::add_material(const MaterialDesc& material) {
-  Material m = api_detail::to_material(material, impl_->scene.textures().size(), "add_material");
+  Material m = api_detail::to_material(material, impl_->texture_peaks, "add_material");
   return {impl_->scene.add_material(std::move(m))};
 }
 
 void Renderer::set_material(MaterialId id, const MaterialDesc& material) {
   const uint32_t i = checked(id, impl_->scene.materials().size(), "set_material", "material");
-  Material m = api_detail::to_material(material, impl_->scene.textures().size(), "set_material");
+  Material m = api_detail::to_material(material, impl_->texture_peaks, "set_material");
   impl_->scene.edit_material(i) = std::move(m);
 }
 

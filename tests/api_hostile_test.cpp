@@ -81,10 +81,25 @@ TEST(ApiHostile, EveryFloatFieldRefusesNanInfinityAndHugeValues) {
   for (float v : kBad) {
     const std::string value = std::to_string(v);
     const bool finite = std::isfinite(v);
-    for (int field = 0; field < 7; ++field) {
+    constexpr int kMaterialFields = 16;
+    for (int field = 0; field < kMaterialFields; ++field) {
       tandem::MaterialDesc m;
-      float* fields[7] = {&m.base_color[0],     &m.roughness,    &m.metallic, &m.emission[1],
-                          &m.emission_strength, &m.transmission, &m.ior};
+      float* fields[kMaterialFields] = {&m.base_color[0],
+                                        &m.roughness,
+                                        &m.metallic,
+                                        &m.emission[1],
+                                        &m.emission_strength,
+                                        &m.transmission,
+                                        &m.ior,
+                                        &m.alpha,
+                                        &m.alpha_cutoff,
+                                        &m.specular,
+                                        &m.specular_color[2],
+                                        &m.clearcoat,
+                                        &m.clearcoat_roughness,
+                                        &m.sheen_color[1],
+                                        &m.sheen_roughness,
+                                        &m.normal_scale};
       *fields[field] = v;
       if (field == 4 && v == 3e38f) continue;  // a strength alone may be large (emission is 0)
       expect_refused(r, arg, "material field " + std::to_string(field) + " = " + value,

@@ -133,20 +133,36 @@ struct MeshData {
   size_t triangle_count = 0;
 };
 
-// The glTF metallic-roughness material (defaults: a matt light grey).
 enum class TextureWrap { kRepeat, kClampToEdge, kMirroredRepeat };
 
-// An 8-bit RGBA image for materials, copied by add_texture. Whether its RGB
-// is sRGB-encoded or linear follows from the slot that uses it (base colour
-// and emission: sRGB; metallic-roughness and transmission: linear), as in
-// glTF, so one texture may serve several materials.
+// How an 8-bit texture's RGB is encoded. kBySlot follows glTF: sRGB where
+// a material reads it as a colour (base colour, emission, sheen colour),
+// linear elsewhere (metallic-roughness, normal, transmission, clear coat,
+// sheen roughness), so one texture may serve several slots; kSrgb and
+// kLinear hold in every slot (a linear albedo, an sRGB-authored mask).
+enum class TextureColorSpace { kBySlot, kSrgb, kLinear };
+
+// An image for materials, copied by add_texture: 8-bit RGBA, or linear
+// float RGBA for what 8 bits cannot hold (HDR emission, precise data).
+// Exactly one of rgba8 and rgba32f is given. Alpha is linear.
 struct TextureDesc {
   uint32_t width = 0, height = 0;  // each in [1, 16384]
   const uint8_t* rgba8 = nullptr;  // width * height * 4 bytes, row 0 at the top
+  // width * height * 4 floats, row 0 at the top, each finite and in
+  // [0, 1e6]; never sRGB-decoded (color_space must be kBySlot or kLinear).
+  const float* rgba32f = nullptr;
+  TextureColorSpace color_space = TextureColorSpace::kBySlot;
   TextureWrap wrap_u = TextureWrap::kRepeat, wrap_v = TextureWrap::kRepeat;
-  bool nearest = false;  // nearest-texel magnification instead of bilinear
+  bool nearest = false;  // magnification filter NEAREST
 };
 
+// How a material's alpha (alpha times the base colour texture's A) is
+// used, as glTF's alphaMode: ignored, a cut-out below alpha_cutoff, or
+// blended (the surface lets 1 - alpha of the light through).
+enum class MaterialAlpha { kOpaque, kMask, kBlend };
+
+// The glTF metallic-roughness material with its extensions (defaults: a
+// matt light grey).
 struct MaterialDesc {
   float base_color[3] = {0.8f, 0.8f, 0.8f};  // linear RGB reflectance, each in [0, 1]
   float roughness = 0.5f;                    // [0, 1]; GGX alpha = roughness^2
@@ -156,12 +172,32 @@ struct MaterialDesc {
   float transmission = 0.0f;                 // [0, 1]: 1 = clear glass-like dielectric
   float ior = 1.5f;                          // index of refraction, [1, 5]
   bool double_sided = false;                 // emission and shading on both faces
+  float alpha = 1.0f;                        // [0, 1], used as alpha_mode says
+  MaterialAlpha alpha_mode = MaterialAlpha::kOpaque;
+  float alpha_cutoff = 0.5f;  // [0, 1]: kMask drops what is below
+  // KHR_materials_specular: the dielectric reflection's strength and tint,
+  // each in [0, 1].
+  float specular = 1.0f;
+  float specular_color[3] = {1.0f, 1.0f, 1.0f};
+  // KHR_materials_clearcoat: a clear varnish layer over the base (0: none),
+  // and its roughness; each in [0, 1].
+  float clearcoat = 0.0f, clearcoat_roughness = 0.0f;
+  // KHR_materials_sheen: a cloth-like rim (black: none) and its roughness;
+  // each in [0, 1].
+  float sheen_color[3] = {0.0f, 0.0f, 0.0f};
+  float sheen_roughness = 0.0f;
   // Textures (add_texture) read at the mesh's uvs (uv (0, 0) is the
   // image's top-left corner, as in glTF), each multiplying its factor above:
-  // base colour (RGB; A is ignored), metallic-roughness (G roughness, B
-  // metallic), emission (RGB), transmission (R). A mesh without uvs reads
-  // texel (0, 0).
+  // base colour (RGB; A times alpha), metallic-roughness (G roughness, B
+  // metallic), emission (RGB), transmission (R), clear coat (R), clear-coat
+  // roughness (G), sheen colour (RGB), sheen roughness (A). The normal
+  // texture is a tangent-space normal map (RGB = xyz * 0.5 + 0.5), its xy
+  // scaled by normal_scale (finite, within [-100, 100]); the tangents follow
+  // the uvs. A mesh without uvs reads texel (0, 0).
   TextureId base_color_texture, metallic_roughness_texture, emission_texture, transmission_texture;
+  TextureId normal_texture, clearcoat_texture, clearcoat_roughness_texture, sheen_color_texture,
+      sheen_roughness_texture;
+  float normal_scale = 1.0f;
 };
 
 enum class LightKind { kPoint, kSpot, kDirectional };
@@ -283,8 +319,9 @@ class Renderer {
   // Every edit below may be made at any time, also between begin_frame()
   // and end_frame(): it reaches the next frame and restarts accumulation.
 
-  // Adds a texture for materials to use. Errors: kInvalidArgument for null
-  // pixels, an empty or oversized image, or an unknown wrap mode.
+  // Adds a texture for materials to use. Errors: kInvalidArgument for no
+  // pixels or both kinds, an empty or oversized image, a float texel
+  // outside [0, 1e6] or NaN, an sRGB float texture, or an unknown enum.
   TextureId add_texture(const TextureDesc& texture);
   // Adds a material. Errors: kInvalidArgument for NaN or out-of-range
   // fields, or a texture that does not exist.

@@ -28,7 +28,8 @@ TANDEM_KERNEL_BEGIN
   X(KInstance, instances) /* one per TLAS entry */                                      \
   X(KMaterial, materials)                                                               \
   X(KTexture, textures)                                                                 \
-  X(uint32_t, texels) /* RGBA8 texels of all textures */                                \
+  X(uint32_t, texels) /* RGBA8 texels of all 8-bit textures */                          \
+  X(Vec4, texels_f32) /* linear RGBA texels of all float textures */                    \
   X(KLight, lights)                                                                     \
   X(KAliasEntry, light_alias)        /* distribution over lights, by power */           \
   X(Vec4, env_texels)                /* equirectangular environment, linear RGB */      \

@@ -47,7 +47,9 @@ TANDEM_HD int wrap_coord(int i, int n, uint32_t mode) {
 }
 
 TANDEM_HD Vec4 fetch_texel(const KernelData& kd, const KTexture& tex, int x, int y) {
-  const uint32_t packed = kd.texels[tex.texel_offset + uint32_t(y) * tex.width + uint32_t(x)];
+  const uint32_t at = tex.texel_offset + uint32_t(y) * tex.width + uint32_t(x);
+  if (tex.flags & kTextureFloat) return kd.texels_f32[at];
+  const uint32_t packed = kd.texels[at];
   if (tex.flags & kTextureSrgb) {
     // Alpha is linear in glTF even in sRGB images.
     return {srgb8_to_linear(packed), srgb8_to_linear(packed >> 8), srgb8_to_linear(packed >> 16),

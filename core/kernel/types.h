@@ -90,6 +90,7 @@ enum KWrapMode : uint32_t { kWrapRepeat = 0, kWrapClamp = 1, kWrapMirror = 2 };
 enum KTextureFlags : uint32_t {
   kTextureSrgb = 1u << 0,     // decode RGB from sRGB on fetch (alpha stays linear)
   kTextureNearest = 1u << 1,  // magnification filter NEAREST
+  kTextureFloat = 1u << 2,    // texels in texels_f32, linear floats (never sRGB)
 };
 
 // An RGBA8 texture stored in the texels array starting at texel_offset.

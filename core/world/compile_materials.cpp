@@ -49,7 +49,7 @@ KMaterial SceneCompiler::compile_material(const Scene& scene, const Material& m)
   k.normal_scale = m.normal_scale;
   k.emission_luminance_scale = 1.0f;
   auto ref = [&](const TextureRef& r, bool srgb) {
-    const uint64_t key = (uint64_t(std::max(r.texture, 0)) << 1) | (srgb ? 1u : 0u);
+    const uint64_t key = texture_key(scene, r.texture, srgb);
     const bool valid = r.texture >= 0 && texture_slots_.count(key);
     return to_texture_ref(r, valid ? int32_t(texture_slots_.at(key)) : -1);
   };

@@ -149,8 +149,10 @@ class SceneCompiler {
 
   // compile_textures.cpp
   void compile_textures(const Scene& scene, KernelScene& out);
-  uint32_t texture_index(uint32_t texture, bool srgb) const;
-  // The sRGB-decoded mean luminance of texture `texture`, computed at its
+  // The key of texture_slots_ for `texture` read by a slot that decodes
+  // sRGB when `slot_srgb` (Texture::decodes_srgb decides for the texture).
+  static uint64_t texture_key(const Scene& scene, int32_t texture, bool slot_srgb);
+  // The mean luminance of texture `texture` as the emission slot reads it, computed at its
   // first use as an emissive texture after compile_textures() (only those
   // need it; every texel of every texture was a quarter of a second of a
   // textured model's compile).

@@ -36,15 +36,26 @@ struct TextureRef {
   TextureTransform transform;
 };
 
-// An 8-bit RGBA image. Whether its RGB is sRGB-encoded depends on how a
-// material uses it (base colour/emissive: sRGB; others: linear), so that is
-// decided at compile time, not stored here.
+// How an 8-bit texture's RGB is encoded: as glTF has it, by the slot that
+// uses it (base colour, emission, sheen colour: sRGB; the others linear),
+// or as its owner says for every slot (an embedding game's choice).
+enum class TextureEncoding : uint8_t { kBySlot, kSrgb, kLinear };
+
+// An 8-bit RGBA image, or a float one (linear RGBA, e.g. HDR emission).
 struct Texture {
   std::string name;
   uint32_t width = 0, height = 0;
-  std::vector<uint32_t> rgba8;  // packed R | G<<8 | B<<16 | A<<24, row 0 = top
+  std::vector<uint32_t> rgba8;     // packed R | G<<8 | B<<16 | A<<24, row 0 = top
+  std::vector<glm::vec4> rgba32f;  // instead of rgba8: linear floats, row 0 = top
+  TextureEncoding encoding = TextureEncoding::kBySlot;  // of rgba8
   WrapMode wrap_s = WrapMode::kRepeat, wrap_t = WrapMode::kRepeat;
   bool nearest = false;  // magnification filter NEAREST
+  size_t texel_count() const { return rgba8.empty() ? rgba32f.size() : rgba8.size(); }
+  // Whether a slot that decodes sRGB when `slot_srgb` decodes this texture so.
+  bool decodes_srgb(bool slot_srgb) const {
+    if (!rgba32f.empty() || encoding == TextureEncoding::kLinear) return false;
+    return encoding == TextureEncoding::kSrgb || slot_srgb;
+  }
 };
 
 // glTF metallic-roughness material plus supported extensions. Defaults are
