@@ -189,6 +189,30 @@ TEST_F(InstallPackage, AnApplicationBuildsAgainstThePrefixAndRendersThroughTheAp
                             .c_str()) >>
                 8,
             1);
+
+#ifdef TANDEM_INSTALLS_VIEW
+  // The interactive example (SDL2 is there when the viewer is), on SDL's
+  // dummy video driver: the denoised frames it shows, the last written.
+  const fs::path window = example_build_ / "embed_window";
+  ASSERT_TRUE(fs::exists(window)) << log_;
+  const fs::path shot = root_ / "window.png";
+  const std::string run_window = "SDL_VIDEODRIVER=dummy " + quoted(window.string());
+  EXPECT_TRUE(run(run_window + " --width 96 --height 54 --backend cpu --frames 6 --screenshot " +
+                  quoted(shot.string())))
+      << log_;
+  ASSERT_TRUE(fs::exists(shot)) << log_;
+  const ImageRGB shown = read_image(shot);
+  ASSERT_EQ(shown.width, 96u);
+  ASSERT_EQ(shown.height, 54u);
+  double sum = 0.0, orange = 0.0;
+  for (size_t i = 0; i < shown.rgb.size(); i += 3) {
+    sum += shown.rgb[i] + shown.rgb[i + 1] + shown.rgb[i + 2];
+    orange = std::max(orange, double(shown.rgb[i]) - double(shown.rgb[i + 2]));
+  }
+  EXPECT_GT(sum / double(shown.rgb.size()), 0.05) << "the window's frame is dark";
+  EXPECT_GT(orange, 0.2) << "no orange box in the window's frame";
+  EXPECT_EQ(std::system((run_window + " --screenshot x.png > /dev/null 2>&1").c_str()) >> 8, 2);
+#endif
 }
 
 }  // namespace

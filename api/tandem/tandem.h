@@ -302,6 +302,10 @@ struct FrameInfo {
 
 enum class ToneCurve { kStandard, kAces, kReinhard };
 
+// Which image the image calls give: the accumulated samples, or (with
+// RendererOptions::denoise) the denoised frame image_denoised() describes.
+enum class FrameImage { kAccumulated, kDenoised };
+
 class Renderer {
  public:
   // Creates the backends (see BackendChoice) with an empty scene; until
@@ -466,8 +470,10 @@ class Renderer {
   // The same into the caller's buffer of `count` floats (at least
   // width() * height() * 3), without an allocation: for a game that
   // uploads the frame into its own texture. Errors: kInvalidArgument for a
-  // null or short buffer, kInvalidState as above.
-  void copy_image_linear(float* out, size_t count) const;
+  // null or short buffer, kInvalidState as above (and as image_denoised()
+  // for FrameImage::kDenoised).
+  void copy_image_linear(float* out, size_t count,
+                         FrameImage image = FrameImage::kAccumulated) const;
   // With RendererOptions::denoise: the denoised image, linear RGB like
   // image_linear(), blended into the accumulated image as samples add up
   // (all accumulated from 64 samples per pixel). Errors: kInvalidState
@@ -480,19 +486,23 @@ class Renderer {
   FeatureBuffers features();
   // Exposure (stops), tone curve and sRGB encoding: width() * height() * 3 bytes.
   std::vector<uint8_t> image_srgb8(float exposure_stops = 0.0f,
-                                   ToneCurve curve = ToneCurve::kStandard) const;
+                                   ToneCurve curve = ToneCurve::kStandard,
+                                   FrameImage image = FrameImage::kAccumulated) const;
   // The same into the caller's buffer of `count` bytes (at least
-  // width() * height() * 3); the linear image is resolved on the way (one
-  // temporary of width() * height() * 3 floats). Errors: as
+  // width() * height() * 3), e.g. a streaming SDL or OpenGL texture. The
+  // accumulated image is resolved on the way (one temporary of width() *
+  // height() * 3 floats); the denoised one is read in place. Errors: as
   // copy_image_linear.
   void copy_image_srgb8(uint8_t* out, size_t count, float exposure_stops = 0.0f,
-                        ToneCurve curve = ToneCurve::kStandard) const;
+                        ToneCurve curve = ToneCurve::kStandard,
+                        FrameImage image = FrameImage::kAccumulated) const;
   // Writes the image: .png (tone mapped as image_srgb8), .exr or .pfm
   // (linear), atomically (a failed write leaves no partial file). Errors:
   // kFile naming the path (unknown extension, missing directory, write
   // failure), kInvalidState as above.
   void write_image(const std::string& path, float exposure_stops = 0.0f,
-                   ToneCurve curve = ToneCurve::kStandard) const;
+                   ToneCurve curve = ToneCurve::kStandard,
+                   FrameImage image = FrameImage::kAccumulated) const;
 
  private:
   struct Impl;
