@@ -31,8 +31,14 @@
 // is replaced (load_gltf, clear_scene); an id is never handed out twice, so
 // a stale one is refused (kInvalidArgument), never taken for another object.
 //
-// Threads: one Renderer is used from one thread at a time. It renders on
-// its own worker threads (the CPU backend uses every core through TBB).
+// Threads: one Renderer is used from one thread at a time (no call on it
+// may overlap another; different Renderers may be used from different
+// threads). Between begin_frame() and end_frame() it renders on its own
+// worker threads (TBB, within RendererOptions::threads/reserve_cores, and
+// the GPU), and the calling thread may go on editing the scene for the
+// next frame. The log callback may be called from any of those threads.
+// Pointers passed in (MeshData, TextureDesc, pixels) are read during the
+// call only; nothing returned points into the renderer.
 #pragma once
 
 #include <cstddef>
