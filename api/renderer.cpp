@@ -333,7 +333,8 @@ uint32_t Renderer::texture_count() const {
 void Renderer::set_options(const RendererOptions& options) {
   api_detail::check_options(options, "set_options");
   Impl& im = *impl_;
-  if (options.backend != im.options.backend) {
+  // A new backend, or the CUDA backend's image mirror switched: new backends.
+  if (options.backend != im.options.backend || options.cuda_image != im.options.cuda_image) {
     im.require_idle("set_options (a new backend)");
     const RendererOptions old = im.options;
     im.options = options;

@@ -138,5 +138,17 @@ void Renderer::write_image(const std::string& path, float exposure_stops, ToneCu
   guarded([&] { tandem::write_image(path, linear, o); });
 }
 
+const void* Renderer::cuda_image_linear() {
+  CudaBackend& gpu = impl_->cuda_image_backend("cuda_image_linear");
+  return guarded([&] { return gpu.device_image_linear(); }, Error::Kind::kDevice);
+}
+
+const void* Renderer::cuda_image_srgb8(float exposure_stops, ToneCurve curve) {
+  CudaBackend& gpu = impl_->cuda_image_backend("cuda_image_srgb8");
+  if (!std::isfinite(exposure_stops)) invalid("cuda_image_srgb8: exposure_stops is not finite");
+  return guarded([&] { return gpu.device_image_srgb8(exposure_stops, to_tone_map(curve)); },
+                 Error::Kind::kDevice);
+}
+
 }  // namespace embed_v0
 }  // namespace tandem

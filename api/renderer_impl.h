@@ -25,6 +25,7 @@
 #include "api/api_ids.h"
 #include "api/tandem/tandem.h"
 #include "backends/backend_factory.h"
+#include "backends/cuda/cuda_backend.h"
 #include "core/image/image.h"
 #include "core/render/denoise_blend.h"
 #include "core/render/device_error.h"
@@ -174,6 +175,12 @@ struct Renderer::Impl {
                                         [](const auto& b) { return b->name() == "cuda"; });
           if (!cuda && gpu_unused.empty() && options.backend != BackendChoice::kCpu)
             gpu_unused = "the CUDA backend failed to start";
+          if (options.cuda_image) {
+            // check_options: kCuda, so the one backend is the CUDA backend.
+            auto* gpu = dynamic_cast<CudaBackend*>(backends.at(0).get());
+            if (gpu == nullptr) throw std::logic_error("cuda_image: no CUDA backend");
+            gpu->set_device_image(true);
+          }
           return std::make_unique<CoreTracer>(std::move(backends), tracer_settings());
         },
         Error::Kind::kDevice);
@@ -220,6 +227,17 @@ struct Renderer::Impl {
       throw Error(Error::Kind::kInvalidState,
                   std::string(what) + ": no frame has been rendered yet");
     }
+  }
+
+  // The CUDA backend that mirrors the image (RendererOptions::cuda_image),
+  // after the checks of require_image().
+  CudaBackend& cuda_image_backend(const char* what) {
+    require_image(what);
+    if (!options.cuda_image) {
+      throw Error(Error::Kind::kInvalidState,
+                  std::string(what) + ": RendererOptions::cuda_image is off");
+    }
+    return dynamic_cast<CudaBackend&>(tracer->backend(0));
   }
 
   // The denoised image, after the checks of require_image().

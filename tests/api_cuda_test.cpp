@@ -10,10 +10,15 @@
 
 #include <stdlib.h>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <vector>
 
 #include "api_test_scene.h"
+
+#ifdef TANDEM_TEST_CUDART
+#include <cuda_runtime_api.h>
+#endif
 
 namespace {
 
@@ -78,6 +83,63 @@ TEST(CudaGpu, ApiOverlappedLoopGivesThePixelsOfThePlainLoop) {
     sequential = r.image_linear();
   }
   EXPECT_EQ(overlapped, sequential);
+}
+
+// `bytes` at a device pointer the API gave, as a host would read them:
+// through the CUDA runtime on a GPU, directly on the simulated device
+// (whose memory is the process's).
+std::vector<uint8_t> read_device(const void* p, size_t bytes) {
+  std::vector<uint8_t> out(bytes);
+  const char* device = std::getenv("TANDEM_DEVICE");
+  if (device != nullptr && std::string(device) == "sim") {
+    std::memcpy(out.data(), p, bytes);
+    return out;
+  }
+#ifdef TANDEM_TEST_CUDART
+  EXPECT_EQ(cudaMemcpy(out.data(), p, bytes, cudaMemcpyDeviceToHost), cudaSuccess);
+#else
+  ADD_FAILURE() << "this test build has no CUDA runtime to read a GPU pointer with";
+#endif
+  return out;
+}
+
+// RendererOptions::cuda_image: the GPU keeps the accumulated image, and a
+// host that presents through its own interop reads the image_linear() /
+// image_srgb8() pixels where they are, after edits restarted them too.
+TEST(CudaGpu, TheImageStaysOnTheGpuForTheHostsInterop) {
+  TANDEM_API_REQUIRE_CUDA();
+  tandem::RendererOptions o = cuda_options();
+  o.cuda_image = true;
+  tandem::Renderer r(o);
+  const tandem::InstanceId block = build_scene(r);
+  r.render_frame();
+  r.set_instance_transform(block, tandem::Transform::translation(0.5f, 0.5f, 0.0f));
+  for (int f = 0; f < 3; ++f)
+    r.render_frame();
+  const size_t values = size_t(r.width()) * r.height() * 3;
+  const std::vector<float> host = r.image_linear();
+  const std::vector<uint8_t> linear = read_device(r.cuda_image_linear(), values * sizeof(float));
+  std::vector<float> device(values);
+  std::memcpy(device.data(), linear.data(), linear.size());
+  EXPECT_EQ(device, host);
+  EXPECT_GT(mean(device), 0.01);
+  const std::vector<uint8_t> host8 = r.image_srgb8(0.5f, tandem::ToneCurve::kAces);
+  const std::vector<uint8_t> device8 =
+      read_device(r.cuda_image_srgb8(0.5f, tandem::ToneCurve::kAces), values);
+  size_t off = 0;
+  for (size_t i = 0; i < values; ++i)
+    off += std::abs(int(device8[i]) - int(host8[i])) > 1;  // the device's powf, last level
+  EXPECT_EQ(off, 0u);
+
+  o.cuda_image = false;
+  r.set_options(o);
+  r.render_frame();
+  error_of(tandem::Error::Kind::kInvalidState, [&] { r.cuda_image_linear(); });
+  o.backend = tandem::BackendChoice::kCpu;
+  o.cuda_image = true;
+  EXPECT_NE(error_of(tandem::Error::Kind::kInvalidArgument, [&] { tandem::Renderer cpu(o); })
+                .find("cuda_image needs BackendChoice::kCuda"),
+            std::string::npos);
 }
 
 // A GPU lost in the middle of a run (the device fault injector, on the

@@ -156,6 +156,9 @@ class CoreTracer {
   ImageRGB image() const { return film_.resolve(); }
 
   size_t backend_count() const { return backends_.size(); }
+  // Backend i in the order they were given, for what is particular to one
+  // (a CUDA backend's device image); never while a frame is in flight.
+  Backend& backend(size_t i) { return *backends_.at(i); }
   // Primary-hit features (core/kernel/features.h) of the last frame's
   // scene, from the first backend with a feature pass, with motion measured
   // from the frame of motion's previous advance(). Call after end_frame()

@@ -261,6 +261,10 @@ struct RendererOptions {
   // edge-aware filter of each frame's samples) after every frame, for
   // image_denoised(): about 100 ms a frame at 1280x720 on two cores.
   bool denoise = false;
+  // With BackendChoice::kCuda: the GPU keeps its own copy of the
+  // accumulated image (one small kernel per batch of tiles), for
+  // cuda_image_linear() and cuda_image_srgb8().
+  bool cuda_image = false;
 };
 
 // What the first hit of each pixel's centre saw (the denoiser's guides):
@@ -509,6 +513,18 @@ class Renderer {
   void write_image(const std::string& path, float exposure_stops = 0.0f,
                    ToneCurve curve = ToneCurve::kStandard,
                    FrameImage image = FrameImage::kAccumulated) const;
+  // With RendererOptions::cuda_image (and so BackendChoice::kCuda): the
+  // accumulated image in GPU memory, for a host that presents it through
+  // its own CUDA graphics interop (a cudaMemcpy2DToArray into a registered
+  // OpenGL or Vulkan image) without a trip through the CPU. A CUDA device
+  // pointer (Tandem's device, the runtime's primary context) to width() *
+  // height() * 3 floats (linear, as image_linear()) or bytes (as
+  // image_srgb8()), rows top first; the GPU work is finished when the call
+  // returns. Valid until the next call of either, the next frame or a
+  // change of options. Errors: kInvalidState without the option, before
+  // the first frame or during one; kDevice when the GPU fails.
+  const void* cuda_image_linear();
+  const void* cuda_image_srgb8(float exposure_stops = 0.0f, ToneCurve curve = ToneCurve::kStandard);
 
  private:
   struct Impl;

@@ -45,6 +45,10 @@ struct CudaBackend::Impl {
   WavefrontDriver wave_driver;
   DeviceBuffer film_sums, film_samples;
   DeviceFilmView film;
+  // set_device_image(): render() also adds its sums to `film`, sized as
+  // the host film, and device_image_*() resolve it into `presented`.
+  bool mirror_film = false;
+  DeviceBuffer presented;
   uint64_t commit_bytes_since_render = 0;
   // The feature pass's buffers, kept between frames (pinned allocations are
   // slow): the features on the device and their host landing area, and the
@@ -78,6 +82,7 @@ struct CudaBackend::Impl {
         wave_driver(*dev),
         film_sums(*dev, DeviceBuffer::kDevice),
         film_samples(*dev, DeviceBuffer::kDevice),
+        presented(*dev, DeviceBuffer::kDevice),
         features(*dev, DeviceBuffer::kDevice),
         host_features(*dev, DeviceBuffer::kPinned),
         prev_transforms(*dev, DeviceBuffer::kDevice),
@@ -107,6 +112,17 @@ struct CudaBackend::Impl {
   }
 
   uint64_t radiance_items() const { return radiance.bytes() / sizeof(Vec3); }
+
+  // A cleared device film of width x height (after the stream's work).
+  void reset_film(uint32_t width, uint32_t height) {
+    const size_t pixels = size_t(width) * height;
+    film = DeviceFilmView{};  // until both buffers exist
+    film_sums.reserve(3 * sizeof(double) * pixels);
+    film_samples.reserve(sizeof(uint32_t) * pixels);
+    dev->zero(film_sums.get(), 3 * sizeof(double) * pixels, stream.get());
+    dev->zero(film_samples.get(), sizeof(uint32_t) * pixels, stream.get());
+    film = DeviceFilmView{film_sums.as<double>(), film_samples.as<uint32_t>(), width, height};
+  }
 
   // Grows the per-batch buffers; only called with no batch in flight. Each
   // buffer on its own: after a failed allocation some are large enough and
@@ -201,7 +217,8 @@ struct CudaBackend::Impl {
     if (to_host) {
       dev->copy_to_host(slot.host_sums.get(), pixel_sums.get(),
                         3 * sizeof(double) * slot.pixel_count, s);
-    } else {
+    }
+    if (!to_host || mirror_film) {
       launch_accumulate_film(*dev, batch, pixel_sums.as<const double>(), pass.sample_count, film,
                              s);
     }
@@ -260,6 +277,12 @@ struct CudaBackend::Impl {
     bool ended = false;
     try {
       dev->zero(ray_count.get(), sizeof(unsigned long long), s);
+      // The mirror starts over with the host film's accumulation.
+      if (host_film && mirror_film &&
+          (pass.sample_begin == 0 || film.width != host_film->width() ||
+           film.height != host_film->height())) {
+        reset_film(host_film->width(), host_film->height());
+      }
       render_batches(ticket, pass, source, host_film, stats);
       scene.end_render(ticket, s);
       ended = true;
@@ -421,15 +444,34 @@ uint32_t CudaBackend::newest_scene_set() const {
 }
 
 void CudaBackend::reset_device_film(uint32_t width, uint32_t height) {
+  impl_->dev->synchronize(impl_->stream.get());
+  impl_->reset_film(width, height);
+}
+
+void CudaBackend::set_device_image(bool on) {
+  impl_->mirror_film = on;
+  if (!on) impl_->film = DeviceFilmView{};
+}
+
+const void* CudaBackend::device_image_linear() {
   Impl& m = *impl_;
+  if (!m.mirror_film || m.film.width == 0)
+    throw std::logic_error("cuda backend: no device image (set_device_image, then render)");
+  m.presented.reserve(size_t(m.film.width) * m.film.height * 3 * sizeof(float));
+  launch_resolve_film(*m.dev, m.film, m.presented.as<float>(), m.stream.get());
   m.dev->synchronize(m.stream.get());
-  const size_t pixels = size_t(width) * height;
-  m.film = DeviceFilmView{};  // until both buffers exist
-  m.film_sums.reserve(3 * sizeof(double) * pixels);
-  m.film_samples.reserve(sizeof(uint32_t) * pixels);
-  m.dev->zero(m.film_sums.get(), 3 * sizeof(double) * pixels, m.stream.get());
-  m.dev->zero(m.film_samples.get(), sizeof(uint32_t) * pixels, m.stream.get());
-  m.film = DeviceFilmView{m.film_sums.as<double>(), m.film_samples.as<uint32_t>(), width, height};
+  return m.presented.get();
+}
+
+const void* CudaBackend::device_image_srgb8(float exposure_stops, ToneMap curve) {
+  Impl& m = *impl_;
+  if (!m.mirror_film || m.film.width == 0)
+    throw std::logic_error("cuda backend: no device image (set_device_image, then render)");
+  m.presented.reserve(size_t(m.film.width) * m.film.height * 3);
+  launch_tone_map_film(*m.dev, m.film, std::exp2(exposure_stops), uint32_t(curve),
+                       m.presented.as<uint8_t>(), m.stream.get());
+  m.dev->synchronize(m.stream.get());
+  return m.presented.get();
 }
 
 BackendStats CudaBackend::render_to_device_film(const RenderPass& pass, TileSource& tiles) {

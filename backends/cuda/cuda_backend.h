@@ -91,6 +91,18 @@ class CudaBackend final : public Backend {
   // Exposure in stops, curve and sRGB as tone_map_to_srgb8, on the device.
   std::vector<uint8_t> tone_map_device_film(float exposure_stops, ToneMap curve);
 
+  // A host film render()ed into is also accumulated on the device (one
+  // small kernel per batch), so that an application presenting through
+  // its own graphics interop reads the image where it is. The mirror
+  // restarts with the host film's accumulation (sample_begin 0).
+  void set_device_image(bool on);
+  // The mirrored image resolved to linear RGB floats (3 per pixel) or tone
+  // mapped to sRGB bytes (3 per pixel, rows top first) in one device buffer
+  // of this backend, valid until the next such call or render(); the
+  // stream is synchronised. Throws std::logic_error without a mirror.
+  const void* device_image_linear();
+  const void* device_image_srgb8(float exposure_stops, ToneMap curve);
+
   // Closest hits (any_hit = false) or occlusion (a valid hit = occluded) of
   // `rays` against the synced scene, for tests and benchmarks.
   std::vector<Hit> trace_rays(const std::vector<Ray>& rays, const std::vector<uint32_t>& alpha_keys,
