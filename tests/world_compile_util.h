@@ -14,4 +14,12 @@ inline SceneDelta compile_taking_changes(SceneCompiler& compiler, Scene& scene,
   return delta;
 }
 
+// A scene's compiler and the arrays it keeps up to date, compiled as above.
+struct Compiled {
+  SceneCompiler compiler;
+  KernelScene ks;
+  RenderSettings settings;
+  SceneDelta compile(Scene& s) { return compile_taking_changes(compiler, s, settings, ks); }
+};
+
 }  // namespace tandem

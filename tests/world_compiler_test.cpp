@@ -58,13 +58,6 @@ TwoQuads make_two_quads() {
   return t;
 }
 
-struct Compiled {
-  SceneCompiler compiler;
-  KernelScene ks;
-  RenderSettings settings;
-  SceneDelta compile(Scene& s) { return compile_taking_changes(compiler, s, settings, ks); }
-};
-
 TEST(SceneCompiler, FirstCompileIsFullAndAnUnchangedSceneGivesAnEmptyDelta) {
   TwoQuads t = make_two_quads();
   Compiled c;

@@ -70,13 +70,6 @@ Scene build(const Parts& p) {
   return s;
 }
 
-struct Compiled {
-  SceneCompiler compiler;
-  KernelScene ks;
-  RenderSettings settings;
-  SceneDelta compile(Scene& s) { return compile_taking_changes(compiler, s, settings, ks); }
-};
-
 template <class T>
 bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
   return a.size() == b.size() &&

@@ -10,6 +10,8 @@
 // refine the image. Exit status: 0, 1 on a tandem::Error, 2 on bad usage.
 #include <tandem/tandem.h>
 
+#include "example_geometry.h"
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -19,55 +21,7 @@
 
 namespace {
 
-// Vertex and index arrays for one mesh, kept alive while add_mesh copies them.
-struct Geometry {
-  std::vector<float> positions, normals;
-  std::vector<uint32_t> indices;
-
-  // A quad of corners c, c+u, c+u+v, c+v whose front faces along u x v.
-  void add_quad(const float c[3], const float u[3], const float v[3]) {
-    const float n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                        u[0] * v[1] - u[1] * v[0]};
-    float len = 0.0f;
-    for (float x : n)
-      len += x * x;
-    len = len > 0.0f ? 1.0f / std::sqrt(len) : 0.0f;
-    const uint32_t base = uint32_t(positions.size() / 3);
-    const float corner_u[4] = {0, 1, 1, 0}, corner_v[4] = {0, 0, 1, 1};
-    for (int k = 0; k < 4; ++k) {
-      for (int i = 0; i < 3; ++i) {
-        positions.push_back(c[i] + corner_u[k] * u[i] + corner_v[k] * v[i]);
-        normals.push_back(n[i] * len);
-      }
-    }
-    for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u})
-      indices.push_back(base + i);
-  }
-
-  tandem::MeshData data() const {
-    tandem::MeshData d;
-    d.positions = positions.data();
-    d.normals = normals.data();
-    d.vertex_count = positions.size() / 3;
-    d.indices = indices.data();
-    d.triangle_count = indices.size() / 3;
-    return d;
-  }
-};
-
-Geometry box(float half) {
-  Geometry g;
-  const float h = half, w = 2.0f * half;
-  // Each face: a corner and two edges whose cross product points outwards.
-  const float faces[6][3][3] = {
-      {{-h, -h, h}, {w, 0, 0}, {0, w, 0}}, {{h, -h, -h}, {-w, 0, 0}, {0, w, 0}},
-      {{h, -h, h}, {0, 0, -w}, {0, w, 0}}, {{-h, -h, -h}, {0, 0, w}, {0, w, 0}},
-      {{-h, h, h}, {w, 0, 0}, {0, 0, -w}}, {{-h, -h, -h}, {w, 0, 0}, {0, 0, w}},
-  };
-  for (const auto& f : faces)
-    g.add_quad(f[0], f[1], f[2]);
-  return g;
-}
+using embed_example::Geometry;
 
 Geometry quad_facing(float y, float half, bool down) {
   Geometry g;
@@ -155,7 +109,7 @@ int main(int argc, char** argv) {
     lamp_material.emission[0] = lamp_material.emission[1] = lamp_material.emission[2] = 8.0f;
 
     const Geometry floor = quad_facing(0.0f, 5.0f, false);
-    const Geometry cube = box(0.5f);
+    const Geometry cube = embed_example::cube(0.5f);
     const Geometry lamp = quad_facing(3.0f, 0.75f, true);
     renderer.add_instance(renderer.add_mesh(floor.data(), renderer.add_material(floor_material)),
                           tandem::Transform::identity());
