@@ -5,6 +5,7 @@
 
 #include "core/util/errors.h"
 #include "scenes/arena_scene.h"
+#include "scenes/many_lights_scene.h"
 #include "scenes/procedural_rigs.h"
 #include "scenes/procedural_scenes.h"
 
@@ -232,8 +233,8 @@ Scene make_sky_plane_scene(float albedo, float sky) {
 }
 
 std::vector<std::string> builtin_scene_names() {
-  return {"cornell",    "cornell-spheres", "furnace",     "sky-plane",
-          "procedural", "arena",           "skinned-grid"};
+  return {"cornell",    "cornell-spheres", "furnace",      "sky-plane",
+          "procedural", "arena",           "skinned-grid", "many-lights"};
 }
 
 Scene make_builtin_scene(const std::string& name) {
@@ -244,6 +245,7 @@ Scene make_builtin_scene(const std::string& name) {
   if (name == "procedural") return make_procedural_scene(1000000, 1);
   if (name == "arena") return make_arena_scene();
   if (name == "skinned-grid") return make_skinned_grid_scene();
+  if (name == "many-lights") return make_many_lights_scene();
   std::string known;
   for (const std::string& n : builtin_scene_names())
     known += (known.empty() ? "" : ", ") + n;
