@@ -110,9 +110,9 @@ void Scene::set_instance_hidden(uint32_t instance, bool hidden) {
 void Scene::remove_light(uint32_t light) {
   if (light >= lights_.size())
     throw std::out_of_range("remove_light: light " + std::to_string(light) + " does not exist");
-  lights_.erase(lights_.begin() + light);
-  std::vector<uint8_t> removed(lights_.size() + 1, 0);
+  std::vector<uint8_t> removed(lights_.size(), 0);
   removed[light] = 1;
+  lights_.erase(lights_.begin() + light);
   lights_dirty_.erase(removed);
 }
 
