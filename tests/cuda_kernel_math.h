@@ -4,6 +4,7 @@
 
 #include <vector>
 
+#include "core/kernel/light_tree.h"
 #include "core/kernel/math.h"
 #include "core/kernel/trig.h"
 
@@ -22,5 +23,12 @@ void device_srgb8_to_linear(std::vector<float>* out);
 void device_sheen(const std::vector<Vec3>& wo, const std::vector<Vec3>& wi,
                   const std::vector<float>& alpha, std::vector<float>* brdf,
                   std::vector<float>* albedo);
+
+// The light tree's choice at point p[i] (normal n[i]) for u[i]: the light
+// and its pmf, and the pmf recomputed from trails[i] (light_tree.h).
+void device_light_tree(const std::vector<KLightTreeNode>& nodes, const std::vector<Vec3>& p,
+                       const std::vector<Vec3>& n, const std::vector<float>& u,
+                       const std::vector<uint64_t>& trails, std::vector<uint32_t>* lights,
+                       std::vector<float>* pmfs, std::vector<float>* trail_pmfs);
 
 }  // namespace tandem

@@ -6,12 +6,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "backends/backend_factory.h"
 #include "core/kernel/sheen_albedo.h"
 #include "core/kernel/srgb_table.h"
+#include "core/world/light_tree_build.h"
 #include "cuda_test_util.h"
 #include "tests/cuda_kernel_math.h"
 
@@ -125,6 +127,56 @@ TEST(CudaGpu, SheenLobeMatchesHostBitForBit) {
     }
   }
   EXPECT_EQ(differ, 0u) << "of " << wo.size() << " cases";
+}
+
+// The light tree chooses the same light with the same pmf on the GPU as
+// on the CPU, for the same point and number (so a frame split between
+// them is one image).
+TEST(CudaGpu, LightTreeChoicesMatchHostBitForBit) {
+  TANDEM_REQUIRE_REAL_GPU();
+  std::mt19937 gen(4);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<LightTreeInput> lights;
+  for (uint32_t i = 0; i < 2000; ++i) {
+    LightTreeInput l;
+    const glm::vec3 c(20.0f * unit(gen) - 10.0f, 5.0f * unit(gen), 20.0f * unit(gen) - 10.0f);
+    l.lo = c - glm::vec3(0.05f), l.hi = c + glm::vec3(0.05f);
+    l.axis = glm::normalize(glm::vec3(unit(gen) - 0.5f, unit(gen) - 0.5f, unit(gen) - 0.5f));
+    l.cos_theta_o = unit(gen);
+    l.power = 0.1f + 10.0f * unit(gen);
+    l.two_sided = i % 3 == 0;
+    l.light = i;
+    lights.push_back(l);
+  }
+  const LightTree tree = build_light_tree(lights, 2000);
+  std::vector<Vec3> p, n;
+  std::vector<float> u;
+  std::vector<uint64_t> trails;
+  for (uint32_t i = 0; i < 20000; ++i) {
+    p.push_back(make_vec3(20.0f * unit(gen) - 10.0f, 5.0f * unit(gen), 20.0f * unit(gen) - 10.0f));
+    n.push_back(i % 2 ? make_vec3(0.0f, 1.0f, 0.0f) : make_vec3(0.0f));
+    u.push_back(unit(gen));
+    trails.push_back(tree.trails[i % 2000]);
+  }
+  std::vector<uint32_t> lights_gpu;
+  std::vector<float> pmfs, trail_pmfs;
+  device_light_tree(tree.nodes, p, n, u, trails, &lights_gpu, &pmfs, &trail_pmfs);
+  size_t differ = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    float pmf = 0.0f;
+    const uint32_t light =
+        light_tree_sample(tree.nodes.data(), uint32_t(tree.nodes.size()), p[i], n[i], u[i], &pmf);
+    const float trail_pmf =
+        light_tree_pmf(tree.nodes.data(), uint32_t(tree.nodes.size()), trails[i], p[i], n[i]);
+    if ((light != lights_gpu[i] || bits(pmf) != bits(pmfs[i]) ||
+         bits(trail_pmf) != bits(trail_pmfs[i])) &&
+        ++differ <= 5) {
+      ADD_FAILURE() << std::hexfloat << "case " << i << ": host " << light << " " << pmf << " "
+                    << trail_pmf << ", device " << lights_gpu[i] << " " << pmfs[i] << " "
+                    << trail_pmfs[i];
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "of " << p.size() << " cases";
 }
 
 }  // namespace

@@ -1,0 +1,154 @@
+// A light BVH (Conty & Kulla 2017; Estevez & Kulla 2018): lights grouped by
+// position and orientation, each node bounding its lights' positions (a
+// box), their emission directions (a cone: axis, spread theta_o, and the
+// angle theta_e beyond it that they still emit into) and their power. A
+// shading point descends from the root choosing a child with probability
+// proportional to a conservative estimate of the light it receives from
+// it (power over distance squared, zero when every light faces away), so a
+// far, dim or turned-away light is seldom chosen; the probability of any
+// given light is the product of the choices along its path (its trail),
+// which light_tree_pmf recomputes for multiple importance sampling.
+//
+// Written once for every backend: the choices are the same bits on the
+// CPU and the GPU for the same point and random number.
+#pragma once
+
+#include "core/kernel/math.h"
+
+namespace tandem {
+TANDEM_KERNEL_BEGIN
+
+enum KLightTreeFlags : uint32_t {
+  kLightTreeLeaf = 1u << 0,      // `index` is a light, not a child
+  kLightTreeTwoSided = 1u << 1,  // emits on both sides of the cone's axis
+};
+
+// A node in depth-first order: an inner node's first child follows it,
+// its second child is at `index`.
+struct KLightTreeNode {
+  Vec3 lo;
+  float power;  // summed over the node's lights (> 0: zero-power lights are left out)
+  Vec3 hi;
+  float cos_theta_o;  // cone spread around `axis`
+  Vec3 axis;          // unit
+  float cos_theta_e;  // emission beyond the spread (pi/2 for a surface)
+  uint32_t index;     // second child, or the light
+  uint32_t flags;
+  uint32_t pad[2];
+};
+static_assert(sizeof(KLightTreeNode) == 64, "GPU layout");
+
+// cos(max(0, a - b)) from the cosines and sines of a and b (in [0, pi]).
+TANDEM_HD_INLINE float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+  if (cos_a > cos_b) return 1.0f;  // a < b
+  return cos_a * cos_b + sin_a * sin_b;
+}
+// sin(max(0, a - b)), as above.
+TANDEM_HD_INLINE float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+  if (cos_a > cos_b) return 0.0f;
+  return sin_a * cos_b - cos_a * sin_b;
+}
+
+// How much light a node may send to point p (with `n` the unit normal of
+// the surface there, or zero for a surface that receives from every side:
+// glass, a volume): power / d^2 times the cosine of the smallest angle
+// between the node's emission cone and the direction to p, and times the
+// cosine at the receiver, each widened by the angle the node's box covers
+// seen from p; zero when no light of the node can reach p's front.
+TANDEM_HD float light_tree_importance(const KLightTreeNode& node, Vec3 p, Vec3 n) {
+  const Vec3 center = (node.lo + node.hi) * 0.5f;
+  const Vec3 to_p = p - center;
+  // The distance clamped to the box's half diagonal: inside or next to
+  // the box the bound must not explode.
+  const float half_diag_sq = 0.25f * length_sq(node.hi - node.lo);
+  const float d2 = max_f(length_sq(to_p), sqrtf(half_diag_sq));
+  const float len = length(to_p);
+  const Vec3 wi = len > 0.0f ? to_p * (1.0f / len) : make_vec3(0.0f, 0.0f, 1.0f);
+  float cos_w = dot(node.axis, wi);
+  if (node.flags & kLightTreeTwoSided) cos_w = fabsf(cos_w);
+  const float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
+  // The angle the box covers from p (everything when p is inside it).
+  float cos_b = -1.0f, sin_b = 0.0f;
+  if (length_sq(to_p) > half_diag_sq) {
+    const float sin2 = half_diag_sq / length_sq(to_p);
+    cos_b = safe_sqrt(1.0f - sin2);
+    sin_b = sqrtf(sin2);
+  }
+  // theta_w - theta_o, then less theta_b, each clamped at 0.
+  const float sin_o = safe_sqrt(1.0f - node.cos_theta_o * node.cos_theta_o);
+  const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
+  const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
+  const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+  if (cos_p <= node.cos_theta_e) return 0.0f;
+  float importance = node.power * cos_p / d2;
+  if (length_sq(n) > 0.0f) {
+    // The receiver's cosine, towards the box: cos(max(0, theta_i - theta_b)).
+    const float cos_i = fabsf(dot(wi, n));
+    const float sin_i = safe_sqrt(1.0f - cos_i * cos_i);
+    importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+  }
+  return max_f(importance, 0.0f);
+}
+
+// The probability of the second child of inner node `node` at p, from the
+// importances of both; -1 when neither child can light p.
+TANDEM_HD float light_tree_second_child_probability(const KLightTreeNode* nodes, uint32_t node,
+                                                    Vec3 p, Vec3 n) {
+  const float first = light_tree_importance(nodes[node + 1], p, n);
+  const float second = light_tree_importance(nodes[nodes[node].index], p, n);
+  const float sum = first + second;
+  if (!(sum > 0.0f)) return -1.0f;
+  return second / sum;
+}
+
+// Chooses a light for point p (normal n, or zero) with one uniform number
+// u in [0, 1): its index, and in *pmf the probability of that choice.
+// Returns 0xffffffff (with *pmf 0) when the tree is empty or no light can
+// reach p.
+TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_count, Vec3 p,
+                                     Vec3 n, float u, float* pmf) {
+  *pmf = 0.0f;
+  if (node_count == 0 || !(light_tree_importance(nodes[0], p, n) > 0.0f)) return 0xffffffffu;
+  float prob = 1.0f;
+  uint32_t node = 0;
+  while (!(nodes[node].flags & kLightTreeLeaf)) {
+    const float second = light_tree_second_child_probability(nodes, node, p, n);
+    if (second < 0.0f) return 0xffffffffu;
+    if (u < 1.0f - second) {
+      u = min_f(u / (1.0f - second), 0x1.fffffep-1f);
+      prob *= 1.0f - second;
+      node = node + 1;
+    } else {
+      u = min_f((u - (1.0f - second)) / second, 0x1.fffffep-1f);
+      prob *= second;
+      node = nodes[node].index;
+    }
+  }
+  *pmf = prob;
+  return nodes[node].index;
+}
+
+// The probability light_tree_sample chooses the light whose trail is
+// `trail` (bit k: the second child at depth k) at p: the same products.
+TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count, uint64_t trail,
+                               Vec3 p, Vec3 n) {
+  if (node_count == 0 || !(light_tree_importance(nodes[0], p, n) > 0.0f)) return 0.0f;
+  float prob = 1.0f;
+  uint32_t node = 0;
+  while (!(nodes[node].flags & kLightTreeLeaf)) {
+    const float second = light_tree_second_child_probability(nodes, node, p, n);
+    if (second < 0.0f) return 0.0f;
+    if (trail & 1u) {
+      prob *= second;
+      node = nodes[node].index;
+    } else {
+      prob *= 1.0f - second;
+      node = node + 1;
+    }
+    trail >>= 1;
+  }
+  return prob;
+}
+
+TANDEM_KERNEL_END
+}  // namespace tandem

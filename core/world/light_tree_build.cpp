@@ -1,0 +1,209 @@
+#include "core/world/light_tree_build.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tandem {
+
+namespace {
+
+constexpr float kPiF = 3.14159265358979f;
+
+// A cone of directions: `axis` within theta_o, plus theta_e beyond.
+struct Cone {
+  glm::vec3 axis{0.0f, 0.0f, 1.0f};
+  float theta_o = 0.0f, theta_e = 0.0f;
+  bool empty = true;
+};
+
+Cone cone_of(const LightTreeInput& l) {
+  return {l.axis, std::acos(std::clamp(l.cos_theta_o, -1.0f, 1.0f)),
+          std::acos(std::clamp(l.cos_theta_e, -1.0f, 1.0f)), false};
+}
+
+// The smallest cone (of this construction) holding both.
+Cone cone_union(const Cone& a, const Cone& b) {
+  if (a.empty) return b;
+  if (b.empty) return a;
+  const float theta_e = std::max(a.theta_e, b.theta_e);
+  const float theta_d = std::acos(std::clamp(glm::dot(a.axis, b.axis), -1.0f, 1.0f));
+  if (std::min(theta_d + b.theta_o, kPiF) <= a.theta_o) return {a.axis, a.theta_o, theta_e, false};
+  if (std::min(theta_d + a.theta_o, kPiF) <= b.theta_o) return {b.axis, b.theta_o, theta_e, false};
+  const float theta_o = 0.5f * (a.theta_o + theta_d + b.theta_o);
+  const glm::vec3 w = glm::cross(a.axis, b.axis);
+  if (theta_o >= kPiF || glm::dot(w, w) < 1e-12f) return {a.axis, kPiF, theta_e, false};
+  // a's axis turned towards b's by theta_o - theta_a (Rodrigues, about w).
+  const float r = theta_o - a.theta_o;
+  const glm::vec3 k = glm::normalize(w);
+  const glm::vec3 axis = a.axis * std::cos(r) + glm::cross(k, a.axis) * std::sin(r) +
+                         k * glm::dot(k, a.axis) * (1.0f - std::cos(r));
+  return {glm::normalize(axis), theta_o, theta_e, false};
+}
+
+// The orientation measure of a cone: the solid angle it emits into,
+// weighted by the cosine falloff beyond theta_o.
+float orientation_measure(const Cone& c) {
+  const float theta_w = std::min(c.theta_o + c.theta_e, kPiF);
+  const float so = std::sin(c.theta_o), co = std::cos(c.theta_o);
+  return 2.0f * kPiF * (1.0f - co) +
+         0.5f * kPiF *
+             (2.0f * theta_w * so - std::cos(c.theta_o - 2.0f * theta_w) - 2.0f * c.theta_o * so +
+              co);
+}
+
+struct Group {
+  glm::vec3 lo{INFINITY}, hi{-INFINITY};
+  Cone cone;
+  float power = 0.0f;
+  bool two_sided = false;
+  void add(const LightTreeInput& l) {
+    lo = glm::min(lo, l.lo);
+    hi = glm::max(hi, l.hi);
+    cone = cone_union(cone, cone_of(l));
+    power += l.power;
+    two_sided |= l.two_sided;
+  }
+  void add(const Group& g) {
+    if (g.cone.empty) return;
+    lo = glm::min(lo, g.lo);
+    hi = glm::max(hi, g.hi);
+    cone = cone_union(cone, g.cone);
+    power += g.power;
+    two_sided |= g.two_sided;
+  }
+  float area() const {
+    const glm::vec3 d = glm::max(hi - lo, glm::vec3(0.0f));
+    return 2.0f * (d.x * d.y + d.y * d.z + d.z * d.x);
+  }
+  // The SAOH cost of a side, without the node's own normalisation.
+  float cost(float epsilon_area) const {
+    return cone.empty ? 0.0f : power * orientation_measure(cone) * (area() + epsilon_area);
+  }
+};
+
+glm::vec3 centre(const LightTreeInput& l) {
+  return 0.5f * (l.lo + l.hi);
+}
+
+class Builder {
+ public:
+  Builder(std::vector<LightTreeInput>& lights, LightTree& out) : lights_(lights), out_(out) {}
+
+  // Lights [begin, end), at `depth` with path `trail`; returns the node.
+  uint32_t build(size_t begin, size_t end, uint32_t depth, uint64_t trail) {
+    Group all;
+    for (size_t i = begin; i < end; ++i)
+      all.add(lights_[i]);
+    const uint32_t index = uint32_t(out_.nodes.size());
+    out_.nodes.push_back(node_of(all));
+    if (end - begin == 1) {
+      out_.nodes[index].flags |= kLightTreeLeaf;
+      out_.nodes[index].index = lights_[begin].light;
+      out_.trails[lights_[begin].light] = trail;
+      return index;
+    }
+    const size_t mid = split(begin, end, all, depth);
+    build(begin, mid, depth + 1, trail);
+    const uint32_t second = build(mid, end, depth + 1, trail | (uint64_t(1) << depth));
+    out_.nodes[index].index = second;
+    return index;
+  }
+
+ private:
+  static KLightTreeNode node_of(const Group& g) {
+    KLightTreeNode n{};
+    n.lo = make_vec3(g.lo.x, g.lo.y, g.lo.z);
+    n.hi = make_vec3(g.hi.x, g.hi.y, g.hi.z);
+    n.power = g.power;
+    n.axis = make_vec3(g.cone.axis.x, g.cone.axis.y, g.cone.axis.z);
+    n.cos_theta_o = std::cos(g.cone.theta_o);
+    n.cos_theta_e = std::cos(std::min(g.cone.theta_e, kPiF));
+    n.flags = g.two_sided ? kLightTreeTwoSided : 0u;
+    return n;
+  }
+
+  // Where [begin, end) splits: the cheapest of 12 buckets on each axis by
+  // the SAOH, or (deep in the tree, or when every light sits at one
+  // centre) the median of the widest axis, which keeps every trail within
+  // 64 levels.
+  size_t split(size_t begin, size_t end, const Group& all, uint32_t depth) {
+    glm::vec3 clo(INFINITY), chi(-INFINITY);
+    for (size_t i = begin; i < end; ++i) {
+      clo = glm::min(clo, centre(lights_[i]));
+      chi = glm::max(chi, centre(lights_[i]));
+    }
+    const glm::vec3 extent = chi - clo;
+    const int widest =
+        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const auto by_axis = [&](int axis) {
+      return [axis](const LightTreeInput& a, const LightTreeInput& b) {
+        return centre(a)[axis] < centre(b)[axis];
+      };
+    };
+    const auto median_split = [&] {
+      const size_t median = begin + (end - begin) / 2;
+      std::nth_element(lights_.begin() + long(begin), lights_.begin() + long(median),
+                       lights_.begin() + long(end), by_axis(widest));
+      return median;
+    };
+    if (depth >= 40 || !(extent[widest] > 0.0f)) return median_split();
+    constexpr int kBuckets = 12;
+    const float epsilon_area = 1e-6f * std::max(all.area(), 1e-12f);
+    float best_cost = INFINITY;
+    int best_axis = -1, best_bucket = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!(extent[axis] > 0.0f)) continue;
+      Group buckets[kBuckets];
+      for (size_t i = begin; i < end; ++i)
+        buckets[bucket_of(lights_[i], axis, clo, extent, kBuckets)].add(lights_[i]);
+      // Long thin boxes split across their length: the regularisation of
+      // Conty & Kulla (the widest extent over this axis's).
+      const float kr = extent[widest] / extent[axis];
+      for (int b = 0; b + 1 < kBuckets; ++b) {
+        Group left, right;
+        for (int k = 0; k <= b; ++k)
+          left.add(buckets[k]);
+        for (int k = b + 1; k < kBuckets; ++k)
+          right.add(buckets[k]);
+        if (left.cone.empty || right.cone.empty) continue;
+        const float cost = kr * (left.cost(epsilon_area) + right.cost(epsilon_area));
+        if (cost < best_cost) best_cost = cost, best_axis = axis, best_bucket = b;
+      }
+    }
+    if (best_axis < 0) return median_split();
+    const auto mid = std::partition(
+        lights_.begin() + long(begin), lights_.begin() + long(end), [&](const LightTreeInput& l) {
+          return bucket_of(l, best_axis, clo, extent, kBuckets) <= best_bucket;
+        });
+    const size_t m = size_t(mid - lights_.begin());
+    return m == begin || m == end ? median_split() : m;
+  }
+
+  static int bucket_of(const LightTreeInput& l, int axis, glm::vec3 clo, glm::vec3 extent,
+                       int buckets) {
+    const int b = int(float(buckets) * (centre(l)[axis] - clo[axis]) / extent[axis]);
+    return std::clamp(b, 0, buckets - 1);
+  }
+
+  std::vector<LightTreeInput>& lights_;
+  LightTree& out_;
+};
+
+}  // namespace
+
+LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_count) {
+  LightTree tree;
+  tree.trails.assign(light_count, 0);
+  lights.erase(std::remove_if(lights.begin(), lights.end(),
+                              [&](const LightTreeInput& l) {
+                                return !(l.power > 0.0f) || !std::isfinite(l.power) ||
+                                       l.light >= light_count;
+                              }),
+               lights.end());
+  if (lights.empty()) return tree;
+  tree.nodes.reserve(2 * lights.size());
+  Builder(lights, tree).build(0, lights.size(), 0, 0);
+  return tree;
+}
+
+}  // namespace tandem
