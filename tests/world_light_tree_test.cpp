@@ -177,5 +177,21 @@ TEST(LightTree, NearLightsFacingThePointTakeMostOfTheProbability) {
   EXPECT_GT(near_down, 0.3);
 }
 
+// A spot: a cone with no falloff beyond it (theta_e 0) lights what is
+// inside and nothing outside.
+TEST(LightTree, ASpotLightsInsideItsConeOnly) {
+  KLightTreeNode spot{};
+  spot.lo = spot.hi = make_vec3(0.0f, 2.0f, 0.0f);
+  spot.power = 1.0f;
+  spot.axis = make_vec3(0.0f, -1.0f, 0.0f);
+  spot.cos_theta_o = std::cos(0.3f);
+  spot.cos_theta_e = 1.0f;
+  spot.flags = kLightTreeLeaf;
+  const Vec3 up = make_vec3(0.0f, 1.0f, 0.0f);
+  EXPECT_GT(light_tree_importance(spot, make_vec3(0.0f, 0.0f, 0.0f), up), 0.0f);
+  EXPECT_GT(light_tree_importance(spot, make_vec3(0.5f, 0.0f, 0.0f), up), 0.0f);  // 14 degrees
+  EXPECT_EQ(light_tree_importance(spot, make_vec3(1.5f, 0.0f, 0.0f), up), 0.0f);  // 37 degrees
+}
+
 }  // namespace
 }  // namespace tandem

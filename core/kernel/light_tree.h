@@ -79,7 +79,9 @@ TANDEM_HD float light_tree_importance(const KLightTreeNode& node, Vec3 p, Vec3 n
   const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
   const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
   const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-  if (cos_p <= node.cos_theta_e) return 0.0f;
+  // Strictly outside: a spot's cone has theta_e 0, and a point inside it
+  // (cos_p 1) is lit.
+  if (cos_p < node.cos_theta_e) return 0.0f;
   float importance = node.power * cos_p / d2;
   if (length_sq(n) > 0.0f) {
     // The receiver's cosine, towards the box: cos(max(0, theta_i - theta_b)).
