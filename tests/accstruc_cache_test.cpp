@@ -64,11 +64,6 @@ struct CachedBuild {
   KernelData kd() const { return ks.view(); }
 };
 
-template <class T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
-}
-
 // Hits of a cached build against Embree, in both layouts.
 void expect_hits_match_embree(const TracedScene& s, const CachedBuild& b, const char* what) {
   const KernelData kd = b.kd();

@@ -169,23 +169,6 @@ TEST(SceneDirtyLists, ListEachMarkedObjectOnceAndClearWithTheMasks) {
   EXPECT_EQ(scene.instance_dirty()[3], 0u);
 }
 
-template <class T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-  // memcmp must not see the null data() of an empty vector.
-  return a.size() == b.size() &&
-         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
-}
-
-// What the compiler owns, compared byte for byte.
-void expect_same_scene_arrays(const KernelScene& a, const KernelScene& b, int step) {
-#define TANDEM_EXPECT_SAME(T, name) \
-  EXPECT_TRUE(same_bytes(a.name, b.name)) << #name << " differs after edit " << step;
-  TANDEM_SCENE_ARRAYS(TANDEM_EXPECT_SAME)
-#undef TANDEM_EXPECT_SAME
-  EXPECT_EQ(std::memcmp(&a.constants, &b.constants, sizeof(KernelConstants)), 0)
-      << "constants differ after edit " << step;
-}
-
 // Lights, materials and the environment changed one at a time (no instance
 // moves, whose light-power refresh is deliberately lazy): the incremental
 // compile must produce exactly the arrays of a fresh compile.

@@ -43,12 +43,6 @@ Scene grid_scene(bool emissive) {
   return s;
 }
 
-template <class T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() &&
-         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
-}
-
 TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   Scene scene = grid_scene(false);
   SceneCompiler compiler;
