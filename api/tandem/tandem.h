@@ -38,7 +38,8 @@
 // the GPU), and the calling thread may go on editing the scene for the
 // next frame. The log callback may be called from any of those threads.
 // Pointers passed in (MeshData, TextureDesc, pixels) are read during the
-// call only; nothing returned points into the renderer.
+// call only; nothing returned points into the renderer but the device
+// pointers of cuda_image_linear() and cuda_image_srgb8().
 #pragma once
 
 #include <cstddef>
