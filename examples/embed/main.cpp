@@ -11,6 +11,7 @@
 #include <tandem/tandem.h>
 
 #include "example_geometry.h"
+#include "example_options.h"
 
 #include <cmath>
 #include <cstdio>
@@ -79,17 +80,8 @@ int main(int argc, char** argv) {
     } else if (a == "--spp") {
       options.samples_per_frame = number(v, "--spp");
     } else if (a == "--backend") {
-      const std::string b = v;
-      if (b == "auto")
-        options.backend = tandem::BackendChoice::kAuto;
-      else if (b == "cpu")
-        options.backend = tandem::BackendChoice::kCpu;
-      else if (b == "cuda")
-        options.backend = tandem::BackendChoice::kCuda;
-      else if (b == "hetero")
-        options.backend = tandem::BackendChoice::kHetero;
-      else
-        usage("--backend: expected auto, cpu, cuda or hetero, not " + b);
+      if (!embed_example::parse_backend(v, &options.backend))
+        usage("--backend: expected auto, cpu, cuda or hetero, not " + std::string(v));
     } else {
       usage("unknown option " + a);
     }

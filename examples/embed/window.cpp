@@ -15,6 +15,7 @@
 #include <SDL.h>
 
 #include "example_geometry.h"
+#include "example_options.h"
 
 #include <cmath>
 #include <cstdio>
@@ -110,17 +111,8 @@ int main(int argc, char** argv) {
     } else if (a == "--screenshot") {
       screenshot = v;
     } else if (a == "--backend") {
-      const std::string b = v;
-      if (b == "auto")
-        options.backend = tandem::BackendChoice::kAuto;
-      else if (b == "cpu")
-        options.backend = tandem::BackendChoice::kCpu;
-      else if (b == "cuda")
-        options.backend = tandem::BackendChoice::kCuda;
-      else if (b == "hetero")
-        options.backend = tandem::BackendChoice::kHetero;
-      else
-        usage("--backend: expected auto, cpu, cuda or hetero, not " + b);
+      if (!embed_example::parse_backend(v, &options.backend))
+        usage("--backend: expected auto, cpu, cuda or hetero, not " + std::string(v));
     } else {
       usage("unknown option " + a);
     }
