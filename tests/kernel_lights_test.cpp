@@ -250,7 +250,7 @@ float pdf_at_hit(const KernelData& kd, const std::vector<WorldTriangle>& tris, V
   if (!hit) return 0.0f;
   const WorldTriangle& tri = tris[hit->triangle];
   const Hit h = {float(hit->t), float(hit->u), float(hit->v), tri.instance, tri.prim};
-  return triangle_light_pdf(kd, make_surface_point(kd, h), d, float(hit->t));
+  return triangle_light_pdf(kd, h, make_surface_point(kd, h), d, float(hit->t), o, make_vec3(0.0f));
 }
 
 const Vec3 kReference = make_vec3(0.3f, -0.2f, -0.4f);
@@ -287,7 +287,7 @@ TEST(KernelTriangleLight, ExpectedInversePdfIsSolidAngle) {
     for (int i = 0; i < 200000; ++i) {
       LightSample ls;
       const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-      ASSERT_TRUE(sample_light(kd, kReference, us, u1, u2, &ls));
+      ASSERT_TRUE(sample_light(kd, kReference, make_vec3(0.0f), us, u1, u2, &ls));
       ASSERT_FALSE(ls.is_delta);
       ASSERT_FALSE(ls.at_infinity);
       ASSERT_NEAR(length(ls.wi), 1.0f, 1e-5f);
@@ -362,7 +362,7 @@ TEST(KernelTriangleLight, DirectionsFollowTheReportedPdf) {
   for (int n = 0; n < kSamples; ++n) {
     LightSample ls;
     const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-    if (!sample_light(kd, kReference, us, u1, u2, &ls)) {
+    if (!sample_light(kd, kReference, make_vec3(0.0f), us, u1, u2, &ls)) {
       observed[failed] += 1.0;
       continue;
     }
@@ -419,8 +419,8 @@ TEST(KernelTriangleLight, CachedTriangleLightsSampleTheSameBits) {
       const Vec3 ref = make_vec3(4.0f * x - 2.0f, 4.0f * y - 2.0f, 4.0f * z);
       const float us = rng.next(), u1 = rng.next(), u2 = rng.next();
       LightSample a{}, b{};
-      const bool ok_a = sample_light(kd, ref, us, u1, u2, &a);
-      const bool ok_b = sample_light(kd_uncached, ref, us, u1, u2, &b);
+      const bool ok_a = sample_light(kd, ref, make_vec3(0.0f), us, u1, u2, &a);
+      const bool ok_b = sample_light(kd_uncached, ref, make_vec3(0.0f), us, u1, u2, &b);
       ASSERT_EQ(ok_a, ok_b) << i;
       if (!ok_a) continue;
       ++compared;
@@ -443,7 +443,7 @@ TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {
     for (int i = 0; i < 10000; ++i) {
       LightSample ls;
       const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-      ASSERT_FALSE(sample_light(kd, behind, us, u1, u2, &ls));
+      ASSERT_FALSE(sample_light(kd, behind, make_vec3(0.0f), us, u1, u2, &ls));
     }
   }
   {
@@ -454,7 +454,7 @@ TEST(KernelTriangleLight, SingleSidedEmitterIsDarkFromBehind) {
     for (int i = 0; i < 10000; ++i) {
       LightSample ls;
       const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-      ASSERT_TRUE(sample_light(kd, behind, us, u1, u2, &ls));
+      ASSERT_TRUE(sample_light(kd, behind, make_vec3(0.0f), us, u1, u2, &ls));
       ASSERT_NEAR(pdf_at_hit(kd, s.triangles, behind, ls.wi), ls.pdf, 1e-3f * ls.pdf);
     }
   }
@@ -494,7 +494,7 @@ TEST(KernelTriangleLight, EnvironmentAndTrianglesShareOneLightList) {
   for (int i = 0; i < kSamples; ++i) {
     LightSample ls;
     const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-    if (!sample_light(kd, kReference, us, u1, u2, &ls)) continue;
+    if (!sample_light(kd, kReference, make_vec3(0.0f), us, u1, u2, &ls)) continue;
     if (ls.at_infinity) {
       ++env_count;
       ASSERT_NEAR(environment_light_pdf(kd, ls.wi), ls.pdf, 1e-3f * ls.pdf);
@@ -546,7 +546,7 @@ TEST(KernelPunctualLight, PointLightFallsOffWithInverseSquare) {
   for (const Vec3 ref :
        {make_vec3(0.0f), make_vec3(1.0f, 2.0f, 0.5f), make_vec3(-3.0f, 5.0f, 3.0f)}) {
     LightSample ls;
-    ASSERT_TRUE(sample_light(kd, ref, 0.3f, 0.5f, 0.5f, &ls));
+    ASSERT_TRUE(sample_light(kd, ref, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &ls));
     const float d2 = length_sq(pos - ref);
     EXPECT_TRUE(ls.is_delta);
     EXPECT_FALSE(ls.at_infinity);
@@ -559,7 +559,8 @@ TEST(KernelPunctualLight, PointLightFallsOffWithInverseSquare) {
     EXPECT_NEAR(length(ls.point - pos), 0.0f, 1e-6f);
   }
   LightSample ls;
-  EXPECT_FALSE(sample_light(kd, pos, 0.3f, 0.5f, 0.5f, &ls)) << "shading point at the light";
+  EXPECT_FALSE(sample_light(kd, pos, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &ls))
+      << "shading point at the light";
 }
 
 // The integrator's smooth mirrors and glass sample only delta lights: an
@@ -568,15 +569,15 @@ TEST(KernelLights, DeltaOnlySkipsAreaLightsAndKeepsPunctualOnes) {
   const TriangleLightScene s = make_triangle_light_scene(false);
   const KernelData area = s.ks.view();
   LightSample ls;
-  ASSERT_TRUE(sample_light(area, kReference, 0.3f, 0.4f, 0.5f, &ls));
-  EXPECT_FALSE(sample_light(area, kReference, 0.3f, 0.4f, 0.5f, &ls, true));
+  ASSERT_TRUE(sample_light(area, kReference, make_vec3(0.0f), 0.3f, 0.4f, 0.5f, &ls));
+  EXPECT_FALSE(sample_light(area, kReference, make_vec3(0.0f), 0.3f, 0.4f, 0.5f, &ls, true));
 
   const Vec3 pos = make_vec3(1.0f, 2.0f, 3.0f);
   const KernelScene ks = make_punctual_scene({point_light(pos, make_vec3(4.0f))}, {1.0});
   const KernelData punctual = ks.view();
   LightSample a, b;
-  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &a));
-  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &b, true));
+  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &a));
+  ASSERT_TRUE(sample_light(punctual, make_vec3(0.0f), make_vec3(0.0f), 0.3f, 0.5f, 0.5f, &b, true));
   EXPECT_EQ(a.pdf, b.pdf);
   EXPECT_EQ(a.radiance.x, b.radiance.x);
   EXPECT_TRUE(b.is_delta);
@@ -594,7 +595,7 @@ TEST(KernelPunctualLight, SpotLightConeFalloff) {
     const float a = deg * kPi / 180.0f;
     const Vec3 ref = pos + make_vec3(sinf(a), -cosf(a), 0.0f) * 4.0f;  // 4 units from the light
     LightSample ls;
-    const bool ok = sample_light(kd, ref, 0.5f, 0.5f, 0.5f, &ls);
+    const bool ok = sample_light(kd, ref, make_vec3(0.0f), 0.5f, 0.5f, 0.5f, &ls);
     if (deg > 30.0f) {
       EXPECT_FALSE(ok) << deg << " deg is outside the cone";
       continue;
@@ -620,7 +621,7 @@ TEST(KernelPunctualLight, DirectionalLight) {
   const KernelData kd = ks.view();
   for (const Vec3 ref : {make_vec3(0.0f), make_vec3(100.0f, -50.0f, 3.0f)}) {
     LightSample ls;
-    ASSERT_TRUE(sample_light(kd, ref, 0.9f, 0.1f, 0.2f, &ls));
+    ASSERT_TRUE(sample_light(kd, ref, make_vec3(0.0f), 0.9f, 0.1f, 0.2f, &ls));
     EXPECT_TRUE(ls.is_delta);
     EXPECT_TRUE(ls.at_infinity);
     EXPECT_FLOAT_EQ(ls.pdf, 1.0f);
@@ -646,7 +647,7 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
   for (int i = 0; i < kSamples; ++i) {
     LightSample ls;
     const float u2 = rng.next(), u1 = rng.next(), us = rng.next();
-    ASSERT_TRUE(sample_light(kd, make_vec3(0.0f), us, u1, u2, &ls));
+    ASSERT_TRUE(sample_light(kd, make_vec3(0.0f), make_vec3(0.0f), us, u1, u2, &ls));
     const int index = int(std::lround(ls.point.x));
     ASSERT_NEAR(ls.pdf, weights[size_t(index)] / 9.5, 1e-6);
     observed[size_t(index)] += 1.0;
@@ -654,7 +655,8 @@ TEST(KernelPunctualLight, SelectionFollowsPowerAndReportsItsPmf) {
   const auto r = test_stats::chi_square_test(observed, expected);
   EXPECT_TRUE(r.passed(kAlpha)) << r.summary();
   LightSample ls;
-  EXPECT_FALSE(sample_light(KernelScene{}.view(), make_vec3(0.0f), 0.5f, 0.5f, 0.5f, &ls))
+  EXPECT_FALSE(
+      sample_light(KernelScene{}.view(), make_vec3(0.0f), make_vec3(0.0f), 0.5f, 0.5f, 0.5f, &ls))
       << "no lights";
 }
 

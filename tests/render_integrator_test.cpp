@@ -29,8 +29,9 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
   const KIntegratorParams& ip = kd.constants.integrator;
   Vec3 radiance = make_vec3(0.0f);
   Vec3 beta = make_vec3(1.0f);
-  float prev_bsdf_pdf = 0.0f;  // 0: camera ray, no MIS on emission
-  float eta_scale = 1.0f;      // eta^2 of the refractions so far, for the roulette
+  float prev_bsdf_pdf = 0.0f;                                   // 0: camera ray, no MIS on emission
+  Vec3 prev_point = ray.origin, prev_normal = make_vec3(0.0f);  // where the ray left
+  float eta_scale = 1.0f;  // eta^2 of the refractions so far, for the roulette
   uint32_t rays = 0;
 
   for (uint32_t bounce = 0;; ++bounce) {
@@ -56,7 +57,8 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
       const Vec3 le = material_emission(kd, mat, sp.uv);
       const float w =
           prev_bsdf_pdf > 0.0f
-              ? mis_power_heuristic(prev_bsdf_pdf, triangle_light_pdf(kd, sp, ray.dir, hit.t))
+              ? mis_power_heuristic(prev_bsdf_pdf, triangle_light_pdf(kd, hit, sp, ray.dir, hit.t,
+                                                                      prev_point, prev_normal))
               : 1.0f;
       radiance += beta * le * w;
     }
@@ -70,8 +72,10 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
     const bool specular = bsdf_near_specular(sh.params, sh.lobes);
     LightSample ls;
     const Vec2 light_uv = rng_2d(rng, bounce_dimension(bounce, kBounceLightU));
-    if (sample_light(kd, sp.position, rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)),
-                     light_uv.x, light_uv.y, &ls, specular)) {
+    const Vec3 receiver = sh.params.transmission > 0.0f ? make_vec3(0.0f) : sh.ng;
+    if (sample_light(kd, sp.position, receiver,
+                     rng_1d(rng, bounce_dimension(bounce, kBounceLightSelect)), light_uv.x,
+                     light_uv.y, &ls, specular)) {
       const Vec3 wi_local = to_local(sh.frame, ls.wi);
       if (consistent_side(ls.wi, wi_local, sh.ng)) {
         const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -99,6 +103,8 @@ Vec3 reference_trace_path(const KernelData& kd, const Tracer& tracer, Ray ray, c
     beta *= bs.weight;
     prev_bsdf_pdf = specular ? 0.0f : bs.pdf;
     ray = spawn_ray(sp, wi);
+    prev_point = sp.position;
+    prev_normal = receiver;
 
     if (bs.wi.z < 0.0f) eta_scale *= sh.params.eta * sh.params.eta;
     if (bounce + 1 >= ip.rr_start_depth) {

@@ -116,16 +116,30 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
 void expect_same_light_tables(const KernelScene& a, const KernelScene& b, const char* what) {
   EXPECT_TRUE(same_bytes(a.lights, b.lights)) << what;
   EXPECT_TRUE(same_bytes(a.light_alias, b.light_alias)) << what;
+  EXPECT_TRUE(same_bytes(a.light_tree_nodes, b.light_tree_nodes)) << what;
+  EXPECT_TRUE(same_bytes(a.light_tree_trails, b.light_tree_trails)) << what;
   EXPECT_EQ(a.constants.total_light_power, b.constants.total_light_power) << what;
+  EXPECT_EQ(a.constants.light_tree_fraction, b.constants.light_tree_fraction) << what;
 }
 
-TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
+class SceneDeformSampler : public ::testing::TestWithParam<LightSampler> {};
+
+INSTANTIATE_TEST_SUITE_P(Samplers, SceneDeformSampler,
+                         ::testing::Values(LightSampler::kPower, LightSampler::kTree),
+                         [](const auto& info) {
+                           return info.param == LightSampler::kTree ? "tree" : "power";
+                         });
+
+TEST_P(SceneDeformSampler, EmissiveLightTablesFollowTheDeformation) {
   Scene scene = grid_scene(true);
   SceneCompiler compiler;
   KernelScene ks;
   RenderSettings settings;
+  settings.light_sampler = GetParam();
+  const bool tree = GetParam() == LightSampler::kTree;
   compile_taking_changes(compiler, scene, settings, ks);
   const std::vector<KAliasEntry> alias_before = ks.light_alias;
+  const std::vector<KLightTreeNode> tree_before = ks.light_tree_nodes;
   const size_t light_count = ks.lights.size();
   ASSERT_GT(light_count, 2u * 2 * 48 * 48);  // every grid triangle of both instances
 
@@ -136,11 +150,11 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
     deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
     const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
     // Updated in place: the light list keeps its size and order, the
-    // deformed lights' cached vertices and normals and the alias table are
-    // rewritten.
+    // deformed lights' cached vertices and normals and the alias table (or
+    // the tree, built anew) are rewritten.
     EXPECT_TRUE(d.lights.any()) << "frame " << frame;
     EXPECT_FALSE(d.lights.reallocated) << "frame " << frame;
-    EXPECT_TRUE(d.light_alias.any()) << "frame " << frame;
+    EXPECT_TRUE((tree ? d.light_tree_nodes : d.light_alias).any()) << "frame " << frame;
     EXPECT_FALSE(d.light_alias.reallocated) << "frame " << frame;
     EXPECT_EQ(ks.lights.size(), light_count);
     Scene copy = scene;
@@ -149,7 +163,9 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
     compile_taking_changes(fresh_compiler, copy, settings, fresh);
     expect_same_light_tables(ks, fresh, "deformed");
   }
-  EXPECT_FALSE(same_bytes(alias_before, ks.light_alias));  // the test saw a change
+  // The test saw a change.
+  EXPECT_FALSE(tree ? same_bytes(tree_before, ks.light_tree_nodes)
+                    : same_bytes(alias_before, ks.light_alias));
 
   // A triangle collapsing to zero area leaves the light list: the tables
   // are then rebuilt, and still equal a fresh compile.
@@ -168,7 +184,7 @@ TEST(SceneDeform, EmissiveLightTablesFollowTheDeformation) {
   deform_wave_grid(scene.edit_mesh_vertices(1), WaveGrid{.cells = 4, .size = 1.0f}, 0.3f);
   const SceneDelta d4 = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_TRUE(d4.positions.any());
-  EXPECT_FALSE(d4.lights.any() || d4.light_alias.any());
+  EXPECT_FALSE(d4.lights.any() || d4.light_alias.any() || d4.light_tree_nodes.any());
 }
 
 }  // namespace

@@ -225,7 +225,8 @@ BenchRays make_bench_rays(const KernelData& kd, const CpuBackend& embree, uint32
       set.rays.push_back(spawn_ray(sp, d));
       set.kind.push_back(BenchRayKind::kDiffuse);
       LightSample ls;
-      if (sample_light(kd, sp.position, rng_1d(rng, 4), rng_1d(rng, 5), rng_1d(rng, 6), &ls)) {
+      if (sample_light(kd, sp.position, frame.n, rng_1d(rng, 4), rng_1d(rng, 5), rng_1d(rng, 6),
+                       &ls)) {
         set.rays.push_back(ls.at_infinity ? spawn_ray(sp, ls.wi) : spawn_shadow_ray(sp, ls.point));
         set.kind.push_back(BenchRayKind::kShadow);
       }

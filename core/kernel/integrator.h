@@ -163,6 +163,11 @@ struct PathState {
   float eta_scale;  // product of eta^2 over the refractions so far (Russian roulette)
   uint32_t flags;   // PathFlags
   uint32_t rays;    // rays traced for this path (closest hit and shadow)
+  // The shading point `ray` left and the receiver normal the light tree
+  // chose the light sample there with, so that MIS at the light `ray` finds
+  // recomputes the same choice's probability.
+  Vec3 origin_point;
+  Vec3 origin_normal;
 };
 
 // A light sample waiting for its shadow ray: `contribution` (already MIS
@@ -200,6 +205,8 @@ TANDEM_HD void path_start(const KernelData& kd, uint32_t x, uint32_t y, uint32_t
   p->eta_scale = 1.0f;
   p->flags = kPathAlive | ((kd.constants.scene_flags & kSceneHasAlphaTest) ? kPathAlphaKeys : 0u);
   p->rays = 0;
+  p->origin_point = p->ray.origin;  // unread: a camera ray has no MIS (bsdf_pdf 0)
+  p->origin_normal = make_vec3(0.0f);
 }
 
 TANDEM_HD void path_generate(const KernelData& kd, uint32_t x, uint32_t y, uint32_t sample,
@@ -258,10 +265,11 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
 
   if (!is_black(mat.emission) && emits_towards(mat, sp, wo)) {
     const Vec3 le = material_emission(kd, mat, sp.uv);
-    const float w =
-        p->bsdf_pdf > 0.0f
-            ? mis_power_heuristic(p->bsdf_pdf, triangle_light_pdf(kd, sp, p->ray.dir, hit.t))
-            : 1.0f;
+    const float w = p->bsdf_pdf > 0.0f
+                        ? mis_power_heuristic(p->bsdf_pdf,
+                                              triangle_light_pdf(kd, hit, sp, p->ray.dir, hit.t,
+                                                                 p->origin_point, p->origin_normal))
+                        : 1.0f;
     p->radiance += p->throughput * le * w;
   }
   if (bounce >= ip.max_depth) return false;
@@ -280,8 +288,12 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   const auto brng = rng_at_bounce(rng, bounce);  // this bounce's draws
   LightSample ls;
   const Vec2 light_uv = bounce_rng_2d(brng, kBounceLightU);
-  if (sample_light(kd, sp.position, bounce_rng_1d(brng, kBounceLightSelect), light_uv.x, light_uv.y,
-                   &ls, specular)) {
+  // The side light can arrive from, for the light tree: the geometric
+  // normal towards wo (a reflection's lobes stay on that side,
+  // consistent_side), or every side where light can pass through.
+  const Vec3 receiver = sh.params.transmission > 0.0f ? make_vec3(0.0f) : sh.ng;
+  if (sample_light(kd, sp.position, receiver, bounce_rng_1d(brng, kBounceLightSelect), light_uv.x,
+                   light_uv.y, &ls, specular)) {
     const Vec3 wi_local = to_local(sh.frame, ls.wi);
     if (consistent_side(ls.wi, wi_local, sh.ng)) {
       const BsdfEval e = bsdf_eval_lobes(sh.params, sh.lobes, sh.wo_local, wi_local);
@@ -311,6 +323,8 @@ TANDEM_HD bool path_shade_hit_rng(const KernelData& kd, const Hit& hit, PathStat
   p->throughput *= bs.weight;
   p->bsdf_pdf = specular ? 0.0f : bs.pdf;  // 0: no area-light sample to weigh against
   p->ray = spawn_ray(sp, wi);
+  p->origin_point = sp.position;
+  p->origin_normal = receiver;
 
   // A refraction scales radiance by eta^2, which the throughput carries as
   // 1 / eta^2 into glass and undoes on the way out; roulette sees the

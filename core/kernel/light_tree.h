@@ -24,17 +24,20 @@ enum KLightTreeFlags : uint32_t {
 };
 
 // A node in depth-first order: an inner node's first child follows it,
-// its second child is at `index`.
+// its second child is at `index`. Where its lights are is kept as the
+// sphere around their box, and the cone's sine beside its cosine: what
+// light_tree_importance reads, with no square root for either.
 struct KLightTreeNode {
-  Vec3 lo;
-  float power;  // summed over the node's lights (> 0: zero-power lights are left out)
-  Vec3 hi;
-  float cos_theta_o;  // cone spread around `axis`
+  Vec3 center;        // of the lights' box
+  float power;        // summed over the node's lights (> 0: zero-power lights are left out)
   Vec3 axis;          // unit
+  float cos_theta_o;  // cone spread around `axis`
+  float sin_theta_o;
   float cos_theta_e;  // emission beyond the spread (pi/2 for a surface)
+  float radius;       // half the box's diagonal
   uint32_t index;     // second child, or the light
   uint32_t flags;
-  uint32_t pad[2];
+  uint32_t pad[3];
 };
 static_assert(sizeof(KLightTreeNode) == 64, "GPU layout");
 
@@ -50,42 +53,41 @@ TANDEM_HD_INLINE float sin_sub_clamped(float sin_a, float cos_a, float sin_b, fl
 }
 
 // How much light a node may send to point p (with `n` the unit normal of
-// the surface there, or zero for a surface that receives from every side:
-// glass, a volume): power / d^2 times the cosine of the smallest angle
-// between the node's emission cone and the direction to p, and times the
-// cosine at the receiver, each widened by the angle the node's box covers
-// seen from p; zero when no light of the node can reach p's front.
+// the side of the surface there that scatters light, or zero for a surface
+// that receives from every side: glass, a volume): power / d^2 times the
+// cosine of the smallest angle between the node's emission cone and the
+// direction to p, and times the cosine at the receiver, each widened by the
+// angle the node's bounding sphere covers seen from p; zero when no light of
+// the node can reach p's front.
 TANDEM_HD float light_tree_importance(const KLightTreeNode& node, Vec3 p, Vec3 n) {
-  const Vec3 center = (node.lo + node.hi) * 0.5f;
-  const Vec3 to_p = p - center;
-  // The distance clamped to the box's half diagonal: inside or next to
-  // the box the bound must not explode.
-  const float half_diag_sq = 0.25f * length_sq(node.hi - node.lo);
-  const float d2 = max_f(length_sq(to_p), sqrtf(half_diag_sq));
-  const float len = length(to_p);
-  const Vec3 wi = len > 0.0f ? to_p * (1.0f / len) : make_vec3(0.0f, 0.0f, 1.0f);
+  const Vec3 to_p = p - node.center;
+  const float dist2 = length_sq(to_p);
+  // The distance clamped by the sphere's radius: inside or next to the
+  // node the bound must not explode.
+  const float d2 = max_f(dist2, node.radius);
+  const float inv_len = dist2 > 0.0f ? 1.0f / sqrtf(dist2) : 0.0f;
+  const Vec3 wi = dist2 > 0.0f ? to_p * inv_len : make_vec3(0.0f, 0.0f, 1.0f);
   float cos_w = dot(node.axis, wi);
   if (node.flags & kLightTreeTwoSided) cos_w = fabsf(cos_w);
   const float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
-  // The angle the box covers from p (everything when p is inside it).
+  // The angle the sphere covers from p (everything when p is inside it).
   float cos_b = -1.0f, sin_b = 0.0f;
-  if (length_sq(to_p) > half_diag_sq) {
-    const float sin2 = half_diag_sq / length_sq(to_p);
-    cos_b = safe_sqrt(1.0f - sin2);
-    sin_b = sqrtf(sin2);
+  if (dist2 > node.radius * node.radius) {
+    sin_b = node.radius * inv_len;
+    cos_b = safe_sqrt(1.0f - sin_b * sin_b);
   }
   // theta_w - theta_o, then less theta_b, each clamped at 0.
-  const float sin_o = safe_sqrt(1.0f - node.cos_theta_o * node.cos_theta_o);
-  const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
-  const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, node.cos_theta_o);
+  const float cos_x = cos_sub_clamped(sin_w, cos_w, node.sin_theta_o, node.cos_theta_o);
+  const float sin_x = sin_sub_clamped(sin_w, cos_w, node.sin_theta_o, node.cos_theta_o);
   const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
   // Strictly outside: a spot's cone has theta_e 0, and a point inside it
   // (cos_p 1) is lit.
   if (cos_p < node.cos_theta_e) return 0.0f;
   float importance = node.power * cos_p / d2;
   if (length_sq(n) > 0.0f) {
-    // The receiver's cosine, towards the box: cos(max(0, theta_i - theta_b)).
-    const float cos_i = fabsf(dot(wi, n));
+    // The receiver's cosine towards the node, cos(max(0, theta_i -
+    // theta_b)): below zero (no light) when the whole sphere is behind it.
+    const float cos_i = -dot(wi, n);
     const float sin_i = safe_sqrt(1.0f - cos_i * cos_i);
     importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
   }
@@ -105,12 +107,15 @@ TANDEM_HD float light_tree_second_child_probability(const KLightTreeNode* nodes,
 
 // Chooses a light for point p (normal n, or zero) with one uniform number
 // u in [0, 1): its index, and in *pmf the probability of that choice.
-// Returns 0xffffffff (with *pmf 0) when the tree is empty or no light can
-// reach p.
+// Returns 0xffffffff (with *pmf 0) when the tree is empty or a branch it
+// took holds no light that can reach p.
 TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_count, Vec3 p,
                                      Vec3 n, float u, float* pmf) {
   *pmf = 0.0f;
-  if (node_count == 0 || !(light_tree_importance(nodes[0], p, n) > 0.0f)) return 0xffffffffu;
+  // The root's own importance is not asked: where it is zero so are its
+  // children's (no light then), and a lone light that cannot reach p gives
+  // a sample of no light, as its own test finds.
+  if (node_count == 0) return 0xffffffffu;
   float prob = 1.0f;
   uint32_t node = 0;
   while (!(nodes[node].flags & kLightTreeLeaf)) {
@@ -134,7 +139,7 @@ TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_
 // `trail` (bit k: the second child at depth k) at p: the same products.
 TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count, uint64_t trail,
                                Vec3 p, Vec3 n) {
-  if (node_count == 0 || !(light_tree_importance(nodes[0], p, n) > 0.0f)) return 0.0f;
+  if (node_count == 0) return 0.0f;
   float prob = 1.0f;
   uint32_t node = 0;
   while (!(nodes[node].flags & kLightTreeLeaf)) {

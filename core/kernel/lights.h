@@ -1,11 +1,19 @@
 // Light sampling for next-event estimation. All lights (emissive triangles,
-// punctual lights, environment) live in one list and are picked in O(1) from
-// an alias table built by power, so a scene with thousands of emissive
-// triangles costs the same per sample as one with a single lamp.
+// punctual lights, environment) live in one list. Two samplers choose among
+// them (RenderSettings::light_sampler):
+//   power  an alias table by power: O(1), blind to where the shading point is;
+//   tree   the finite lights (triangles, points, spots) by the light tree
+//          (light_tree.h), which prefers lights near the point and facing it,
+//          and the infinite ones (directional, environment) by the alias
+//          table, each group with its share of the power.
+// The probability of choosing a light is recomputed for multiple importance
+// sampling where a BSDF sample finds it (triangle_light_pdf,
+// environment_light_pdf).
 #pragma once
 
 #include "core/kernel/environment.h"
 #include "core/kernel/geometry.h"
+#include "core/kernel/light_tree.h"
 
 namespace tandem {
 TANDEM_KERNEL_BEGIN
@@ -55,26 +63,95 @@ TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst,
   return 0.5f * length(cross(e1, e2));
 }
 
-// The solid-angle pdf of a triangle light of the given power and world area
-// (normal: either side's unit normal) towards a point at `dist` along wi.
-TANDEM_HD float triangle_light_pdf_of(const KernelData& kd, float power, float area_world,
-                                      Vec3 normal, Vec3 wi, float dist) {
+// Whether lights are chosen by the light tree (see the top of this file).
+TANDEM_HD_INLINE bool light_tree_on(const KernelData& kd) {
+  return kd.constants.light_tree_fraction > 0.0f;
+}
+
+// Chooses the light to sample at point p (n: its unit normal, which the
+// tree weighs lights by) with one uniform number u: its index, and in *pmf
+// the probability of that choice (0, with no light, when the tree finds
+// none that can light p).
+TANDEM_HD uint32_t select_light(const KernelData& kd, Vec3 p, Vec3 n, float u, float* pmf) {
+  const float tree = kd.constants.light_tree_fraction;
+  if (tree > 0.0f) {
+    if (u < tree) {
+      const uint32_t index = light_tree_sample(kd.light_tree_nodes, kd.light_tree_nodes_count, p, n,
+                                               min_f(u / tree, 0x1.fffffep-1f), pmf);
+      *pmf *= tree;
+      return index;
+    }
+    // The infinite lights' table (the finite ones have no share of it).
+    u = min_f((u - tree) / (1.0f - tree), 0x1.fffffep-1f);
+  }
+  return alias_sample(kd.light_alias, kd.light_alias_count, u, pmf);
+}
+
+// The probability of choosing a triangle light of the given power: `tree_pmf`
+// (what select_light or triangle_light_tree_pmf gave) with the tree, else its
+// share of the power. Both are the same bits whether a light sample or a
+// BSDF sample asks.
+TANDEM_HD_INLINE float triangle_light_selection(const KernelData& kd, float power, float tree_pmf) {
+  if (light_tree_on(kd)) return tree_pmf;
   const float total = kd.constants.total_light_power;
-  if (!(total > 0.0f) || !(area_world > 0.0f)) return 0.0f;
-  const float pmf = power / total;
+  return total > 0.0f ? power / total : 0.0f;
+}
+
+// The solid-angle pdf of a triangle light chosen with probability `pmf`, of
+// the given world area (normal: either side's unit normal) towards a point at
+// `dist` along wi.
+TANDEM_HD float triangle_light_pdf_of(float pmf, float area_world, Vec3 normal, Vec3 wi,
+                                      float dist) {
+  if (!(pmf > 0.0f) || !(area_world > 0.0f)) return 0.0f;
   const float cos_l = fabsf(dot(wi, normal));
   if (!(cos_l > 0.0f)) return 0.0f;
   return pmf * dist * dist / (cos_l * area_world);
 }
 
-// Density (solid angle, including selection) with which sample_light picks
-// the point `sp_light` on an emissive triangle, seen from distance `dist`
-// along direction `wi` (unit, from the shading point to the light).
-TANDEM_HD float triangle_light_pdf(const KernelData& kd, const SurfacePoint& sp_light, Vec3 wi,
-                                   float dist) {
+// The index in kd.lights of the triangle light of (instance, prim), or
+// kInvalidIndex: an instance's triangle lights are its emissive triangles
+// in order (instance_lights), found by bisection.
+TANDEM_HD uint32_t triangle_light_index(const KernelData& kd, uint32_t instance, uint32_t prim) {
+  if (instance + 1 >= kd.instance_lights_count) return kInvalidIndex;
+  uint32_t lo = kd.instance_lights[instance], hi = kd.instance_lights[instance + 1];
+  while (lo < hi) {
+    const uint32_t mid = lo + (hi - lo) / 2;
+    const uint32_t mid_prim = kd.lights[mid].prim;
+    if (mid_prim == prim) return mid;
+    if (mid_prim < prim) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return kInvalidIndex;
+}
+
+// The probability that select_light at `ref` (normal `n`) chooses the
+// triangle light of (instance, prim) through the tree.
+TANDEM_HD float triangle_light_tree_pmf(const KernelData& kd, uint32_t instance, uint32_t prim,
+                                        Vec3 ref, Vec3 n) {
+  const uint32_t index = triangle_light_index(kd, instance, prim);
+  if (index == kInvalidIndex || index >= kd.light_tree_trails_count) return 0.0f;
+  return kd.constants.light_tree_fraction * light_tree_pmf(kd.light_tree_nodes,
+                                                           kd.light_tree_nodes_count,
+                                                           kd.light_tree_trails[index], ref, n);
+}
+
+// Density (solid angle, including selection) with which sample_light at
+// `ref` (normal `ref_normal`) picks the point `sp_light` of the emissive
+// triangle `hit` found, seen from distance `dist` along direction `wi`
+// (unit, from the shading point to the light).
+TANDEM_HD float triangle_light_pdf(const KernelData& kd, const Hit& hit,
+                                   const SurfacePoint& sp_light, Vec3 wi, float dist, Vec3 ref,
+                                   Vec3 ref_normal) {
   const KMaterial& m = kd.materials[sp_light.material];
-  return triangle_light_pdf_of(kd, triangle_light_power(m, sp_light.area_world),
-                               sp_light.area_world, sp_light.geometric_normal, wi, dist);
+  const float tree_pmf = light_tree_on(kd)
+                             ? triangle_light_tree_pmf(kd, hit.instance, hit.prim, ref, ref_normal)
+                             : 0.0f;
+  const float pmf =
+      triangle_light_selection(kd, triangle_light_power(m, sp_light.area_world), tree_pmf);
+  return triangle_light_pdf_of(pmf, sp_light.area_world, sp_light.geometric_normal, wi, dist);
 }
 
 TANDEM_HD float environment_light_pdf(const KernelData& kd, Vec3 dir) {
@@ -123,16 +200,16 @@ TANDEM_HD void cache_triangle_light(const KernelData& kd, KLight* light) {
 // side a single-sided material emits to), from both of sample_light's
 // triangle branches: direction, distance and pdf into *out; false when
 // there is no sample. The radiance is the caller's.
-TANDEM_HD bool triangle_light_sample_towards(const KernelData& kd, Vec3 ref, Vec3 position,
-                                             Vec3 front_normal, float area_world, float power,
-                                             const KMaterial& m, LightSample* out) {
+TANDEM_HD bool triangle_light_sample_towards(Vec3 ref, Vec3 position, Vec3 front_normal,
+                                             float area_world, float pmf, const KMaterial& m,
+                                             LightSample* out) {
   Vec3 d = position - ref;
   const float dist2 = length_sq(d);
   if (!(dist2 > 0.0f)) return false;
   const float dist = sqrtf(dist2);
   d = d * (1.0f / dist);
   if (!emits_towards(m, front_normal, -d)) return false;
-  out->pdf = triangle_light_pdf_of(kd, power, area_world, front_normal, d, dist);
+  out->pdf = triangle_light_pdf_of(pmf, area_world, front_normal, d, dist);
   if (!(out->pdf > 0.0f) || !is_finite(out->pdf)) return false;
   out->wi = d;
   out->point = position;
@@ -143,14 +220,14 @@ TANDEM_HD bool triangle_light_sample_towards(const KernelData& kd, Vec3 ref, Vec
 // sample_light's triangle branch from the cached constants (the instance
 // is the identity, so object space is world space): the same bits as the
 // branch through make_light_point, without the triangle fetch, the edges,
-// the normal and the power.
+// the normal and the power. `tree_pmf`: select_light's pmf.
 TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& light, Vec3 ref,
-                                            Vec2 b, LightSample* out) {
+                                            Vec2 b, float tree_pmf, LightSample* out) {
   const float w = 1.0f - b.x - b.y;
   const Vec3 position = light.position * w + light.direction * b.x + light.intensity * b.y;
   const KMaterial& m = kd.materials[light.material];
-  if (!triangle_light_sample_towards(kd, ref, position, light.normal, light.area, light.power, m,
-                                     out)) {
+  if (!triangle_light_sample_towards(ref, position, light.normal, light.area,
+                                     triangle_light_selection(kd, light.power, tree_pmf), m, out)) {
     return false;
   }
   Vec2 uv[2] = {make_vec2(0.0f, 0.0f), make_vec2(0.0f, 0.0f)};
@@ -166,11 +243,13 @@ TANDEM_HD bool sample_cached_triangle_light(const KernelData& kd, const KLight& 
 // where only punctual and directional lights are sampled; an emissive
 // triangle or the environment picked there gives no sample (the BSDF sample
 // that reaches it carries its full weight instead).
-TANDEM_HD bool sample_light(const KernelData& kd, const Vec3& ref, float u_select, float u1,
-                            float u2, LightSample* out, bool delta_only = false) {
+// `ref_normal`: the unit normal at ref (either side), for the tree.
+TANDEM_HD bool sample_light(const KernelData& kd, const Vec3& ref, const Vec3& ref_normal,
+                            float u_select, float u1, float u2, LightSample* out,
+                            bool delta_only = false) {
   if (kd.lights_count == 0) return false;
   float pmf;
-  const uint32_t index = alias_sample(kd.light_alias, kd.light_alias_count, u_select, &pmf);
+  const uint32_t index = select_light(kd, ref, ref_normal, u_select, &pmf);
   if (!(pmf > 0.0f)) return false;
   // By reference: a triangle light reads three of the 64 bytes, and the copy
   // was 15 instructions of a Cornell-box light sample.
@@ -182,12 +261,13 @@ TANDEM_HD bool sample_light(const KernelData& kd, const Vec3& ref, float u_selec
   if (light.type == kLightTriangle) {
     const Vec2 b = sample_triangle_barycentrics(u1, u2);
     if (kd.instances[light.instance].flags & kInstanceIdentity) {
-      return sample_cached_triangle_light(kd, light, ref, b, out);
+      return sample_cached_triangle_light(kd, light, ref, b, pmf, out);
     }
     const SurfacePoint lp = make_light_point(kd, light.instance, light.prim, b.x, b.y);
     const KMaterial& m = kd.materials[lp.material];
-    if (!triangle_light_sample_towards(kd, ref, lp.position, lp.front_normal, lp.area_world,
-                                       triangle_light_power(m, lp.area_world), m, out)) {
+    if (!triangle_light_sample_towards(
+            ref, lp.position, lp.front_normal, lp.area_world,
+            triangle_light_selection(kd, triangle_light_power(m, lp.area_world), pmf), m, out)) {
       return false;
     }
     out->radiance = material_emission(kd, m, lp.uv);

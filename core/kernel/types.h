@@ -251,7 +251,12 @@ struct KernelConstants {
   float total_light_power;
   uint32_t environment_light_index;  // kInvalidIndex if the environment is black
   uint32_t scene_flags;              // SceneFlags
-  uint32_t pad;
+  // The light tree sampler (core/kernel/light_tree.h) is on when > 0: the
+  // probability of sampling a finite light (triangles, points, spots)
+  // through the tree, the rest going to the infinite lights (directional,
+  // environment) through light_alias. 0: every light from light_alias, by
+  // power.
+  float light_tree_fraction;
   // The BVH's roots and layout are in KernelData::bvh (core/kernel/bvh.h).
 };
 

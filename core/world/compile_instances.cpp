@@ -121,12 +121,14 @@ void SceneCompiler::update_instances(const Scene& scene, KernelScene& out, Scene
     delta.instances_moved.push_back(i);
     // Triangle lights are stored as (instance, prim): moving an emissive
     // instance rigidly changes neither the light list nor any light's
-    // power, so the (large) light arrays stay as they are.
+    // power, so the (large) light arrays stay as they are; but the light
+    // tree's bounds of where its lights are and where they face follow it.
     const KInstance& after = out.instances[i];
-    triangle_powers_stale_ |= mesh_emissive_[before.mesh] || mesh_emissive_[after.mesh];
-    needs.light_list |=
-        (mesh_emissive_[before.mesh] || mesh_emissive_[after.mesh]) &&
-        (before.mesh != after.mesh || !same_areas(before.object_to_world, after.object_to_world));
+    const bool emissive = mesh_emissive_[before.mesh] || mesh_emissive_[after.mesh];
+    triangle_powers_stale_ |= emissive;
+    needs.light_list |= emissive && (before.mesh != after.mesh ||
+                                     !same_areas(before.object_to_world, after.object_to_world) ||
+                                     light_sampler_ == LightSampler::kTree);
   }
 }
 

@@ -16,6 +16,7 @@
 
 #include "core/kernel/lights.h"
 #include "core/world/light_tables.h"
+#include "core/world/light_tree_build.h"
 
 namespace tandem {
 
@@ -96,16 +97,91 @@ float light_radius(const SceneBounds& bounds) {
   return std::max(bounds.radius(), 1e-3f);
 }
 
-void finish_light_tables(const std::vector<double>& power, KernelScene& out, SceneDelta& delta) {
-  out.light_alias = build_alias_table(power);
-  double total = 0.0;
-  for (double p : power)
-    total += p;
-  out.constants.total_light_power = float(total);
-  delta.constants = true;
+bool light_at_infinity(const KLight& l) {
+  return l.type == kLightDirectional || l.type == kLightEnvironment;
+}
+
+// What the light tree knows of light `index` (finite, of the given power):
+// where it is and which way it emits, in world space.
+LightTreeInput light_tree_input(const KernelData& kd, uint32_t index, float power) {
+  const KLight& l = kd.lights[index];
+  LightTreeInput in;
+  in.light = index;
+  in.power = power;
+  const auto vec = [](Vec3 v) { return glm::vec3(v.x, v.y, v.z); };
+  if (l.type == kLightTriangle) {
+    const KInstance& inst = kd.instances[l.instance];
+    const TriangleVertices tv = fetch_triangle(kd, inst.mesh, l.prim);
+    const glm::vec3 p[3] = {vec(instance_point(inst, tv.p0)), vec(instance_point(inst, tv.p1)),
+                            vec(instance_point(inst, tv.p2))};
+    in.lo = glm::min(p[0], glm::min(p[1], p[2]));
+    in.hi = glm::max(p[0], glm::max(p[1], p[2]));
+    // The side it emits to: make_light_point's front normal.
+    in.axis = vec(make_light_point(kd, l.instance, l.prim, 0.0f, 0.0f).front_normal);
+    in.cos_theta_o = 1.0f;
+    in.cos_theta_e = 0.0f;
+    in.two_sided = (kd.materials[l.material].flags & kMaterialDoubleSided) != 0;
+    return in;
+  }
+  in.lo = in.hi = vec(l.position);
+  if (l.type == kLightSpot) {
+    // No light beyond the outer cone.
+    in.axis = vec(l.direction);
+    in.cos_theta_o = l.cos_outer;
+    in.cos_theta_e = 1.0f;
+  } else {
+    in.cos_theta_o = -1.0f;  // every direction
+    in.cos_theta_e = 1.0f;
+  }
+  return in;
 }
 
 }  // namespace
+
+void SceneCompiler::finish_light_tables(KernelScene& out, SceneDelta& delta) {
+  const std::vector<double>& power = light_power_;
+  double total = 0.0, finite = 0.0;
+  for (size_t i = 0; i < power.size(); ++i) {
+    total += power[i];
+    if (!light_at_infinity(out.lights[i])) finite += power[i];
+  }
+  out.constants.total_light_power = float(total);
+  out.constants.light_tree_fraction = 0.0f;
+  out.light_tree_nodes.clear();
+  out.light_tree_trails.clear();
+  if (light_sampler_ == LightSampler::kTree && finite > 0.0) {
+    const KernelData kd = out.view();
+    std::vector<LightTreeInput> inputs;
+    std::vector<double> infinite(power.size(), 0.0);
+    for (uint32_t i = 0; i < power.size(); ++i) {
+      if (light_at_infinity(out.lights[i])) {
+        infinite[i] = power[i];
+      } else if (power[i] > 0.0) {
+        inputs.push_back(light_tree_input(kd, i, float(power[i])));
+      }
+    }
+    LightTree tree = build_light_tree(std::move(inputs), uint32_t(power.size()));
+    out.light_tree_nodes = std::move(tree.nodes);
+    out.light_tree_trails = std::move(tree.trails);
+    // The finite lights' share goes to the tree; the infinite ones keep
+    // theirs, each entry's pdf its power over all (what the kernel's MIS
+    // reads for the environment), so only their own table is drawn from.
+    const float fraction = float(finite / total);
+    out.constants.light_tree_fraction = fraction;
+    if (fraction < 1.0f) {
+      out.light_alias = build_alias_table(infinite);
+      for (size_t i = 0; i < power.size(); ++i)
+        out.light_alias[i].pdf = float(infinite[i] / total);
+    } else {
+      out.light_alias.assign(power.size(), KAliasEntry{0.0f, 0, 0.0f, 0.0f});
+    }
+  } else {
+    out.light_alias = build_alias_table(power);
+  }
+  delta.light_tree_nodes.reallocated = true;
+  delta.light_tree_trails.reallocated = true;
+  delta.constants = true;
+}
 
 void SceneCompiler::note_light(const Scene& scene, uint32_t index) {
   if (lights_noted_.size() <= index) lights_noted_.resize(index + 1, 0);
@@ -171,7 +247,9 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
     }
     instance_lights_[i + 1] = uint32_t(out.lights.size());
   }
-  finish_light_tables(power, out, delta);
+  out.instance_lights = instance_lights_;
+  delta.instance_lights.reallocated = true;
+  finish_light_tables(out, delta);
   delta.lights.reallocated = true;
   delta.light_alias.reallocated = true;
 }
@@ -194,7 +272,7 @@ void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, Sc
   if (env != kInvalidIndex) {
     light_power_[env] = environment_power(environment_luminance(out.constants.environment), radius);
   }
-  finish_light_tables(light_power_, out, delta);
+  finish_light_tables(out, delta);
   delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
 }
 
@@ -246,7 +324,7 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
   if (punctual_too) {
     update_light_powers(scene, out, delta);
   } else {
-    finish_light_tables(light_power_, out, delta);
+    finish_light_tables(out, delta);
     delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
   }
   return true;

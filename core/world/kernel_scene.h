@@ -111,12 +111,21 @@ struct SceneDelta {
 };
 
 // Per-frame render parameters that end up in KernelConstants.
+// How next-event estimation chooses a light (core/kernel/lights.h).
+enum class LightSampler : uint8_t {
+  kPower,  // an alias table by power
+  kTree,   // the light tree for finite lights, by power for infinite ones
+};
+
 struct RenderSettings {
   uint32_t width = 1280, height = 720;
   uint32_t max_depth = 8;       // scattering events; 1 = direct lighting only
   uint32_t rr_start_depth = 3;  // Russian roulette after this many bounces
   uint32_t seed = 0;
   float radiance_clamp = 0.0f;  // 0 = off
+  // The tree measured better on the many-light scene and ToyCar and as
+  // well on the Cornell box (docs/performance.md, "Light sampling").
+  LightSampler light_sampler = LightSampler::kTree;
   // Every field: one comparison for "did the settings change", so that a
   // field added here is never forgotten by a hand-written one.
   bool operator==(const RenderSettings&) const = default;
@@ -189,6 +198,9 @@ class SceneCompiler {
   void compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta);
   // compile_lights.cpp
   void compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta);
+  // The alias table, total power and (with the tree sampler) the light tree
+  // from light_power_ and out.lights.
+  void finish_light_tables(KernelScene& out, SceneDelta& delta);
   void update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta);
   // The triangle lights of deformed emissive meshes: their powers for the
   // moved vertices, O(those meshes' triangles) plus the alias table. False
@@ -232,6 +244,8 @@ class SceneCompiler {
   // change rebuilds the tables in full, as if nothing were cached.
   bool triangle_powers_stale_ = false;
   RenderSettings last_settings_{};
+  // The sampler of the compile under way (the light tables follow it).
+  LightSampler light_sampler_ = LightSampler::kPower;
 };
 
 }  // namespace tandem

@@ -112,11 +112,13 @@ class Builder {
  private:
   static KLightTreeNode node_of(const Group& g) {
     KLightTreeNode n{};
-    n.lo = make_vec3(g.lo.x, g.lo.y, g.lo.z);
-    n.hi = make_vec3(g.hi.x, g.hi.y, g.hi.z);
+    const glm::vec3 c = 0.5f * (g.lo + g.hi);
+    n.center = make_vec3(c.x, c.y, c.z);
+    n.radius = 0.5f * glm::length(g.hi - g.lo);
     n.power = g.power;
     n.axis = make_vec3(g.cone.axis.x, g.cone.axis.y, g.cone.axis.z);
     n.cos_theta_o = std::cos(g.cone.theta_o);
+    n.sin_theta_o = std::sin(g.cone.theta_o);
     n.cos_theta_e = std::cos(std::min(g.cone.theta_e, kPiF));
     n.flags = g.two_sided ? kLightTreeTwoSided : 0u;
     return n;

@@ -47,6 +47,7 @@ void SceneCompiler::compile_full(const Scene& scene, KernelScene& out, SceneDelt
 SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& settings,
                                   KernelScene& out) {
   SceneDelta delta;
+  light_sampler_ = settings.light_sampler;
   if (needs_full_build(scene)) {
     compile_full(scene, out, delta);
   } else {
@@ -64,6 +65,10 @@ SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& sett
     }
     // Lights added or removed: their records and every light index after them.
     if (scene.lights().size() != counts_[4]) needs.light_list = true;
+    // The other sampler: its tables.
+    if (compiled_once_ && settings.light_sampler != last_settings_.light_sampler) {
+      needs.light_list = true;
+    }
     // Punctual lights, and the scene's size that directional powers scale with.
     needs.light_powers =
         !scene.dirty_lights().empty() || (delta.instances_changed() && scene_size_changed(scene));
