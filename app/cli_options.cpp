@@ -1,5 +1,8 @@
 #include "app/cli_options.h"
 
+#include "core/util/errors.h"
+#include "core/world/kernel_scene.h"
+
 namespace tandem {
 
 const char* tandem_version() {
@@ -48,6 +51,20 @@ OptionGroup image_size_options(const std::string& width_default,
 OptionGroup path_depth_options(const std::string& depth_default) {
   return {{"max-depth", true, "maximum scattering events per path; 1 = direct light only", "D",
            depth_default}};
+}
+
+OptionGroup light_sampler_options() {
+  return {{"light-sampler", true,
+           "how each bounce chooses the light it samples: tree (a light BVH: the lights near "
+           "the point and facing it, for scenes of many lights) or power (by power alone)",
+           "S", RenderSettings{}.light_sampler == LightSampler::kTree ? "tree" : "power"}};
+}
+
+LightSampler parse_light_sampler(const ParsedArgs& args) {
+  const std::string name = args.get_string("light-sampler");
+  if (name == "tree") return LightSampler::kTree;
+  if (name == "power") return LightSampler::kPower;
+  throw UsageError("--light-sampler must be power or tree, got '" + name + "'");
 }
 
 OptionGroup backend_options(bool allow_lists) {

@@ -5,11 +5,14 @@
 // own default or wording) by listing one of the same name after it.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "app/cli_args.h"
 
 namespace tandem {
+
+enum class LightSampler : uint8_t;  // core/world/kernel_scene.h
 
 // "0.1.0": the project version, for --version.
 const char* tandem_version();
@@ -34,6 +37,11 @@ OptionGroup path_depth_options(const std::string& depth_default);
 // --backend (a single kind, or with `allow_lists` a list such as cpu+host)
 // and --kernel.
 OptionGroup backend_options(bool allow_lists);
+
+// --light-sampler power|tree (core/kernel/lights.h), defaulting to
+// RenderSettings' sampler; parse_light_sampler() reads it.
+OptionGroup light_sampler_options();
+LightSampler parse_light_sampler(const ParsedArgs& args);
 
 // --threads.
 OptionGroup thread_options();

@@ -20,6 +20,7 @@
 #include "app/bench/bench_deform.h"
 #include "app/bench/bench_denoise.h"
 #include "app/bench/bench_hetero.h"
+#include "app/bench/bench_light_sampling.h"
 #include "app/bench/bench_report.h"
 #include "app/bench/bench_scene_update.h"
 #include "app/cli_args.h"
@@ -51,6 +52,7 @@ const std::vector<OptionSpec>& bench_options() {
         "each one's median (single runs on a busy machine can differ by a fifth)",
         "N", "1"}},
       path_depth_options("8"),
+      light_sampler_options(),
       thread_options(),
       scene_options(),
       environment_options(),
@@ -114,6 +116,7 @@ int run_bench(const std::vector<std::string>& argv) {
   if (std::find(argv.begin(), argv.end(), "--distributed") != argv.end())
     return run_distributed_bench(argv);
   if (is_denoise_quality_bench(argv)) return run_denoise_quality_bench(argv);
+  if (is_light_sampling_bench(argv)) return run_light_sampling_bench(argv);
   // Before the frame loop: --deform takes --frames too.
   if (is_deform_bench(argv)) return run_deform_bench(argv);
   if (is_frame_bench(argv)) return run_frame_bench(argv);  // the frame loop
@@ -126,6 +129,7 @@ int run_bench(const std::vector<std::string>& argv) {
         "       tandem bench [SCENE] --frames N [options]   (or --scene SCENE)\n"
         "       tandem bench [SCENE...] --scene-update [options]  (see --scene-update --help)\n"
         "       tandem bench [SCENE...] --deform [options]  (see --deform --help)\n"
+        "       tandem bench [SCENE] --light-sampling [options]  (see --light-sampling --help)\n"
         "       mpirun -np N tandem bench --distributed [SCENE] [options]  (see bench "
         "--distributed --help)\n\n"
         "Measures path-tracing throughput against a plain Embree ray-casting loop on the same "
@@ -167,6 +171,7 @@ int run_bench(const std::vector<std::string>& argv) {
   settings.width = args.get_u32("width", 1, 16384);
   settings.height = args.get_u32("height", 1, 16384);
   settings.max_depth = args.get_u32("max-depth", 0, 1024);
+  settings.light_sampler = parse_light_sampler(args);
   const uint32_t spp = args.get_u32("spp", 1, 1u << 16);
   const uint32_t repeat = args.get_u32("repeat", 1, 1, 1000);
   [[maybe_unused]] const uint32_t gpu_frames = args.get_u32("gpu-frames", 1, 100000);

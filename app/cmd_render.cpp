@@ -74,6 +74,7 @@ const std::vector<OptionSpec>& render_options() {
            "thin-lens aperture radius in scene units (default: the camera's, usually 0)", "R"},
           {"focus-distance", true, "distance to the plane in focus, scene units", "F"},
       },
+      light_sampler_options(),
       thread_options(),
       {
           {"tile-size", true, "tile edge in pixels", "N", "32"},
@@ -152,6 +153,7 @@ int run_render(const std::vector<std::string>& argv) {
   settings.max_depth = args.get_u32("max-depth", 0, 1024);
   settings.seed = args.get_u32("seed", 0, 0xffffffffu);
   settings.radiance_clamp = args.get_float("clamp", 0.0f, 1e30f);
+  settings.light_sampler = parse_light_sampler(args);
   const std::string backend_spec = args.get_string("backend");
   // Usage errors before loading.
   BackendOptions backend_options =

@@ -160,6 +160,44 @@ TEST_F(BenchJson, FrameLoopMode) {
   EXPECT_EQ(n["backends"][0]["name"].string, "host");
 }
 
+// The two light samplers at equal time on the many-light scene: both
+// figures, the speed-up, the tree's cost; the reference is cached and read
+// back on the second run; a bad sampler name is a usage error.
+TEST_F(BenchJson, LightSamplingMode) {
+  const fs::path out = file("lights.json");
+  const std::string args =
+      "bench --light-sampling --width 24 --height 16 --seconds 0.05 "
+      "--reference-spp 4 --max-depth 2 --reference-cache " +
+      shell_quote(dir_->path().string()) + " --json " + shell_quote(out.string());
+  RunResult r = run_tandem(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("(rendered"), std::string::npos) << r.output;
+  const Node n = read_json(out);
+  expect_run_facts(n, "light_sampling");
+  EXPECT_EQ(n["scene"].string, "builtin:many-lights");
+  expect_keys(n,
+              {"seconds_per_sampler", "reference_spp", "lights", "power", "tree",
+               "speedup_time_to_equal_noise", "tables"},
+              "light_sampling");
+  for (const char* s : {"power", "tree"}) {
+    expect_keys(n[s], {"spp", "seconds", "samples_per_second", "relmse"}, s);
+    EXPECT_GT(n[s]["spp"].number, 0.0) << s;
+    EXPECT_GT(n[s]["relmse"].number, 0.0) << s;
+  }
+  EXPECT_GT(n["lights"]["triangles"].number, 1000.0);
+  EXPECT_GT(n["tables"]["tree_nodes"].number, 2000.0);
+  EXPECT_GT(n["tables"]["tree_bytes"].number, 0.0);
+  r = run_tandem(args);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("(cached"), std::string::npos) << r.output;
+  r = run_tandem(
+      "render builtin:cornell --width 8 --height 8 --spp 1 --light-sampler nearest "
+      "--output " +
+      shell_quote(file("x.png").string()));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--light-sampler must be power or tree"), std::string::npos) << r.output;
+}
+
 // A moving scene's own work per frame is reported stage by stage: the
 // arena's walkers are skinned (pose) and the host backend's BVH refit.
 TEST_F(BenchJson, FrameLoopReportsTheSceneWorkOfAMovingScene) {
