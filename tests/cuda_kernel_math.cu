@@ -32,12 +32,12 @@ __global__ void sheen_kernel(const Vec3* wo, const Vec3* wi, const float* alpha,
 
 __global__ void light_tree_kernel(const KLightTreeNode* nodes, unsigned node_count, const Vec3* p,
                                   const Vec3* n, const float* u, const uint64_t* trails,
-                                  uint32_t* lights, float* pmfs, float* trail_pmfs,
-                                  unsigned count) {
+                                  const uint32_t* trail_lights, uint32_t* lights, float* pmfs,
+                                  float* trail_pmfs, unsigned count) {
   const unsigned i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= count) return;
   lights[i] = light_tree_sample(nodes, node_count, p[i], n[i], u[i], &pmfs[i]);
-  trail_pmfs[i] = light_tree_pmf(nodes, node_count, trails[i], p[i], n[i]);
+  trail_pmfs[i] = light_tree_pmf(nodes, node_count, trails[i], trail_lights[i], p[i], n[i]);
 }
 
 template <typename T>
@@ -121,22 +121,24 @@ void to_host(std::vector<T>* h, const ScratchArray<T>& d, size_t n) {
 
 void device_light_tree(const std::vector<KLightTreeNode>& nodes, const std::vector<Vec3>& p,
                        const std::vector<Vec3>& n, const std::vector<float>& u,
-                       const std::vector<uint64_t>& trails, std::vector<uint32_t>* lights,
+                       const std::vector<uint64_t>& trails,
+                       const std::vector<uint32_t>& trail_lights, std::vector<uint32_t>* lights,
                        std::vector<float>* pmfs, std::vector<float>* trail_pmfs) {
   const unsigned count = unsigned(p.size());
   ScratchArray<KLightTreeNode> d_nodes(nodes.size());
   ScratchArray<Vec3> d_p(count), d_n(count);
   ScratchArray<float> d_u(count), d_pmfs(count), d_trail_pmfs(count);
   ScratchArray<uint64_t> d_trails(count);
-  ScratchArray<uint32_t> d_lights(count);
+  ScratchArray<uint32_t> d_lights(count), d_trail_lights(count);
   to_device(d_nodes, nodes);
+  to_device(d_trail_lights, trail_lights);
   to_device(d_p, p);
   to_device(d_n, n);
   to_device(d_u, u);
   to_device(d_trails, trails);
-  light_tree_kernel<<<(count + 127) / 128, 128>>>(d_nodes.ptr, unsigned(nodes.size()), d_p.ptr,
-                                                  d_n.ptr, d_u.ptr, d_trails.ptr, d_lights.ptr,
-                                                  d_pmfs.ptr, d_trail_pmfs.ptr, count);
+  light_tree_kernel<<<(count + 127) / 128, 128>>>(
+      d_nodes.ptr, unsigned(nodes.size()), d_p.ptr, d_n.ptr, d_u.ptr, d_trails.ptr,
+      d_trail_lights.ptr, d_lights.ptr, d_pmfs.ptr, d_trail_pmfs.ptr, count);
   TANDEM_CUDA_CHECK(cudaGetLastError());
   to_host(lights, d_lights, count);
   to_host(pmfs, d_pmfs, count);

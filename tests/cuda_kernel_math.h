@@ -28,7 +28,8 @@ void device_sheen(const std::vector<Vec3>& wo, const std::vector<Vec3>& wi,
 // and its pmf, and the pmf recomputed from trails[i] (light_tree.h).
 void device_light_tree(const std::vector<KLightTreeNode>& nodes, const std::vector<Vec3>& p,
                        const std::vector<Vec3>& n, const std::vector<float>& u,
-                       const std::vector<uint64_t>& trails, std::vector<uint32_t>* lights,
+                       const std::vector<uint64_t>& trails,
+                       const std::vector<uint32_t>& trail_lights, std::vector<uint32_t>* lights,
                        std::vector<float>* pmfs, std::vector<float>* trail_pmfs);
 
 }  // namespace tandem

@@ -152,22 +152,24 @@ TEST(CudaGpu, LightTreeChoicesMatchHostBitForBit) {
   std::vector<Vec3> p, n;
   std::vector<float> u;
   std::vector<uint64_t> trails;
+  std::vector<uint32_t> trail_lights;
   for (uint32_t i = 0; i < 20000; ++i) {
     p.push_back(make_vec3(20.0f * unit(gen) - 10.0f, 5.0f * unit(gen), 20.0f * unit(gen) - 10.0f));
     n.push_back(i % 2 ? make_vec3(0.0f, 1.0f, 0.0f) : make_vec3(0.0f));
     u.push_back(unit(gen));
     trails.push_back(tree.trails[i % 2000]);
+    trail_lights.push_back(i % 2000);
   }
   std::vector<uint32_t> lights_gpu;
   std::vector<float> pmfs, trail_pmfs;
-  device_light_tree(tree.nodes, p, n, u, trails, &lights_gpu, &pmfs, &trail_pmfs);
+  device_light_tree(tree.nodes, p, n, u, trails, trail_lights, &lights_gpu, &pmfs, &trail_pmfs);
   size_t differ = 0;
   for (size_t i = 0; i < p.size(); ++i) {
     float pmf = 0.0f;
     const uint32_t light =
         light_tree_sample(tree.nodes.data(), uint32_t(tree.nodes.size()), p[i], n[i], u[i], &pmf);
-    const float trail_pmf =
-        light_tree_pmf(tree.nodes.data(), uint32_t(tree.nodes.size()), trails[i], p[i], n[i]);
+    const float trail_pmf = light_tree_pmf(tree.nodes.data(), uint32_t(tree.nodes.size()),
+                                           trails[i], trail_lights[i], p[i], n[i]);
     if ((light != lights_gpu[i] || bits(pmf) != bits(pmfs[i]) ||
          bits(trail_pmf) != bits(trail_pmfs[i])) &&
         ++differ <= 5) {

@@ -10,6 +10,7 @@
 // recomputes for them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <vector>
@@ -18,6 +19,7 @@
 
 #include "core/kernel/lights.h"
 #include "core/world/light_tree_build.h"
+#include "scenes/builtin_scenes.h"
 #include "scenes/deforming_grid.h"
 #include "tests/test_stats.h"
 #include "tests/world_compile_util.h"
@@ -75,17 +77,37 @@ bool can_light(const LightTreeInput& l, glm::vec3 p, glm::vec3 n) {
 TEST(LightTree, EveryLightIsOneLeafWithAUniqueTrail) {
   const std::vector<LightTreeInput> lights = random_lights(500, 1);
   const LightTree tree = build_light_tree(lights, 500);
-  ASSERT_EQ(tree.nodes.size(), 2u * 500 - 1);
-  std::set<uint32_t> leaves;
+  // Each light in one leaf (alone, or an entry of a leaf of a few); lights
+  // share a trail only in one leaf.
+  std::multiset<uint32_t> in_leaves;
+  std::set<uint64_t> leaf_trails;
+  uint32_t leaves = 0;
   double power = 0.0;
-  for (const KLightTreeNode& n : tree.nodes) {
-    if (n.flags & kLightTreeLeaf) leaves.insert(n.index);
+  for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
+    const KLightTreeNode& n = tree.nodes[i];
+    if (!(n.flags & kLightTreeLeaf)) continue;
+    ++leaves;
+    ASSERT_GE(n.count, 1u);
+    ASSERT_LE(n.count, kLightTreeMaxLeafLights);
+    leaf_trails.insert(tree.trails[n.index]);
+    if (n.count == 1) {
+      in_leaves.insert(n.index);
+      continue;
+    }
+    float sum = 0.0f;
+    for (uint32_t k = 1; k <= n.count; ++k) {
+      in_leaves.insert(tree.nodes[i + k].index);
+      EXPECT_EQ(tree.trails[tree.nodes[i + k].index], tree.trails[n.index]);
+      sum += tree.nodes[i + k].power;
+    }
+    EXPECT_NEAR(sum, 1.0f, 1e-5f);
   }
   for (const LightTreeInput& l : lights)
     power += l.power;
-  EXPECT_EQ(leaves.size(), 500u);
+  EXPECT_EQ(in_leaves.size(), 500u);
+  EXPECT_EQ(std::set<uint32_t>(in_leaves.begin(), in_leaves.end()).size(), 500u);
+  EXPECT_EQ(leaf_trails.size(), leaves);
   EXPECT_NEAR(tree.nodes[0].power, power, 1e-4 * power);
-  EXPECT_EQ(std::set<uint64_t>(tree.trails.begin(), tree.trails.end()).size(), 500u);
   // No light, or none of power: an empty tree, and nothing is chosen.
   std::vector<LightTreeInput> dark = lights;
   for (LightTreeInput& l : dark)
@@ -117,7 +139,7 @@ TEST(LightTree, ChoicesFollowThePmfWhichSumsToAtMostOneAndMissesNoLight) {
     std::vector<double> expected(n, 0.0), observed(n, 0.0);
     double sum = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
-      const float pmf = light_tree_pmf(nodes, count, tree.trails[i], kp, kn);
+      const float pmf = light_tree_pmf(nodes, count, tree.trails[i], i, kp, kn);
       sum += pmf;
       expected[i] = pmf;
       if (can_light(lights[i], p, normal)) {
@@ -143,7 +165,7 @@ TEST(LightTree, ChoicesFollowThePmfWhichSumsToAtMostOneAndMissesNoLight) {
       }
       ASSERT_LT(light, n);
       observed[light] += 1.0;
-      ASSERT_EQ(pmf, light_tree_pmf(nodes, count, tree.trails[light], kp, kn))
+      ASSERT_EQ(pmf, light_tree_pmf(nodes, count, tree.trails[light], light, kp, kn))
           << "the pmf of a choice differs from its trail's";
     }
     for (double& e : expected)
@@ -175,7 +197,7 @@ TEST(LightTree, NearLightsFacingThePointTakeMostOfTheProbability) {
   double near_down = 0.0, up = 0.0;
   for (uint32_t i = 0; i < 1000; ++i) {
     const float pmf =
-        light_tree_pmf(tree.nodes.data(), uint32_t(tree.nodes.size()), tree.trails[i], p, n);
+        light_tree_pmf(tree.nodes.data(), uint32_t(tree.nodes.size()), tree.trails[i], i, p, n);
     const glm::vec3 c = lights[i].lo;
     if (lights[i].axis.y > 0.0f) up += pmf;
     if (lights[i].axis.y < 0.0f && std::fabs(c.x) <= 3.0f && std::fabs(c.z) <= 3.0f)
@@ -221,6 +243,11 @@ Scene all_lights_scene() {
                   glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.0f, 0.0f)), 2.5f,
                               glm::vec3(1.0f, 0.0f, 0.0f))});
   s.add_instance({"c", 1, glm::translate(glm::mat4(1.0f), glm::vec3(3.0f, 0.0f, 0.0f))});
+  // A flat lamp off to the side: its two triangles a leaf of two.
+  Mesh lamp;
+  append_quad(lamp, {4.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 5.0f}, {4.0f, 3.0f, 5.0f},
+              0, {0.0f, -1.0f, 0.0f});
+  s.add_instance({"lamp", s.add_mesh(std::move(lamp)), glm::mat4(1.0f)});
   Light point;
   point.position = glm::vec3(0.0f, 5.0f, 0.0f);
   point.intensity = 20.0f;
@@ -268,7 +295,7 @@ TEST(LightTreeCompile, EveryEditGivesTheTablesOfAFreshCompile) {
   // Points, spots and triangles in the tree; the sun and the sky beside it.
   EXPECT_GT(ks.constants.light_tree_fraction, 0.0f);
   EXPECT_LT(ks.constants.light_tree_fraction, 1.0f);
-  EXPECT_EQ(ks.light_tree_nodes.size(), 2 * (ks.lights.size() - 2) - 1);
+  EXPECT_GE(ks.light_tree_nodes.size(), ks.lights.size() - 2);
   EXPECT_EQ(ks.instance_lights.size(), ks.instances.size() + 1);
   expect_fresh(scene, ks, c.settings, 0);
 
@@ -325,6 +352,11 @@ TEST(LightTreeCompile, ChoicesAmongAllLightsFollowThePmfMisRecomputes) {
   c.compile(scene);
   const KernelData kd = c.ks.view();
   const uint32_t n = kd.lights_count;
+  // The grid's quads are leaves of two triangles: the scan within a leaf is
+  // tested too.
+  EXPECT_TRUE(std::any_of(
+      c.ks.light_tree_nodes.begin(), c.ks.light_tree_nodes.end(),
+      [](const KLightTreeNode& node) { return (node.flags & kLightTreeLeaf) && node.count > 1; }));
   Scene copy = scene;
   Compiled power_table;
   power_table.compile(copy);
@@ -334,7 +366,7 @@ TEST(LightTreeCompile, ChoicesAmongAllLightsFollowThePmfMisRecomputes) {
     if (l.type == kLightDirectional || l.type == kLightEnvironment) return kd.light_alias[i].pdf;
     return kd.constants.light_tree_fraction * light_tree_pmf(kd.light_tree_nodes,
                                                              kd.light_tree_nodes_count,
-                                                             kd.light_tree_trails[i], p, normal);
+                                                             kd.light_tree_trails[i], i, p, normal);
   };
   TestRng rng(11);
   const int points = 4;

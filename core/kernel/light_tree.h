@@ -23,6 +23,13 @@ enum KLightTreeFlags : uint32_t {
   kLightTreeTwoSided = 1u << 1,  // emits on both sides of the cone's axis
 };
 
+// A leaf of several lights (`count` > 1: lights that sit and face together,
+// the two triangles of a quad, where a split would not tell them apart)
+// is followed by `count` entries, each a node whose `index` is a light and
+// `power` its probability within the leaf (by power): the walk ends a
+// level or more earlier, and the light is chosen by a scan.
+constexpr uint32_t kLightTreeMaxLeafLights = 4;
+
 // A node in depth-first order: an inner node's first child follows it,
 // its second child is at `index`. Where its lights are is kept as the
 // sphere around their box, and the cone's sine beside its cosine: what
@@ -35,9 +42,10 @@ struct KLightTreeNode {
   float sin_theta_o;
   float cos_theta_e;  // emission beyond the spread (pi/2 for a surface)
   float radius;       // half the box's diagonal
-  uint32_t index;     // second child, or the light
+  uint32_t index;     // second child, or the light (a leaf of one)
   uint32_t flags;
-  uint32_t pad[3];
+  uint32_t count;  // a leaf's lights (its entries follow it when more than one)
+  uint32_t pad[2];
 };
 static_assert(sizeof(KLightTreeNode) == 64, "GPU layout");
 
@@ -131,14 +139,25 @@ TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_
       node = nodes[node].index;
     }
   }
-  *pmf = prob;
-  return nodes[node].index;
+  const KLightTreeNode& leaf = nodes[node];
+  if (leaf.count <= 1) {
+    *pmf = prob;
+    return leaf.index;
+  }
+  // By power among the leaf's lights; the last takes what rounding left.
+  uint32_t entry = node + 1;
+  for (uint32_t k = 1; k < leaf.count; ++k, ++entry) {
+    if (u < nodes[entry].power) break;
+    u -= nodes[entry].power;
+  }
+  *pmf = prob * nodes[entry].power;
+  return nodes[entry].index;
 }
 
-// The probability light_tree_sample chooses the light whose trail is
-// `trail` (bit k: the second child at depth k) at p: the same products.
+// The probability light_tree_sample chooses light `light`, whose trail is
+// `trail` (bit k: the second child at depth k), at p: the same products.
 TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count, uint64_t trail,
-                               Vec3 p, Vec3 n) {
+                               uint32_t light, Vec3 p, Vec3 n) {
   if (node_count == 0) return 0.0f;
   float prob = 1.0f;
   uint32_t node = 0;
@@ -154,7 +173,12 @@ TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count,
     }
     trail >>= 1;
   }
-  return prob;
+  const KLightTreeNode& leaf = nodes[node];
+  if (leaf.count <= 1) return leaf.index == light ? prob : 0.0f;
+  for (uint32_t k = 0; k < leaf.count; ++k) {
+    if (nodes[node + 1 + k].index == light) return prob * nodes[node + 1 + k].power;
+  }
+  return 0.0f;
 }
 
 TANDEM_KERNEL_END

@@ -133,9 +133,9 @@ TANDEM_HD float triangle_light_tree_pmf(const KernelData& kd, uint32_t instance,
                                         Vec3 ref, Vec3 n) {
   const uint32_t index = triangle_light_index(kd, instance, prim);
   if (index == kInvalidIndex || index >= kd.light_tree_trails_count) return 0.0f;
-  return kd.constants.light_tree_fraction * light_tree_pmf(kd.light_tree_nodes,
-                                                           kd.light_tree_nodes_count,
-                                                           kd.light_tree_trails[index], ref, n);
+  return kd.constants.light_tree_fraction *
+         light_tree_pmf(kd.light_tree_nodes, kd.light_tree_nodes_count, kd.light_tree_trails[index],
+                        index, ref, n);
 }
 
 // Density (solid angle, including selection) with which sample_light at

@@ -1,8 +1,10 @@
 // Lights: punctual lights, the environment light and one light per
-// emissive (instance, triangle), and the alias table that picks among them
-// by power. A full build walks the emissive triangles; a change of punctual
-// lights or of the scene's size (which scales directional and environment
-// powers) only recomputes those powers and the alias table.
+// emissive (instance, triangle), and what chooses among them: the alias
+// table by power, or (the tree sampler) the light tree over the finite
+// lights beside an alias table of the infinite ones. A full build walks the
+// emissive triangles; a change of punctual lights or of the scene's size
+// (which scales directional and environment powers) only recomputes those
+// powers and the tables.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 

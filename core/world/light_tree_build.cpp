@@ -99,10 +99,19 @@ class Builder {
     if (end - begin == 1) {
       out_.nodes[index].flags |= kLightTreeLeaf;
       out_.nodes[index].index = lights_[begin].light;
+      out_.nodes[index].count = 1;
       out_.trails[lights_[begin].light] = trail;
       return index;
     }
-    const size_t mid = split(begin, end, all, depth);
+    float split_cost = INFINITY;
+    const size_t mid = split(begin, end, all, depth, &split_cost);
+    // A few lights that no split tells apart (the SAOH of the two sides is
+    // within 1% of the whole's: the triangles of one quad) stay together.
+    if (end - begin <= kLightTreeMaxLeafLights &&
+        !(split_cost < 0.99f * all.cost(1e-6f * std::max(all.area(), 1e-12f)))) {
+      make_leaf(index, begin, end, all, trail);
+      return index;
+    }
     build(begin, mid, depth + 1, trail);
     const uint32_t second = build(mid, end, depth + 1, trail | (uint64_t(1) << depth));
     out_.nodes[index].index = second;
@@ -110,6 +119,22 @@ class Builder {
   }
 
  private:
+  // Node `index` as a leaf of lights [begin, end), its entries after it,
+  // each light's probability within it its share of the power.
+  void make_leaf(uint32_t index, size_t begin, size_t end, const Group& all, uint64_t trail) {
+    KLightTreeNode& leaf = out_.nodes[index];
+    leaf.flags |= kLightTreeLeaf;
+    leaf.count = uint32_t(end - begin);
+    leaf.index = lights_[begin].light;
+    for (size_t i = begin; i < end; ++i) {
+      KLightTreeNode entry{};
+      entry.index = lights_[i].light;
+      entry.power = lights_[i].power / all.power;
+      out_.nodes.push_back(entry);
+      out_.trails[lights_[i].light] = trail;
+    }
+  }
+
   static KLightTreeNode node_of(const Group& g) {
     KLightTreeNode n{};
     const glm::vec3 c = 0.5f * (g.lo + g.hi);
@@ -125,10 +150,10 @@ class Builder {
   }
 
   // Where [begin, end) splits: the cheapest of 12 buckets on each axis by
-  // the SAOH, or (deep in the tree, or when every light sits at one
-  // centre) the median of the widest axis, which keeps every trail within
-  // 64 levels.
-  size_t split(size_t begin, size_t end, const Group& all, uint32_t depth) {
+  // the SAOH (its cost in *best), or (deep in the tree, or when every
+  // light sits at one centre: *best left infinite) the median of the widest
+  // axis, which keeps every trail within 64 levels.
+  size_t split(size_t begin, size_t end, const Group& all, uint32_t depth, float* best) {
     glm::vec3 clo(INFINITY), chi(-INFINITY);
     for (size_t i = begin; i < end; ++i) {
       clo = glm::min(clo, centre(lights_[i]));
@@ -173,6 +198,7 @@ class Builder {
       }
     }
     if (best_axis < 0) return median_split();
+    *best = best_cost;
     const auto mid = std::partition(
         lights_.begin() + long(begin), lights_.begin() + long(end), [&](const LightTreeInput& l) {
           return bucket_of(l, best_axis, clo, extent, kBuckets) <= best_bucket;
