@@ -83,9 +83,6 @@ const std::vector<OptionSpec>& bench_options() {
 }
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 // The Embree peer loop: rtcIntersect1 / rtcOccluded1 with no shading. It
 // goes through EmbreeTracer because the CPU backend's alpha-test filter

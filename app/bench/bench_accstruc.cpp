@@ -1,5 +1,7 @@
 #include "app/bench/bench_accstruc.h"
 
+#include "app/bench/bench_report.h"
+
 #include <embree3/rtcore.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -23,9 +25,6 @@ namespace tandem {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 // The machine is shared and timings are noisy: every figure is the best of
 // a few runs (the least disturbed one).

@@ -54,9 +54,6 @@ const std::vector<OptionSpec>& distributed_bench_options() {
 }
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 bool same_pixels(const ImageRGB& a, const ImageRGB& b) {
   return a.width == b.width && a.height == b.height &&

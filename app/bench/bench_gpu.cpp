@@ -16,9 +16,6 @@ namespace tandem {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 const char* layout_name(KBvhLayout layout) {
   return layout == kBvhLayoutWide ? "wide" : "binary";

@@ -56,9 +56,6 @@ const std::vector<OptionSpec>& light_sampling_options() {
 }
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 const char* sampler_name(LightSampler s) {
   return s == LightSampler::kTree ? "tree" : "power";

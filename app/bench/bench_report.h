@@ -2,6 +2,7 @@
 // run facts, then the mode's figures (each mode adds its own sections).
 #pragma once
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,6 +32,11 @@ double median(std::vector<double> v);
 // The value at fraction p in [0, 1] of the sorted values (the nearest
 // rank; 0 for none): frame-time p50 and p99.
 double percentile(std::vector<double> v, double p);
+
+// Seconds on the steady clock since `start`: what every mode times with.
+inline double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 // The values as a JSON array: the individual runs beside their median.
 JsonValue json_number_list(const std::vector<double>& v);
