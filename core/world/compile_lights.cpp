@@ -225,12 +225,12 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   // Emissive triangles, one light per (instance, triangle). Power comes from
   // the same kernel function the integrator uses for MIS.
   const KernelData kd = out.view();
-  instance_lights_.assign(out.instances.size() + 1, 0);
+  out.instance_lights.assign(out.instances.size() + 1, 0);
   emissive_mesh_instances_.assign(out.meshes.size(), {});
   for (uint32_t i = 0; i < out.instances.size(); ++i) {
     const uint32_t mesh_index = out.instances[i].mesh;
-    instance_lights_[i] = uint32_t(out.lights.size());
-    instance_lights_[i + 1] = uint32_t(out.lights.size());
+    out.instance_lights[i] = uint32_t(out.lights.size());
+    out.instance_lights[i + 1] = uint32_t(out.lights.size());
     if (!mesh_emissive_[mesh_index]) continue;
     emissive_mesh_instances_[mesh_index].push_back(i);
     const KMesh& km = out.meshes[mesh_index];
@@ -247,9 +247,8 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
       out.lights.push_back(k);
       power.push_back(pw);
     }
-    instance_lights_[i + 1] = uint32_t(out.lights.size());
+    out.instance_lights[i + 1] = uint32_t(out.lights.size());
   }
-  out.instance_lights = instance_lights_;
   delta.instance_lights.reallocated = true;
   finish_light_tables(out, delta);
   delta.lights.reallocated = true;
@@ -284,7 +283,7 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
                                                  bool punctual_too) {
   // Rigid moves since the last build changed powers in the last bits: only
   // a full build then gives what a fresh compile would.
-  if (triangle_powers_stale_ || instance_lights_.size() != out.instances.size() + 1 ||
+  if (triangle_powers_stale_ || out.instance_lights.size() != out.instances.size() + 1 ||
       emissive_mesh_instances_.size() != out.meshes.size() ||
       light_power_.size() != out.lights.size()) {
     return false;
@@ -308,8 +307,8 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
       });
       // The lights of this instance are its triangles of positive power, in
       // order; a triangle that gained or lost all its area changes the list.
-      uint32_t light = instance_lights_[i];
-      const uint32_t end = instance_lights_[i + 1];
+      uint32_t light = out.instance_lights[i];
+      const uint32_t end = out.instance_lights[i + 1];
       for (uint32_t p = 0; p < km.triangle_count; ++p) {
         if (!(power[p] > 0.0f)) continue;
         if (light == end || out.lights[light].prim != p) return false;
@@ -318,9 +317,9 @@ bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene
       if (light != end) return false;
       // The cached vertices, normals and areas (and the powers from them)
       // follow the new vertices.
-      for (light = instance_lights_[i]; light < end; ++light)
+      for (light = out.instance_lights[i]; light < end; ++light)
         cache_triangle_light(kd, &out.lights[light]);
-      if (instance_lights_[i] < end) delta.lights.mark(instance_lights_[i], end);
+      if (out.instance_lights[i] < end) delta.lights.mark(out.instance_lights[i], end);
     }
   }
   if (punctual_too) {

@@ -224,10 +224,9 @@ class SceneCompiler {
   // (punctual lights, the environment, triangles): a punctual light's
   // change rebuilds the alias table from these without revisiting triangles.
   std::vector<double> light_power_;
-  // Where each instance's triangle lights are in out.lights (and
-  // light_power_): [instance_lights_[i], instance_lights_[i + 1]); and the
-  // instances of each emissive mesh, so a deformed mesh finds its lights.
-  std::vector<uint32_t> instance_lights_;
+  // The instances of each emissive mesh, so a deformed mesh finds its
+  // lights (each instance's are [out.instance_lights[i],
+  // out.instance_lights[i + 1]) of out.lights and light_power_).
   std::vector<std::vector<uint32_t>> emissive_mesh_instances_;
   // The instances of each mesh, for update_instances; and per instance the
   // state it was last noted hidden in (kVisible: never), so that each is
