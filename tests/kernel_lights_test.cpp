@@ -146,18 +146,24 @@ TriangleLightScene make_triangle_light_scene(bool double_sided) {
     if (&a == &transforms[0]) inst.flags = kInstanceIdentity;
     ks.instances.push_back(inst);
   }
-  std::vector<double> power;
+  // As the scene compiler lists them: the mesh's two triangle lights once,
+  // one light per instance of it.
   const KernelData kd = ks.view();
+  std::vector<double> triangle_power;
+  KMeshLights ml{0, 2, kInvalidIndex, 0.0f};
+  for (uint32_t p = 0; p < 2; ++p) {
+    ks.triangle_lights.push_back(cache_triangle_light(kd, 0, p));
+    triangle_power.push_back(ks.triangle_lights.back().power);
+    ml.power += ks.triangle_lights.back().power;
+  }
+  ks.mesh_lights = {ml};
+  ks.triangle_light_alias = build_alias_table(triangle_power);
+  std::vector<double> power;
   for (uint32_t i = 0; i < ks.instances.size(); ++i) {
+    double instance_power = 0.0;
     for (uint32_t p = 0; p < 2; ++p) {
-      KLight light{};
-      light.type = kLightTriangle;
-      light.instance = i;
-      light.prim = p;
-      cache_triangle_light(kd, &light);
-      ks.lights.push_back(light);
-      power.push_back(
-          triangle_light_power(ks.materials[p], triangle_world_area(kd, ks.instances[i], p)));
+      instance_power +=
+          triangle_light_power(ks.materials[p], triangle_world_area(kd, ks.instances[i], p));
       WorldTriangle w;
       const KTriangle& t = ks.triangles[p];
       for (int k = 0; k < 3; ++k) {
@@ -169,6 +175,13 @@ TriangleLightScene make_triangle_light_scene(bool double_sided) {
       w.double_sided = double_sided;
       s.triangles.push_back(w);
     }
+    KLight light{};
+    light.type = kLightMeshInstance;
+    light.instance = i;
+    light.power = float(instance_power);
+    ks.instance_lights.push_back(uint32_t(ks.lights.size()));
+    ks.lights.push_back(light);
+    power.push_back(instance_power);
   }
   ks.light_alias = build_alias_table(power);
   double total = 0.0;
@@ -472,11 +485,8 @@ TEST(KernelTriangleLight, EnvironmentAndTrianglesShareOneLightList) {
   s.ks.env_conditional_guide = env.env_conditional_guide;
   s.ks.constants.environment = env.constants.environment;
   std::vector<double> power;
-  const KernelData kd0 = s.ks.view();
-  for (const KLight& l : s.ks.lights) {
-    power.push_back(triangle_light_power(
-        s.ks.materials[l.prim], triangle_world_area(kd0, s.ks.instances[l.instance], l.prim)));
-  }
+  for (const KLight& l : s.ks.lights)
+    power.push_back(l.power);
   KLight env_light{};
   env_light.type = kLightEnvironment;
   s.ks.constants.environment_light_index = uint32_t(s.ks.lights.size());

@@ -112,14 +112,18 @@ TEST(SceneDeform, VertexRangeDeltaHoldsExactlyThatRange) {
   EXPECT_THROW(scene.edit_mesh_vertices(7, 0, 1), std::out_of_range);
 }
 
-// Light list, alias table and total power of `a` and `b`, bit for bit.
+// Light list, triangle lights, alias tables and total power of `a` and
+// `b`, bit for bit; the trees by what they bound (a refit keeps its build's
+// shape).
 void expect_same_light_tables(const KernelScene& a, const KernelScene& b, const char* what) {
   EXPECT_TRUE(same_bytes(a.lights, b.lights)) << what;
   EXPECT_TRUE(same_bytes(a.light_alias, b.light_alias)) << what;
-  EXPECT_TRUE(same_bytes(a.light_tree_nodes, b.light_tree_nodes)) << what;
-  EXPECT_TRUE(same_bytes(a.light_tree_trails, b.light_tree_trails)) << what;
+  EXPECT_TRUE(same_bytes(a.triangle_lights, b.triangle_lights)) << what;
+  EXPECT_TRUE(same_bytes(a.triangle_light_alias, b.triangle_light_alias)) << what;
   EXPECT_EQ(a.constants.total_light_power, b.constants.total_light_power) << what;
   EXPECT_EQ(a.constants.light_tree_fraction, b.constants.light_tree_fraction) << what;
+  expect_light_trees_bound_their_lights(a, 0);
+  expect_light_trees_bound_their_lights(b, 0);
 }
 
 class SceneDeformSampler : public ::testing::TestWithParam<LightSampler> {};
@@ -138,10 +142,11 @@ TEST_P(SceneDeformSampler, EmissiveLightTablesFollowTheDeformation) {
   settings.light_sampler = GetParam();
   const bool tree = GetParam() == LightSampler::kTree;
   compile_taking_changes(compiler, scene, settings, ks);
-  const std::vector<KAliasEntry> alias_before = ks.light_alias;
+  const std::vector<KAliasEntry> alias_before = ks.triangle_light_alias;
   const std::vector<KLightTreeNode> tree_before = ks.light_tree_nodes;
-  const size_t light_count = ks.lights.size();
-  ASSERT_GT(light_count, 2u * 2 * 48 * 48);  // every grid triangle of both instances
+  const size_t light_count = ks.triangle_lights.size();
+  ASSERT_EQ(light_count, 2u * 48 * 48);  // every grid triangle, once for both instances
+  ASSERT_EQ(ks.lights.size(), 2u + 1u);  // the two instances and a punctual light
 
   for (int frame = 1; frame <= 5; ++frame) {
     // A growing wave: the triangles' areas (and so their powers) change.
@@ -149,14 +154,14 @@ TEST_P(SceneDeformSampler, EmissiveLightTablesFollowTheDeformation) {
     g.amplitude = 0.2f + 0.15f * float(frame);
     deform_wave_grid(scene.edit_mesh_vertices(0), g, 0.1f * float(frame));
     const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
-    // Updated in place: the light list keeps its size and order, the
-    // deformed lights' cached vertices and normals and the alias table (or
-    // the tree, built anew) are rewritten.
-    EXPECT_TRUE(d.lights.any()) << "frame " << frame;
-    EXPECT_FALSE(d.lights.reallocated) << "frame " << frame;
-    EXPECT_TRUE((tree ? d.light_tree_nodes : d.light_alias).any()) << "frame " << frame;
-    EXPECT_FALSE(d.light_alias.reallocated) << "frame " << frame;
-    EXPECT_EQ(ks.lights.size(), light_count);
+    // Updated in place: the light lists keep their sizes and order, the
+    // deformed triangles' cached vertices and normals, the instances'
+    // powers and the mesh's table (or its tree, refit) are rewritten.
+    EXPECT_TRUE(d.triangle_lights.any() && d.lights.any()) << "frame " << frame;
+    EXPECT_FALSE(d.lights.reallocated || d.triangle_lights.reallocated) << "frame " << frame;
+    EXPECT_TRUE((tree ? d.light_tree_nodes : d.triangle_light_alias).any()) << "frame " << frame;
+    EXPECT_FALSE(d.light_alias.reallocated || d.light_tree_nodes.reallocated) << "frame " << frame;
+    EXPECT_EQ(ks.triangle_lights.size(), light_count);
     Scene copy = scene;
     KernelScene fresh;
     SceneCompiler fresh_compiler;
@@ -165,15 +170,15 @@ TEST_P(SceneDeformSampler, EmissiveLightTablesFollowTheDeformation) {
   }
   // The test saw a change.
   EXPECT_FALSE(tree ? same_bytes(tree_before, ks.light_tree_nodes)
-                    : same_bytes(alias_before, ks.light_alias));
+                    : same_bytes(alias_before, ks.triangle_light_alias));
 
   // A triangle collapsing to zero area leaves the light list: the tables
   // are then rebuilt, and still equal a fresh compile.
   Mesh& m = scene.edit_mesh_vertices(0, 0, 2);
   m.positions[1] = m.positions[0];
   const SceneDelta d = compile_taking_changes(compiler, scene, settings, ks);
-  EXPECT_TRUE(d.lights.any());
-  EXPECT_LT(ks.lights.size(), light_count);
+  EXPECT_TRUE(d.triangle_lights.any());
+  EXPECT_LT(ks.triangle_lights.size(), light_count);
   Scene copy = scene;
   KernelScene fresh;
   SceneCompiler fresh_compiler;
@@ -184,7 +189,8 @@ TEST_P(SceneDeformSampler, EmissiveLightTablesFollowTheDeformation) {
   deform_wave_grid(scene.edit_mesh_vertices(1), WaveGrid{.cells = 4, .size = 1.0f}, 0.3f);
   const SceneDelta d4 = compile_taking_changes(compiler, scene, settings, ks);
   EXPECT_TRUE(d4.positions.any());
-  EXPECT_FALSE(d4.lights.any() || d4.light_alias.any() || d4.light_tree_nodes.any());
+  EXPECT_FALSE(d4.lights.any() || d4.light_alias.any() || d4.light_tree_nodes.any() ||
+               d4.triangle_lights.any());
 }
 
 }  // namespace

@@ -243,6 +243,10 @@ Scene all_lights_scene() {
                   glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.0f, 0.0f)), 2.5f,
                               glm::vec3(1.0f, 0.0f, 0.0f))});
   s.add_instance({"c", 1, glm::translate(glm::mat4(1.0f), glm::vec3(3.0f, 0.0f, 0.0f))});
+  // Stretched: its normals' cone widens by a bound, not by the angle.
+  s.add_instance({"d", 0,
+                  glm::scale(glm::translate(glm::mat4(1.0f), glm::vec3(-3.0f, 1.0f, 2.0f)),
+                             glm::vec3(1.5f, 0.5f, 1.0f))});
   // A flat lamp off to the side: its two triangles a leaf of two.
   Mesh lamp;
   append_quad(lamp, {4.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 5.0f}, {4.0f, 3.0f, 5.0f},
@@ -295,17 +299,23 @@ TEST(LightTreeCompile, EveryEditGivesTheTablesOfAFreshCompile) {
   // Points, spots and triangles in the tree; the sun and the sky beside it.
   EXPECT_GT(ks.constants.light_tree_fraction, 0.0f);
   EXPECT_LT(ks.constants.light_tree_fraction, 1.0f);
-  EXPECT_GE(ks.light_tree_nodes.size(), ks.lights.size() - 2);
-  EXPECT_EQ(ks.instance_lights.size(), ks.instances.size() + 1);
+  EXPECT_GE(ks.light_tree_nodes.size(), ks.triangle_lights.size() + ks.lights.size() - 2);
+  EXPECT_EQ(ks.instance_lights.size(), ks.instances.size());
+  // The emissive grid's triangles once for its two instances.
+  EXPECT_EQ(ks.triangle_lights.size(), 2u * kGrid.cells * kGrid.cells + 2u);
   expect_fresh(scene, ks, c.settings, 0);
 
-  // A rigid move of an emissive instance: the tree's boxes and cones follow.
+  // A rigid move of an emissive instance: the tree's boxes and cones follow,
+  // refit along its path only (the meshes' trees and the light list stay).
   const std::vector<KLightTreeNode> before = ks.light_tree_nodes;
   scene.set_instance_transform(
       1, glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(1.0f, 2.0f, 0.0f)), 2.0f,
                      glm::vec3(0.0f, 0.0f, 1.0f)));
   SceneDelta d = c.compile(scene);
   EXPECT_TRUE(d.light_tree_nodes.any());
+  EXPECT_FALSE(d.light_tree_nodes.reallocated);
+  EXPECT_FALSE(d.lights.reallocated || d.triangle_lights.any());
+  EXPECT_LT(d.light_tree_nodes.element_count(), 16u);
   EXPECT_FALSE(same_bytes(before, ks.light_tree_nodes));
   expect_fresh(scene, ks, c.settings, 1);
   // Deformed emissive vertices: the tree over their new places. (The sun's
@@ -315,14 +325,14 @@ TEST(LightTreeCompile, EveryEditGivesTheTablesOfAFreshCompile) {
   deform_wave_grid(scene.edit_mesh_vertices(0, 0, kGrid.vertex_count()), kGrid, 0.4f);
   d = c.compile(scene);
   EXPECT_TRUE(d.light_tree_nodes.any());
+  EXPECT_FALSE(d.light_tree_nodes.reallocated);
   {
     Scene copy = scene;
     Compiled fresh;
     fresh.settings = c.settings;
     fresh.compile(copy);
-    EXPECT_TRUE(same_bytes(ks.lights, fresh.ks.lights));
-    EXPECT_TRUE(same_bytes(ks.light_tree_nodes, fresh.ks.light_tree_nodes));
-    EXPECT_TRUE(same_bytes(ks.light_tree_trails, fresh.ks.light_tree_trails));
+    EXPECT_TRUE(same_bytes(ks.triangle_lights, fresh.ks.triangle_lights));
+    expect_light_trees_bound_their_lights(ks, 2);
   }
   // A punctual light moved, one switched off.
   scene.edit_light(0).position = glm::vec3(1.0f, 4.0f, -1.0f);
@@ -341,17 +351,22 @@ TEST(LightTreeCompile, EveryEditGivesTheTablesOfAFreshCompile) {
 }
 
 // What the renderer does with the tables: select_light's choice at a point,
-// among all the scene's lights, has the probability that the MIS of a BSDF
-// sample finding that light recomputes (for a triangle from (instance,
-// prim) alone, as a hit knows it), bit for bit, and the choices follow
-// those probabilities (chi-square).
+// among all the scene's lights (an instance's triangles one by one), has
+// the probability that the MIS of a BSDF sample finding that light
+// recomputes (for a triangle from (instance, prim) alone, as a hit knows
+// it), bit for bit, and the choices follow those probabilities
+// (chi-square), on a tree refit after a move.
 TEST(LightTreeCompile, ChoicesAmongAllLightsFollowThePmfMisRecomputes) {
   Scene scene = all_lights_scene();
   Compiled c;
   c.settings = tree_settings();
   c.compile(scene);
+  // Moved: the tree refit along the instance's path, not built anew.
+  scene.set_instance_transform(
+      1, glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.5f, 1.5f, 0.0f)), 1.0f,
+                     glm::vec3(0.0f, 0.0f, 1.0f)));
+  ASSERT_FALSE(c.compile(scene).light_tree_nodes.reallocated);
   const KernelData kd = c.ks.view();
-  const uint32_t n = kd.lights_count;
   // The grid's quads are leaves of two triangles: the scan within a leaf is
   // tested too.
   EXPECT_TRUE(std::any_of(
@@ -360,13 +375,39 @@ TEST(LightTreeCompile, ChoicesAmongAllLightsFollowThePmfMisRecomputes) {
   Scene copy = scene;
   Compiled power_table;
   power_table.compile(copy);
-  const auto pmf_of = [&](uint32_t i, Vec3 p, Vec3 normal) -> float {
+  // Every choice: a punctual or infinite light, or a triangle of an
+  // instance (by its light and its triangle light).
+  std::vector<LightChoice> outcomes;
+  for (uint32_t i = 0; i < kd.lights_count; ++i) {
     const KLight& l = kd.lights[i];
-    if (l.type == kLightTriangle) return triangle_light_tree_pmf(kd, l.instance, l.prim, p, normal);
-    if (l.type == kLightDirectional || l.type == kLightEnvironment) return kd.light_alias[i].pdf;
-    return kd.constants.light_tree_fraction * light_tree_pmf(kd.light_tree_nodes,
-                                                             kd.light_tree_nodes_count,
-                                                             kd.light_tree_trails[i], i, p, normal);
+    if (l.type != kLightMeshInstance) {
+      outcomes.push_back({i, kInvalidIndex, 0.0f});
+      continue;
+    }
+    const KMeshLights& ml = kd.mesh_lights[kd.instances[l.instance].mesh];
+    for (uint32_t t = ml.first; t < ml.first + ml.count; ++t)
+      outcomes.push_back({i, t, 0.0f});
+  }
+  const uint32_t n = uint32_t(outcomes.size());
+  const auto pmf_of = [&](const LightChoice& o, Vec3 p, Vec3 normal) -> float {
+    const KLight& l = kd.lights[o.light];
+    if (l.type == kLightMeshInstance) {
+      return triangle_light_pmf(kd, l.instance, kd.triangle_lights[o.triangle].prim, p, normal);
+    }
+    if (l.type == kLightDirectional || l.type == kLightEnvironment)
+      return kd.light_alias[o.light].pdf;
+    return kd.constants.light_tree_fraction *
+           light_tree_pmf_at(kd.light_tree_nodes, kd.constants.light_tree_root,
+                             kd.light_tree_trails[o.light], o.light, p, normal);
+  };
+  const auto outcome_of = [&](const LightChoice& c) {
+    for (uint32_t k = 0; k < n; ++k) {
+      if (outcomes[k].light == c.light &&
+          (outcomes[k].triangle == kInvalidIndex || outcomes[k].triangle == c.triangle)) {
+        return k;
+      }
+    }
+    return n;
   };
   TestRng rng(11);
   const int points = 4;
@@ -378,25 +419,26 @@ TEST(LightTreeCompile, ChoicesAmongAllLightsFollowThePmfMisRecomputes) {
     std::vector<double> expected(n + 1, 0.0), observed(n + 1, 0.0);
     double sum = 0.0;
     for (uint32_t i = 0; i < n; ++i)
-      sum += expected[i] = pmf_of(i, p, normal);
+      sum += expected[i] = pmf_of(outcomes[i], p, normal);
     EXPECT_LE(sum, 1.0 + 1e-5) << "point " << k;
     EXPECT_GT(sum, 0.0) << "point " << k;
     expected[n] = std::max(0.0, 1.0 - sum);  // no light
     // The sky's share is its power's, as with the power table.
     const uint32_t env = kd.constants.environment_light_index;
     ASSERT_NE(env, kInvalidIndex);
-    EXPECT_NEAR(expected[env], power_table.ks.light_alias[env].pdf, 1e-6);
+    EXPECT_NEAR(expected[outcome_of({env, kInvalidIndex, 0.0f})],
+                power_table.ks.light_alias[env].pdf, 1e-6);
     const int samples = 200000;
     for (int s = 0; s < samples; ++s) {
-      float pmf = 0.0f;
-      const uint32_t light = select_light(kd, p, normal, rng.next(), &pmf);
-      if (!(pmf > 0.0f)) {
+      const LightChoice choice = select_light(kd, p, normal, rng.next());
+      if (!(choice.pmf > 0.0f)) {
         observed[n] += 1.0;
         continue;
       }
-      ASSERT_LT(light, n);
-      observed[light] += 1.0;
-      ASSERT_EQ(pmf, pmf_of(light, p, normal)) << "light " << light << " at point " << k;
+      const uint32_t o = outcome_of(choice);
+      ASSERT_LT(o, n);
+      observed[o] += 1.0;
+      ASSERT_EQ(choice.pmf, pmf_of(choice, p, normal)) << "outcome " << o << " at point " << k;
     }
     for (double& e : expected)
       e *= samples;

@@ -117,7 +117,8 @@ ImageRGB render_reference(Scene& scene, RenderSettings settings, uint32_t spp) {
 struct TableCosts {
   double power_seconds = 0.0, tree_seconds = 0.0;
   size_t tree_bytes = 0, light_list_bytes = 0;
-  uint32_t tree_nodes = 0, triangle_lights = 0, punctual_lights = 0, infinite_lights = 0;
+  uint32_t tree_nodes = 0, triangle_lights = 0, emissive_instances = 0, punctual_lights = 0,
+           infinite_lights = 0;
   float tree_fraction = 0.0f;
 };
 
@@ -138,13 +139,18 @@ TableCosts measure_tables(Scene& scene, RenderSettings settings) {
   const KernelScene& ks = sync.kernel_scene();  // the tree's, the last compiled
   costs.tree_nodes = uint32_t(ks.light_tree_nodes.size());
   costs.tree_bytes = ks.light_tree_nodes.size() * sizeof(KLightTreeNode) +
-                     ks.light_tree_trails.size() * sizeof(uint64_t);
+                     ks.light_tree_trails.size() * sizeof(uint64_t) +
+                     ks.triangle_light_trails.size() * sizeof(uint64_t);
   costs.light_list_bytes = ks.lights.size() * sizeof(KLight) +
                            ks.light_alias.size() * sizeof(KAliasEntry) +
-                           ks.instance_lights.size() * sizeof(uint32_t);
+                           ks.instance_lights.size() * sizeof(uint32_t) +
+                           ks.triangle_lights.size() * sizeof(KTriangleLight) +
+                           ks.triangle_light_alias.size() * sizeof(KAliasEntry) +
+                           ks.mesh_lights.size() * sizeof(KMeshLights);
+  costs.triangle_lights = uint32_t(ks.triangle_lights.size());
   for (const KLight& l : ks.lights) {
-    if (l.type == kLightTriangle) {
-      ++costs.triangle_lights;
+    if (l.type == kLightMeshInstance) {
+      ++costs.emissive_instances;
     } else if (l.type == kLightDirectional || l.type == kLightEnvironment) {
       ++costs.infinite_lights;
     } else {
@@ -198,10 +204,11 @@ int run_light_sampling_bench(const std::vector<std::string>& argv) {
   }
   const TableCosts tables = measure_tables(scene, settings);
   std::printf(
-      "scene %s: %u triangle lights, %u points and spots, %u at infinity; %ux%u, max depth %u, "
-      "%.1f s per sampler, reference %u spp, %d threads\n",
-      spec.c_str(), tables.triangle_lights, tables.punctual_lights, tables.infinite_lights,
-      settings.width, settings.height, settings.max_depth, seconds, ref_spp, threads.used());
+      "scene %s: %u triangle lights in %u emissive instances, %u points and spots, %u at "
+      "infinity; %ux%u, max depth %u, %.1f s per sampler, reference %u spp, %d threads\n",
+      spec.c_str(), tables.triangle_lights, tables.emissive_instances, tables.punctual_lights,
+      tables.infinite_lights, settings.width, settings.height, settings.max_depth, seconds, ref_spp,
+      threads.used());
 
   ImageRGB ref;
   std::filesystem::path cached;
@@ -271,6 +278,7 @@ int run_light_sampling_bench(const std::vector<std::string>& argv) {
   report.set("reference_noise_relmse", ref_noise);
   report.set("lights", JsonValue::object()
                            .set("triangles", tables.triangle_lights)
+                           .set("emissive_instances", tables.emissive_instances)
                            .set("punctual", tables.punctual_lights)
                            .set("infinite", tables.infinite_lights)
                            .set("tree_fraction", double(tables.tree_fraction)));

@@ -18,29 +18,33 @@ TANDEM_KERNEL_BEGIN
 // (and KBvhConstants) the BVH updater (accstruc/AccelStructure). Each
 // reports what it rewrote in a SceneDelta of its own; the backends commit
 // the union of the two.
-#define TANDEM_SCENE_ARRAYS(X)                                                              \
-  X(Vec3, positions)      /* per vertex, object space; padded by one for SSE loads */       \
-  X(Vec3, normals)        /* per vertex, or empty for a mesh without kMeshHasNormals */     \
-  X(Vec4, tangents)       /* per vertex: xyz + handedness w */                              \
-  X(Vec2, uv0)            /* per vertex */                                                  \
-  X(Vec2, uv1)            /* per vertex */                                                  \
-  X(KTriangle, triangles) /* per triangle, indices relative to the mesh */                  \
-  X(KMesh, meshes)        /* one per BLAS */                                                \
-  X(KInstance, instances) /* one per TLAS entry */                                          \
-  X(KMaterial, materials)                                                                   \
-  X(KTexture, textures)                                                                     \
-  X(uint32_t, texels) /* RGBA8 texels of all 8-bit textures */                              \
-  X(Vec4, texels_f32) /* linear RGBA texels of all float textures */                        \
-  X(KLight, lights)                                                                         \
-  X(KAliasEntry, light_alias)         /* distribution over lights, by power */              \
-  X(KLightTreeNode, light_tree_nodes) /* the light tree sampler's BVH over finite lights */ \
-  X(uint64_t, light_tree_trails)      /* per light: its path in light_tree_nodes */         \
-  X(uint32_t, instance_lights)        /* per instance + 1: its first triangle light */      \
-  X(Vec4, env_texels)                 /* equirectangular environment, linear RGB */         \
-  X(float, env_marginal_cdf)          /* height + 1 entries */                              \
-  X(float, env_conditional_cdf)       /* height * (width + 1) entries */                    \
-  X(uint32_t, env_marginal_guide)     /* height + 1 entries: see find_interval_guided */    \
-  X(uint32_t, env_conditional_guide)  /* height * (width + 1) entries */
+#define TANDEM_SCENE_ARRAYS(X)                                                                    \
+  X(Vec3, positions)      /* per vertex, object space; padded by one for SSE loads */             \
+  X(Vec3, normals)        /* per vertex, or empty for a mesh without kMeshHasNormals */           \
+  X(Vec4, tangents)       /* per vertex: xyz + handedness w */                                    \
+  X(Vec2, uv0)            /* per vertex */                                                        \
+  X(Vec2, uv1)            /* per vertex */                                                        \
+  X(KTriangle, triangles) /* per triangle, indices relative to the mesh */                        \
+  X(KMesh, meshes)        /* one per BLAS */                                                      \
+  X(KInstance, instances) /* one per TLAS entry */                                                \
+  X(KMaterial, materials)                                                                         \
+  X(KTexture, textures)                                                                           \
+  X(uint32_t, texels) /* RGBA8 texels of all 8-bit textures */                                    \
+  X(Vec4, texels_f32) /* linear RGBA texels of all float textures */                              \
+  X(KLight, lights)                                                                               \
+  X(KAliasEntry, light_alias)          /* distribution over lights, by power */                   \
+  X(KLightTreeNode, light_tree_nodes)  /* the light tree sampler's BVHs: meshes', then lights' */ \
+  X(uint64_t, light_tree_trails)       /* per light: its path from light_tree_root */             \
+  X(uint32_t, instance_lights)         /* per instance: its kLightMeshInstance, or invalid */     \
+  X(KTriangleLight, triangle_lights)   /* per emissive mesh: its emissive triangles */            \
+  X(KAliasEntry, triangle_light_alias) /* per triangle light: its mesh's table by power */        \
+  X(uint64_t, triangle_light_trails)   /* per triangle light: its path in its mesh's tree */      \
+  X(KMeshLights, mesh_lights)          /* per mesh: its triangle lights */                        \
+  X(Vec4, env_texels)                  /* equirectangular environment, linear RGB */              \
+  X(float, env_marginal_cdf)           /* height + 1 entries */                                   \
+  X(float, env_conditional_cdf)        /* height * (width + 1) entries */                         \
+  X(uint32_t, env_marginal_guide)      /* height + 1 entries: see find_interval_guided */         \
+  X(uint32_t, env_conditional_guide)   /* height * (width + 1) entries */
 
 #define TANDEM_BVH_ARRAYS(X)                                                                      \
   X(KBlasRoot, blas_roots)      /* one per mesh */                                                \

@@ -31,7 +31,8 @@ enum KLightTreeFlags : uint32_t {
 constexpr uint32_t kLightTreeMaxLeafLights = 4;
 
 // A node in depth-first order: an inner node's first child follows it,
-// its second child is at `index`. Where its lights are is kept as the
+// its second child is at `index` (of the whole array: several trees share
+// one). Where its lights are is kept as the
 // sphere around their box, and the cone's sine beside its cosine: what
 // light_tree_importance reads, with no square root for either.
 struct KLightTreeNode {
@@ -113,19 +114,20 @@ TANDEM_HD float light_tree_second_child_probability(const KLightTreeNode* nodes,
   return second / sum;
 }
 
-// Chooses a light for point p (normal n, or zero) with one uniform number
-// u in [0, 1): its index, and in *pmf the probability of that choice.
-// Returns 0xffffffff (with *pmf 0) when the tree is empty or a branch it
-// took holds no light that can reach p.
-TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_count, Vec3 p,
-                                     Vec3 n, float u, float* pmf) {
+// Chooses a light of the tree at nodes[root] for point p (normal n, or
+// zero) with one uniform number u in [0, 1): its index, in *pmf the
+// probability of that choice, and in *u_rest what is left of u, uniform in
+// [0, 1) again for whatever chooses next (an instance's triangle). Returns
+// 0xffffffff (with *pmf 0) when a branch it took holds no light that can
+// reach p.
+TANDEM_HD uint32_t light_tree_sample_at(const KLightTreeNode* nodes, uint32_t root, Vec3 p, Vec3 n,
+                                        float u, float* pmf, float* u_rest) {
   *pmf = 0.0f;
   // The root's own importance is not asked: where it is zero so are its
   // children's (no light then), and a lone light that cannot reach p gives
   // a sample of no light, as its own test finds.
-  if (node_count == 0) return 0xffffffffu;
   float prob = 1.0f;
-  uint32_t node = 0;
+  uint32_t node = root;
   while (!(nodes[node].flags & kLightTreeLeaf)) {
     const float second = light_tree_second_child_probability(nodes, node, p, n);
     if (second < 0.0f) return 0xffffffffu;
@@ -142,6 +144,7 @@ TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_
   const KLightTreeNode& leaf = nodes[node];
   if (leaf.count <= 1) {
     *pmf = prob;
+    *u_rest = u;
     return leaf.index;
   }
   // By power among the leaf's lights; the last takes what rounding left.
@@ -151,16 +154,26 @@ TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_
     u -= nodes[entry].power;
   }
   *pmf = prob * nodes[entry].power;
+  *u_rest = min_f(u / nodes[entry].power, 0x1.fffffep-1f);
   return nodes[entry].index;
 }
 
-// The probability light_tree_sample chooses light `light`, whose trail is
-// `trail` (bit k: the second child at depth k), at p: the same products.
-TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count, uint64_t trail,
-                               uint32_t light, Vec3 p, Vec3 n) {
-  if (node_count == 0) return 0.0f;
+// light_tree_sample_at for a tree of `node_count` nodes rooted at 0 (none:
+// no light).
+TANDEM_HD uint32_t light_tree_sample(const KLightTreeNode* nodes, uint32_t node_count, Vec3 p,
+                                     Vec3 n, float u, float* pmf) {
+  *pmf = 0.0f;
+  float u_rest;
+  return node_count == 0 ? 0xffffffffu : light_tree_sample_at(nodes, 0, p, n, u, pmf, &u_rest);
+}
+
+// The probability light_tree_sample_at from `root` chooses light `light`,
+// whose trail is `trail` (bit k: the second child at depth k), at p: the
+// same products.
+TANDEM_HD float light_tree_pmf_at(const KLightTreeNode* nodes, uint32_t root, uint64_t trail,
+                                  uint32_t light, Vec3 p, Vec3 n) {
   float prob = 1.0f;
-  uint32_t node = 0;
+  uint32_t node = root;
   while (!(nodes[node].flags & kLightTreeLeaf)) {
     const float second = light_tree_second_child_probability(nodes, node, p, n);
     if (second < 0.0f) return 0.0f;
@@ -179,6 +192,11 @@ TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count,
     if (nodes[node + 1 + k].index == light) return prob * nodes[node + 1 + k].power;
   }
   return 0.0f;
+}
+
+TANDEM_HD float light_tree_pmf(const KLightTreeNode* nodes, uint32_t node_count, uint64_t trail,
+                               uint32_t light, Vec3 p, Vec3 n) {
+  return node_count == 0 ? 0.0f : light_tree_pmf_at(nodes, 0, trail, light, p, n);
 }
 
 TANDEM_KERNEL_END

@@ -160,36 +160,60 @@ static_assert(offsetof(KMaterial, clearcoat) == 88 && offsetof(KMaterial, base_c
               "GPU layout");
 
 enum KLightType : uint32_t {
-  kLightTriangle = 0,
+  kLightMeshInstance = 0,  // an instance of an emissive mesh: its triangle lights
   kLightPoint = 1,
   kLightSpot = 2,
   kLightDirectional = 3,
   kLightEnvironment = 4,
 };
 
-// One entry of the light list. Triangle lights reference (instance, prim);
-// punctual lights carry their world-space frame.
-// Triangle lights reuse the punctual fields for what make_light_point
-// would compute for them at an identity instance (cache_triangle_light),
-// so that sample_light skips the triangle fetch, the normal and the power
-// there; the cache is in object space, so rigid moves keep it valid and the
-// kernel only reads it while the instance is the identity.
+// One entry of the light list: punctual lights with their world-space frame,
+// the environment, and one per instance of an emissive mesh (`instance`,
+// `power` the summed power of its triangles in world space). A light is
+// chosen among these first; an instance then chooses one of its mesh's
+// triangle lights (KMeshLights), so the list grows with the instances and
+// the meshes' triangles, never with their product.
 struct KLight {
   uint32_t type;
-  uint32_t instance;
-  uint32_t prim;
-  uint32_t material;  // triangle: the triangle's material
-  Vec3 position;      // point/spot; triangle: vertex 0 (object space)
-  float cos_inner;    // spot: cos of inner cone angle
-  Vec3 direction;     // spot/directional: direction the light travels; triangle: vertex 1
+  uint32_t instance;  // kLightMeshInstance
+  uint32_t pad[2];
+  Vec3 position;    // point/spot
+  float cos_inner;  // spot: cos of inner cone angle
+  Vec3 direction;   // spot/directional: direction the light travels
   float cos_outer;
-  Vec3 intensity;  // point/spot: W/sr; directional: W/m^2 (colour already applied); triangle:
-                   // vertex 2
-  float power;     // triangle: triangle_light_power of its material and area
-  Vec3 normal;     // triangle: unit geometric normal
-  float area;      // triangle: area
+  Vec3 intensity;  // point/spot: W/sr; directional: W/m^2 (colour already applied)
+  float power;     // kLightMeshInstance: its triangles' power in world space
 };
-static_assert(sizeof(KLight) == 80, "GPU layout");
+static_assert(sizeof(KLight) == 64, "GPU layout");
+
+// One emissive triangle of a mesh, in object space: what make_light_point
+// computes for it at an identity instance (cache_triangle_light), with the
+// same float operations, so that sample_light skips the triangle fetch,
+// the normal and the area there.
+struct KTriangleLight {
+  Vec3 p0;
+  uint32_t prim;  // the triangle in its mesh
+  Vec3 p1;
+  uint32_t material;
+  Vec3 p2;
+  float power;  // triangle_light_power of its material and object-space area
+  Vec3 normal;  // unit geometric normal (the winding's)
+  float area;
+};
+static_assert(sizeof(KTriangleLight) == 64, "GPU layout");
+
+// The triangle lights of one mesh: entries [first, first + count) of
+// triangle_lights (in the order of their prims), of triangle_light_alias
+// (the mesh's own table by power, the power sampler) and of
+// triangle_light_trails; `tree_root` its light tree in light_tree_nodes
+// (the tree sampler), in object space, shared by every instance.
+struct KMeshLights {
+  uint32_t first;
+  uint32_t count;
+  uint32_t tree_root;
+  float power;  // summed over its triangle lights, object space
+};
+static_assert(sizeof(KMeshLights) == 16, "GPU layout");
 
 // Walker alias table entry for O(1) sampling of a discrete distribution.
 struct KAliasEntry {
@@ -257,6 +281,9 @@ struct KernelConstants {
   // environment) through light_alias. 0: every light from light_alias, by
   // power.
   float light_tree_fraction;
+  // The root of the tree over the light list's finite lights in
+  // light_tree_nodes (after the meshes' trees), with the tree sampler.
+  uint32_t light_tree_root;
   // The BVH's roots and layout are in KernelData::bvh (core/kernel/bvh.h).
 };
 

@@ -12,29 +12,6 @@
 
 namespace tandem {
 
-namespace {
-
-// Whether two affine maps scale every area alike: their linear parts have the
-// same Gram matrix (A^T A), up to float rounding (rotations, translations).
-bool same_areas(const Mat34& a, const Mat34& b) {
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) {
-      double ga = 0.0, gb = 0.0, scale = 0.0;
-      for (int r = 0; r < 3; ++r) {
-        const float* ra = &a.rows[r].x;
-        const float* rb = &b.rows[r].x;
-        ga += double(ra[i]) * ra[j];
-        gb += double(rb[i]) * rb[j];
-        scale += double(ra[i]) * ra[i] + double(ra[j]) * ra[j];
-      }
-      if (std::fabs(ga - gb) > 1e-5 * std::max(scale, 1e-30)) return false;
-    }
-  }
-  return true;
-}
-
-}  // namespace
-
 KInstance SceneCompiler::compile_instance(const Scene& scene, uint32_t index) {
   const Instance& inst = scene.instances()[index];
   KInstance k{};
@@ -119,16 +96,13 @@ void SceneCompiler::update_instances(const Scene& scene, KernelScene& out, Scene
     out.instances[i] = compile_instance(scene, i);
     delta.instances.mark(i, i + 1);
     delta.instances_moved.push_back(i);
-    // Triangle lights are stored as (instance, prim): moving an emissive
-    // instance rigidly changes neither the light list nor any light's
-    // power, so the (large) light arrays stay as they are; but the light
-    // tree's bounds of where its lights are and where they face follow it.
+    // An instance's light follows it (its power, and the tree's bounds):
+    // O(the instance) plus the light tables; one that changes mesh changes
+    // the light list.
     const KInstance& after = out.instances[i];
     const bool emissive = mesh_emissive_[before.mesh] || mesh_emissive_[after.mesh];
-    triangle_powers_stale_ |= emissive;
-    needs.light_list |= emissive && (before.mesh != after.mesh ||
-                                     !same_areas(before.object_to_world, after.object_to_world) ||
-                                     light_sampler_ == LightSampler::kTree);
+    if (emissive) needs.emissive_moved.push_back(i);
+    needs.light_list |= emissive && before.mesh != after.mesh;
   }
 }
 

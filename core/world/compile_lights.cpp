@@ -1,13 +1,12 @@
-// Lights: punctual lights, the environment light and one light per
-// emissive (instance, triangle), and what chooses among them: the alias
+// The light list: punctual lights, the environment light and one light per
+// instance of an emissive mesh (whose triangles compile_mesh_lights.cpp
+// makes lights of, once per mesh), and what chooses among them: the alias
 // table by power, or (the tree sampler) the light tree over the finite
 // lights beside an alias table of the infinite ones. A full build walks the
-// emissive triangles; a change of punctual lights or of the scene's size
-// (which scales directional and environment powers) only recomputes those
-// powers and the tables.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
+// meshes' emissive triangles; a moved instance, a deformed mesh, a changed
+// punctual light or a change of the scene's size (which scales directional
+// and environment powers) recompute what they change and refit the tree
+// along their paths.
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -103,32 +102,121 @@ bool light_at_infinity(const KLight& l) {
   return l.type == kLightDirectional || l.type == kLightEnvironment;
 }
 
+glm::vec3 to_glm(Vec3 v) {
+  return glm::vec3(v.x, v.y, v.z);
+}
+
+// The Gram matrix of the linear part of `m` (M^T M), in doubles.
+void gram(const Mat34& m, double g[3][3]) {
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      g[i][j] = 0.0;
+      for (int r = 0; r < 3; ++r)
+        g[i][j] += double((&m.rows[r].x)[i]) * double((&m.rows[r].x)[j]);
+    }
+  }
+}
+
+// Whether the linear part of `m` scales every direction alike (a rotation,
+// a mirror and a uniform scale): its Gram matrix is s^2 times the identity,
+// s^2 into *scale2.
+bool similarity(const Mat34& m, double* scale2) {
+  double g[3][3];
+  gram(m, g);
+  const double trace = g[0][0] + g[1][1] + g[2][2];
+  *scale2 = trace / 3.0;
+  const double tolerance = 1e-5 * trace;
+  return std::fabs(g[0][1]) <= tolerance && std::fabs(g[0][2]) <= tolerance &&
+         std::fabs(g[1][2]) <= tolerance && std::fabs(g[0][0] - *scale2) <= tolerance &&
+         std::fabs(g[1][1] - *scale2) <= tolerance && std::fabs(g[2][2] - *scale2) <= tolerance;
+}
+
+// A bound on how much the map of normals of `m` (its inverse transpose)
+// widens angles: the sine of the angle between two mapped unit vectors is
+// at most this times the sine of theirs (the squared condition number,
+// bounded by trace(G)^3 / det(G) of the Gram matrix G); 1 for a similarity.
+double normal_angle_widening(const Mat34& m) {
+  double scale2 = 0.0;
+  if (similarity(m, &scale2)) return 1.0;
+  double g[3][3];
+  gram(m, g);
+  const double trace = g[0][0] + g[1][1] + g[2][2];
+  const double det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1]) -
+                     g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0]) +
+                     g[0][2] * (g[1][0] * g[2][1] - g[1][1] * g[2][0]);
+  return det > 0.0 ? trace * trace * trace / det : INFINITY;
+}
+
+// The power of instance `inst`'s triangle lights in world space: its mesh's
+// times the area scale of a similarity, else their world areas summed.
+double instance_light_power(const KernelData& kd, const KInstance& inst) {
+  if (inst.flags & kInstanceHidden) return 0.0;
+  const KMeshLights& ml = kd.mesh_lights[inst.mesh];
+  if (inst.flags & kInstanceIdentity) return double(ml.power);
+  double scale2 = 0.0;
+  if (similarity(inst.object_to_world, &scale2)) return double(ml.power) * scale2;
+  double power = 0.0;
+  for (uint32_t t = ml.first; t < ml.first + ml.count; ++t) {
+    const KTriangleLight& tl = kd.triangle_lights[t];
+    const Vec3 e1 = instance_vector(inst, tl.p1 - tl.p0);
+    const Vec3 e2 = instance_vector(inst, tl.p2 - tl.p0);
+    power += triangle_light_power(kd.materials[tl.material], 0.5f * length(cross(e1, e2)));
+  }
+  return power;
+}
+
+}  // namespace
+
 // What the light tree knows of light `index` (finite, of the given power):
-// where it is and which way it emits, in world space.
-LightTreeInput light_tree_input(const KernelData& kd, uint32_t index, float power) {
+// where it is and which way it emits, in world space. An instance's is its
+// mesh's tree's root moved by its transform: the box's corners, and the
+// cone turned with the normals, widened where the transform is not a
+// similarity.
+LightTreeInput SceneCompiler::light_tree_input(const KernelData& kd, uint32_t index,
+                                               float power) const {
   const KLight& l = kd.lights[index];
   LightTreeInput in;
   in.light = index;
   in.power = power;
-  const auto vec = [](Vec3 v) { return glm::vec3(v.x, v.y, v.z); };
-  if (l.type == kLightTriangle) {
+  if (l.type == kLightMeshInstance) {
     const KInstance& inst = kd.instances[l.instance];
-    const TriangleVertices tv = fetch_triangle(kd, inst.mesh, l.prim);
-    const glm::vec3 p[3] = {vec(instance_point(inst, tv.p0)), vec(instance_point(inst, tv.p1)),
-                            vec(instance_point(inst, tv.p2))};
-    in.lo = glm::min(p[0], glm::min(p[1], p[2]));
-    in.hi = glm::max(p[0], glm::max(p[1], p[2]));
-    // The side it emits to: make_light_point's front normal.
-    in.axis = vec(make_light_point(kd, l.instance, l.prim, 0.0f, 0.0f).front_normal);
-    in.cos_theta_o = 1.0f;
-    in.cos_theta_e = 0.0f;
-    in.two_sided = (kd.materials[l.material].flags & kMaterialDoubleSided) != 0;
+    const KLightTreeNode& root = kd.light_tree_nodes[kd.mesh_lights[inst.mesh].tree_root];
+    const glm::vec3 lo = mesh_light_lo_[inst.mesh], hi = mesh_light_hi_[inst.mesh];
+    in.lo = glm::vec3(INFINITY);
+    in.hi = glm::vec3(-INFINITY);
+    for (int corner = 0; corner < 8; ++corner) {
+      const glm::vec3 c((corner & 1) ? hi.x : lo.x, (corner & 2) ? hi.y : lo.y,
+                        (corner & 4) ? hi.z : lo.z);
+      const glm::vec3 w = to_glm(instance_point(inst, make_vec3(c.x, c.y, c.z)));
+      in.lo = glm::min(in.lo, w);
+      in.hi = glm::max(in.hi, w);
+    }
+    // Normals go by the inverse transpose, which a similarity turns without
+    // changing their angles; any other widens a spread of them by at most
+    // normal_angle_widening (the whole sphere when that bound says nothing).
+    const double widening =
+        (inst.flags & kInstanceIdentity) ? 1.0 : normal_angle_widening(inst.object_to_world);
+    const glm::vec3 axis = to_glm(instance_normal(inst, root.axis));
+    in.cos_theta_o = -1.0f;
+    if (glm::dot(axis, axis) > 0.0f) {
+      in.axis = glm::normalize(axis);
+      const double sin_o = widening * double(root.sin_theta_o);
+      if (widening == 1.0) {
+        in.cos_theta_o = root.cos_theta_o;
+      } else if (root.cos_theta_o > 0.0f && sin_o < 1.0) {
+        // Below pi/2 all along (the sine never reaches 1), so the angle is
+        // the arcsine's.
+        in.cos_theta_o = float(std::sqrt(1.0 - sin_o * sin_o));
+      }
+    }
+    in.cos_theta_e = root.cos_theta_e;
+    in.two_sided = (root.flags & kLightTreeTwoSided) != 0;
     return in;
   }
-  in.lo = in.hi = vec(l.position);
+  in.lo = in.hi = to_glm(l.position);
   if (l.type == kLightSpot) {
     // No light beyond the outer cone.
-    in.axis = vec(l.direction);
+    in.axis = to_glm(l.direction);
     in.cos_theta_o = l.cos_outer;
     in.cos_theta_e = 1.0f;
   } else {
@@ -138,51 +226,105 @@ LightTreeInput light_tree_input(const KernelData& kd, uint32_t index, float powe
   return in;
 }
 
-}  // namespace
+bool SceneCompiler::tree_sampler() const {
+  return light_sampler_ == LightSampler::kTree;
+}
 
-void SceneCompiler::finish_light_tables(KernelScene& out, SceneDelta& delta) {
+// The alias table and total power from light_power_: with the tree, the
+// infinite lights' table beside it and the tree's share of the power.
+void SceneCompiler::compile_light_alias(KernelScene& out, bool with_tree) {
   const std::vector<double>& power = light_power_;
   double total = 0.0, finite = 0.0;
+  std::vector<double> infinite(power.size(), 0.0);
   for (size_t i = 0; i < power.size(); ++i) {
     total += power[i];
-    if (!light_at_infinity(out.lights[i])) finite += power[i];
+    if (light_at_infinity(out.lights[i])) {
+      infinite[i] = power[i];
+    } else {
+      finite += power[i];
+    }
   }
   out.constants.total_light_power = float(total);
   out.constants.light_tree_fraction = 0.0f;
-  out.light_tree_nodes.clear();
-  out.light_tree_trails.clear();
-  if (light_sampler_ == LightSampler::kTree && finite > 0.0) {
+  if (!with_tree || !(finite > 0.0)) {
+    out.light_alias = build_alias_table(power);
+    return;
+  }
+  // The finite lights' share goes to the tree; the infinite ones keep
+  // theirs, each entry's pdf its power over all (what the kernel's MIS
+  // reads for the environment), so only their own table is drawn from.
+  const float fraction = float(finite / total);
+  out.constants.light_tree_fraction = fraction;
+  if (fraction < 1.0f) {
+    out.light_alias = build_alias_table(infinite);
+    for (size_t i = 0; i < power.size(); ++i)
+      out.light_alias[i].pdf = float(infinite[i] / total);
+  } else {
+    out.light_alias.assign(power.size(), KAliasEntry{0.0f, 0, 0.0f, 0.0f});
+  }
+}
+
+void SceneCompiler::finish_light_tables(KernelScene& out, SceneDelta& delta) {
+  // The meshes' trees stay; the lights' tree after them is built anew.
+  out.light_tree_nodes.resize(mesh_light_tree_nodes_);
+  out.light_tree_trails.assign(out.lights.size(), 0);
+  top_leaf_of_.assign(out.lights.size(), kInvalidIndex);
+  out.constants.light_tree_root = kInvalidIndex;
+  if (tree_sampler()) {
     const KernelData kd = out.view();
     std::vector<LightTreeInput> inputs;
-    std::vector<double> infinite(power.size(), 0.0);
-    for (uint32_t i = 0; i < power.size(); ++i) {
-      if (light_at_infinity(out.lights[i])) {
-        infinite[i] = power[i];
-      } else if (power[i] > 0.0) {
-        inputs.push_back(light_tree_input(kd, i, float(power[i])));
-      }
+    for (uint32_t i = 0; i < light_power_.size(); ++i) {
+      if (!light_at_infinity(out.lights[i]) && light_power_[i] > 0.0)
+        inputs.push_back(light_tree_input(kd, i, float(light_power_[i])));
     }
-    LightTree tree = build_light_tree(std::move(inputs), uint32_t(power.size()));
-    out.light_tree_nodes = std::move(tree.nodes);
-    out.light_tree_trails = std::move(tree.trails);
-    // The finite lights' share goes to the tree; the infinite ones keep
-    // theirs, each entry's pdf its power over all (what the kernel's MIS
-    // reads for the environment), so only their own table is drawn from.
-    const float fraction = float(finite / total);
-    out.constants.light_tree_fraction = fraction;
-    if (fraction < 1.0f) {
-      out.light_alias = build_alias_table(infinite);
-      for (size_t i = 0; i < power.size(); ++i)
-        out.light_alias[i].pdf = float(infinite[i] / total);
-    } else {
-      out.light_alias.assign(power.size(), KAliasEntry{0.0f, 0, 0.0f, 0.0f});
-    }
-  } else {
-    out.light_alias = build_alias_table(power);
+    out.constants.light_tree_root = append_light_tree(std::move(inputs), out.light_tree_nodes,
+                                                      out.light_tree_trails, &top_shape_);
+    light_tree_leaves(out.light_tree_nodes, out.constants.light_tree_root, top_leaf_of_);
   }
+  compile_light_alias(out, out.constants.light_tree_root != kInvalidIndex);
   delta.light_tree_nodes.reallocated = true;
   delta.light_tree_trails.reallocated = true;
+  delta.light_alias.reallocated = true;
   delta.constants = true;
+}
+
+void SceneCompiler::refresh_light_tables(KernelScene& out, SceneDelta& delta,
+                                         std::vector<uint32_t> changed) {
+  const bool tree = out.constants.light_tree_root != kInvalidIndex;
+  if (tree_sampler() != tree) {
+    finish_light_tables(out, delta);
+    return;
+  }
+  // The tree keeps its shape when every light in it still has power and no
+  // light without one gained some: then only the changed lights' paths.
+  for (uint32_t i : changed) {
+    if (tree && !light_at_infinity(out.lights[i]) &&
+        (top_leaf_of_[i] != kInvalidIndex) != (light_power_[i] > 0.0)) {
+      finish_light_tables(out, delta);
+      return;
+    }
+  }
+  compile_light_alias(out, tree);
+  delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
+  delta.constants = true;
+  if (!tree) return;
+  std::vector<uint32_t> leaves;
+  for (uint32_t i : changed) {
+    if (top_leaf_of_[i] != kInvalidIndex) leaves.push_back(top_leaf_of_[i]);
+  }
+  std::sort(leaves.begin(), leaves.end());
+  leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());
+  const KernelData kd = out.view();
+  std::vector<uint32_t> rewritten;
+  refit_light_tree_paths(
+      out.light_tree_nodes, top_shape_, leaves,
+      [&](uint32_t light) { return light_tree_input(kd, light, float(light_power_[light])); },
+      &rewritten);
+  for (uint32_t node : rewritten) {
+    // A leaf's entries follow it.
+    const uint32_t count = out.light_tree_nodes[node].count;
+    delta.light_tree_nodes.mark(node, node + 1 + (count > 1 ? count : 0));
+  }
 }
 
 void SceneCompiler::note_light(const Scene& scene, uint32_t index) {
@@ -203,7 +345,6 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
   power.clear();
   const float radius = light_radius(scene_bounds(scene));
   lights_radius_ = radius;
-  triangle_powers_stale_ = false;
 
   for (const Light& l : scene.lights()) {
     note_light(scene, uint32_t(out.lights.size()));
@@ -222,40 +363,33 @@ void SceneCompiler::compile_lights(const Scene& scene, KernelScene& out, SceneDe
     power.push_back(environment_power(env_lum, radius));
   }
 
-  // Emissive triangles, one light per (instance, triangle). Power comes from
-  // the same kernel function the integrator uses for MIS.
+  // The meshes' triangle lights (and trees), then one light per instance
+  // of a mesh that has some.
+  compile_mesh_lights(out, delta);
   const KernelData kd = out.view();
-  out.instance_lights.assign(out.instances.size() + 1, 0);
+  out.instance_lights.assign(out.instances.size(), kInvalidIndex);
   emissive_mesh_instances_.assign(out.meshes.size(), {});
   for (uint32_t i = 0; i < out.instances.size(); ++i) {
-    const uint32_t mesh_index = out.instances[i].mesh;
+    const uint32_t mesh = out.instances[i].mesh;
+    if (out.mesh_lights[mesh].count == 0) continue;
+    emissive_mesh_instances_[mesh].push_back(i);
+    const double pw = instance_light_power(kd, out.instances[i]);
+    if (!(pw > 0.0)) continue;
+    KLight k{};
+    k.type = kLightMeshInstance;
+    k.instance = i;
+    k.power = float(pw);
     out.instance_lights[i] = uint32_t(out.lights.size());
-    out.instance_lights[i + 1] = uint32_t(out.lights.size());
-    if (!mesh_emissive_[mesh_index]) continue;
-    emissive_mesh_instances_[mesh_index].push_back(i);
-    const KMesh& km = out.meshes[mesh_index];
-    for (uint32_t p = 0; p < km.triangle_count; ++p) {
-      const KMaterial& m = out.materials[out.triangles[km.triangle_offset + p].material];
-      if (is_black(m.emission)) continue;
-      const float pw = triangle_light_power(m, triangle_world_area(kd, out.instances[i], p));
-      if (!(pw > 0.0f)) continue;
-      KLight k{};
-      k.type = kLightTriangle;
-      k.instance = i;
-      k.prim = p;
-      cache_triangle_light(kd, &k);
-      out.lights.push_back(k);
-      power.push_back(pw);
-    }
-    out.instance_lights[i + 1] = uint32_t(out.lights.size());
+    out.lights.push_back(k);
+    power.push_back(pw);
   }
-  delta.instance_lights.reallocated = true;
   finish_light_tables(out, delta);
+  delta.instance_lights.reallocated = true;
   delta.lights.reallocated = true;
-  delta.light_alias.reallocated = true;
 }
 
-void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta) {
+void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta,
+                                        std::vector<uint32_t>& changed) {
   const float radius = light_radius(scene_bounds(scene));
   lights_radius_ = radius;
   std::vector<uint32_t> dirty = scene.dirty_lights();
@@ -264,69 +398,36 @@ void SceneCompiler::update_light_powers(const Scene& scene, KernelScene& out, Sc
     note_light(scene, i);
     out.lights[i] = punctual_light(scene.lights()[i]);
     delta.lights.mark(i, i + 1);
+    changed.push_back(i);
   }
   // Directional powers follow the radius: all punctual lights, never the
-  // (many) triangle lights after them.
+  // (many) instance lights after them.
   for (uint32_t i = 0; i < scene.lights().size(); ++i)
     light_power_[i] = punctual_power(out.lights[i], radius);
   const uint32_t env = out.constants.environment_light_index;
   if (env != kInvalidIndex) {
     light_power_[env] = environment_power(environment_luminance(out.constants.environment), radius);
   }
-  finish_light_tables(out, delta);
-  delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
 }
 
-bool SceneCompiler::update_triangle_light_powers(const Scene& scene, KernelScene& out,
-                                                 SceneDelta& delta,
-                                                 const std::vector<uint32_t>& meshes,
-                                                 bool punctual_too) {
-  // Rigid moves since the last build changed powers in the last bits: only
-  // a full build then gives what a fresh compile would.
-  if (triangle_powers_stale_ || out.instance_lights.size() != out.instances.size() + 1 ||
-      emissive_mesh_instances_.size() != out.meshes.size() ||
-      light_power_.size() != out.lights.size()) {
-    return false;
-  }
+bool SceneCompiler::update_instance_lights(KernelScene& out, SceneDelta& delta,
+                                           const std::vector<uint32_t>& instances,
+                                           std::vector<uint32_t>& changed) {
+  if (out.instance_lights.size() != out.instances.size()) return false;
   const KernelData kd = out.view();
-  std::vector<float> power;
-  for (uint32_t m : meshes) {
-    const KMesh& km = out.meshes[m];
-    power.resize(km.triangle_count);
-    for (uint32_t i : emissive_mesh_instances_[m]) {
-      // The same computation as compile_lights(), so the powers (and the
-      // alias table built from them) are bit for bit a fresh compile's.
-      const KInstance& inst = out.instances[i];
-      tbb::parallel_for(tbb::blocked_range<uint32_t>(0, km.triangle_count, 16384), [&](auto r) {
-        for (uint32_t p = r.begin(); p < r.end(); ++p) {
-          const KMaterial& mat = out.materials[out.triangles[km.triangle_offset + p].material];
-          power[p] = is_black(mat.emission)
-                         ? 0.0f
-                         : triangle_light_power(mat, triangle_world_area(kd, inst, p));
-        }
-      });
-      // The lights of this instance are its triangles of positive power, in
-      // order; a triangle that gained or lost all its area changes the list.
-      uint32_t light = out.instance_lights[i];
-      const uint32_t end = out.instance_lights[i + 1];
-      for (uint32_t p = 0; p < km.triangle_count; ++p) {
-        if (!(power[p] > 0.0f)) continue;
-        if (light == end || out.lights[light].prim != p) return false;
-        light_power_[light++] = power[p];
-      }
-      if (light != end) return false;
-      // The cached vertices, normals and areas (and the powers from them)
-      // follow the new vertices.
-      for (light = out.instance_lights[i]; light < end; ++light)
-        cache_triangle_light(kd, &out.lights[light]);
-      if (out.instance_lights[i] < end) delta.lights.mark(out.instance_lights[i], end);
-    }
-  }
-  if (punctual_too) {
-    update_light_powers(scene, out, delta);
-  } else {
-    finish_light_tables(out, delta);
-    delta.light_alias.mark(0, uint32_t(out.light_alias.size()));
+  for (uint32_t i : instances) {
+    const uint32_t light = out.instance_lights[i];
+    const KInstance& inst = out.instances[i];
+    const bool emissive = out.mesh_lights[inst.mesh].count > 0;
+    const double pw = emissive ? instance_light_power(kd, inst) : 0.0;
+    // A light that appears, vanishes or changes mesh changes the list.
+    if ((light == kInvalidIndex) != !(pw > 0.0)) return false;
+    if (light == kInvalidIndex) continue;
+    if (out.lights[light].instance != i) return false;
+    light_power_[light] = pw;
+    out.lights[light].power = float(pw);
+    delta.lights.mark(light, light + 1);
+    changed.push_back(light);
   }
   return true;
 }

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/kernel/kernel_data.h"
+#include "core/world/light_tree_build.h"
 #include "core/world/scene.h"
 #include "core/world/scene_ranges.h"
 
@@ -152,6 +153,8 @@ class SceneCompiler {
     // Emissive meshes whose vertices moved: their triangle lights' powers
     // (areas) change, the light list does not (unless an area reaches 0).
     std::vector<uint32_t> emissive_deformed;
+    // Moved instances of emissive meshes: their lights' powers and bounds.
+    std::vector<uint32_t> emissive_moved;
   };
   bool needs_full_build(const Scene& scene) const;
   void compile_full(const Scene& scene, KernelScene& out, SceneDelta& delta);
@@ -197,17 +200,39 @@ class SceneCompiler {
   // compile_environment.cpp
   void compile_environment(const Scene& scene, KernelScene& out, SceneDelta& delta);
   // compile_lights.cpp
+  // The light list anew: punctual lights, the environment, the meshes'
+  // triangle lights and one light per instance of an emissive mesh.
   void compile_lights(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  // The alias table, total power and (with the tree sampler) the light tree
-  // from light_power_ and out.lights.
+  // The alias table, total power and (with the tree sampler) the tree over
+  // the light list's finite lights, built anew from light_power_.
   void finish_light_tables(KernelScene& out, SceneDelta& delta);
-  void update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta);
-  // The triangle lights of deformed emissive meshes: their powers for the
-  // moved vertices, O(those meshes' triangles) plus the alias table. False
-  // (nothing changed) when the light list itself would change, which only
-  // compile_lights() handles.
-  bool update_triangle_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta,
-                                    const std::vector<uint32_t>& meshes, bool punctual_too);
+  void compile_light_alias(KernelScene& out, bool with_tree);
+  // The same after the lights `changed` (indices of out.lights) changed
+  // within a list that kept its order: the alias table anew, the tree refit
+  // along their paths (built anew when a light entered or left it).
+  void refresh_light_tables(KernelScene& out, SceneDelta& delta, std::vector<uint32_t> changed);
+  // Dirty punctual lights and the powers that follow the scene's size; the
+  // lights whose records changed go to `changed`.
+  void update_light_powers(const Scene& scene, KernelScene& out, SceneDelta& delta,
+                           std::vector<uint32_t>& changed);
+  // The lights of `instances` (moved, or of deformed meshes): their world
+  // powers; false (for compile_lights) when one would enter or leave the list.
+  bool update_instance_lights(KernelScene& out, SceneDelta& delta,
+                              const std::vector<uint32_t>& instances,
+                              std::vector<uint32_t>& changed);
+  LightTreeInput light_tree_input(const KernelData& kd, uint32_t light, float power) const;
+  bool tree_sampler() const;
+  // compile_mesh_lights.cpp
+  // Every emissive mesh's triangle lights, its table or tree.
+  void compile_mesh_lights(KernelScene& out, SceneDelta& delta);
+  // Mesh `mesh`'s box of lights and (the power sampler) its alias table.
+  void mesh_light_tables(KernelScene& out, uint32_t mesh);
+  // Deformed emissive meshes: their triangle lights recomputed, tables
+  // rebuilt or trees refit, O(their triangles); their instances go to
+  // `instances`. False (nothing is left half done that compile_lights
+  // would not redo) when a triangle enters or leaves the list.
+  bool update_mesh_lights(KernelScene& out, SceneDelta& delta, const std::vector<uint32_t>& meshes,
+                          std::vector<uint32_t>& instances);
   bool scene_size_changed(const Scene& scene);
   // compile_constants.cpp
   void compile_constants(const Scene& scene, const RenderSettings& settings, KernelScene& out);
@@ -221,13 +246,19 @@ class SceneCompiler {
   std::vector<bool> mesh_emissive_;            // mesh uses an emissive material
   float lights_radius_ = -1.0f;                // scene radius the light powers were computed with
   // Every light's power as in light_alias, in the order of out.lights
-  // (punctual lights, the environment, triangles): a punctual light's
-  // change rebuilds the alias table from these without revisiting triangles.
+  // (punctual lights, the environment, instances of emissive meshes): a
+  // light's change rebuilds the alias table from these.
   std::vector<double> light_power_;
-  // The instances of each emissive mesh, so a deformed mesh finds its
-  // lights (each instance's are [out.instance_lights[i],
-  // out.instance_lights[i + 1]) of out.lights and light_power_).
+  // The instances of each mesh that has triangle lights, so a deformed mesh
+  // finds its instances' lights.
   std::vector<std::vector<uint32_t>> emissive_mesh_instances_;
+  // The tree sampler: the object-space box of each mesh's triangle lights,
+  // the end of the meshes' trees in out.light_tree_nodes (the lights' tree
+  // follows), that tree's boxes and parents, and the leaf of each light.
+  std::vector<glm::vec3> mesh_light_lo_, mesh_light_hi_;
+  uint32_t mesh_light_tree_nodes_ = 0;
+  LightTreeShape top_shape_;
+  std::vector<uint32_t> top_leaf_of_;
   // The instances of each mesh, for update_instances; and per instance the
   // state it was last noted hidden in (kVisible: never), so that each is
   // said once, and singular ones once for all.
@@ -238,10 +269,6 @@ class SceneCompiler {
   // said once while it stays so.
   void note_light(const Scene& scene, uint32_t light);
   std::vector<uint8_t> lights_noted_;
-  // An emissive instance moved rigidly since the light tables were built:
-  // its triangle powers may differ in the last bits, so the next light
-  // change rebuilds the tables in full, as if nothing were cached.
-  bool triangle_powers_stale_ = false;
   RenderSettings last_settings_{};
   // The sampler of the compile under way (the light tables follow it).
   LightSampler light_sampler_ = LightSampler::kPower;

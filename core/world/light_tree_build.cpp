@@ -85,22 +85,89 @@ glm::vec3 centre(const LightTreeInput& l) {
   return 0.5f * (l.lo + l.hi);
 }
 
+// A node's cone as the builder has it.
+Cone cone_of(const KLightTreeNode& n) {
+  return {glm::vec3(n.axis.x, n.axis.y, n.axis.z),
+          std::acos(std::clamp(n.cos_theta_o, -1.0f, 1.0f)),
+          std::acos(std::clamp(n.cos_theta_e, -1.0f, 1.0f)), false};
+}
+
+KLightTreeNode node_of(const Group& g) {
+  KLightTreeNode n{};
+  const glm::vec3 c = 0.5f * (g.lo + g.hi);
+  n.center = make_vec3(c.x, c.y, c.z);
+  n.radius = 0.5f * glm::length(g.hi - g.lo);
+  n.power = g.power;
+  n.axis = make_vec3(g.cone.axis.x, g.cone.axis.y, g.cone.axis.z);
+  n.cos_theta_o = std::cos(g.cone.theta_o);
+  n.sin_theta_o = std::sin(g.cone.theta_o);
+  n.cos_theta_e = std::cos(std::min(g.cone.theta_e, kPiF));
+  n.flags = g.two_sided ? kLightTreeTwoSided : 0u;
+  return n;
+}
+
+// Node `index` rewritten from its group, keeping what places it in the tree.
+void rewrite_node(KLightTreeNode& node, const Group& g) {
+  KLightTreeNode n = node_of(g);
+  n.flags |= node.flags & kLightTreeLeaf;
+  n.index = node.index;
+  n.count = node.count;
+  node = n;
+}
+
+// A leaf's group from its lights as they are now, its entries' shares
+// rewritten.
+Group refit_leaf(std::vector<KLightTreeNode>& nodes, uint32_t leaf, const LightTreeInputOf& input) {
+  Group g;
+  const uint32_t count = nodes[leaf].count;
+  if (count <= 1) {
+    g.add(input(nodes[leaf].index));
+  } else {
+    for (uint32_t k = 1; k <= count; ++k)
+      g.add(input(nodes[leaf + k].index));
+    for (uint32_t k = 1; k <= count; ++k) {
+      const float power = input(nodes[leaf + k].index).power;
+      nodes[leaf + k].power = g.power > 0.0f ? power / g.power : 1.0f / float(count);
+    }
+  }
+  rewrite_node(nodes[leaf], g);
+  return g;
+}
+
+Group refit_subtree(std::vector<KLightTreeNode>& nodes, uint32_t node,
+                    const LightTreeInputOf& input) {
+  if (nodes[node].flags & kLightTreeLeaf) return refit_leaf(nodes, node, input);
+  Group g = refit_subtree(nodes, node + 1, input);
+  g.add(refit_subtree(nodes, nodes[node].index, input));
+  rewrite_node(nodes[node], g);
+  return g;
+}
+
 class Builder {
  public:
-  Builder(std::vector<LightTreeInput>& lights, LightTree& out) : lights_(lights), out_(out) {}
+  Builder(std::vector<LightTreeInput>& lights, std::vector<KLightTreeNode>& nodes,
+          std::vector<uint64_t>& trails, LightTreeShape* shape)
+      : lights_(lights), nodes_(nodes), trails_(trails), shape_(shape) {}
 
-  // Lights [begin, end), at `depth` with path `trail`; returns the node.
-  uint32_t build(size_t begin, size_t end, uint32_t depth, uint64_t trail) {
+  // Lights [begin, end), at `depth` with path `trail`, below `parent`;
+  // returns the node.
+  uint32_t build(size_t begin, size_t end, uint32_t depth, uint64_t trail, uint32_t parent) {
     Group all;
     for (size_t i = begin; i < end; ++i)
       all.add(lights_[i]);
-    const uint32_t index = uint32_t(out_.nodes.size());
-    out_.nodes.push_back(node_of(all));
+    const uint32_t index = uint32_t(nodes_.size());
+    nodes_.push_back(node_of(all));
+    if (shape_) {
+      shape_->resize(nodes_.size());
+      shape_->lo[index - shape_->base] = all.lo;
+      shape_->hi[index - shape_->base] = all.hi;
+      shape_->parent[index - shape_->base] = parent;
+    }
     if (end - begin == 1) {
-      out_.nodes[index].flags |= kLightTreeLeaf;
-      out_.nodes[index].index = lights_[begin].light;
-      out_.nodes[index].count = 1;
-      out_.trails[lights_[begin].light] = trail;
+      nodes_[index].flags |= kLightTreeLeaf;
+      nodes_[index].index = lights_[begin].light;
+      nodes_[index].count = 1;
+      trails_[lights_[begin].light] = trail;
       return index;
     }
     float split_cost = INFINITY;
@@ -112,9 +179,9 @@ class Builder {
       make_leaf(index, begin, end, all, trail);
       return index;
     }
-    build(begin, mid, depth + 1, trail);
-    const uint32_t second = build(mid, end, depth + 1, trail | (uint64_t(1) << depth));
-    out_.nodes[index].index = second;
+    build(begin, mid, depth + 1, trail, index);
+    const uint32_t second = build(mid, end, depth + 1, trail | (uint64_t(1) << depth), index);
+    nodes_[index].index = second;
     return index;
   }
 
@@ -122,7 +189,7 @@ class Builder {
   // Node `index` as a leaf of lights [begin, end), its entries after it,
   // each light's probability within it its share of the power.
   void make_leaf(uint32_t index, size_t begin, size_t end, const Group& all, uint64_t trail) {
-    KLightTreeNode& leaf = out_.nodes[index];
+    KLightTreeNode& leaf = nodes_[index];
     leaf.flags |= kLightTreeLeaf;
     leaf.count = uint32_t(end - begin);
     leaf.index = lights_[begin].light;
@@ -130,23 +197,10 @@ class Builder {
       KLightTreeNode entry{};
       entry.index = lights_[i].light;
       entry.power = lights_[i].power / all.power;
-      out_.nodes.push_back(entry);
-      out_.trails[lights_[i].light] = trail;
+      nodes_.push_back(entry);
+      trails_[lights_[i].light] = trail;
     }
-  }
-
-  static KLightTreeNode node_of(const Group& g) {
-    KLightTreeNode n{};
-    const glm::vec3 c = 0.5f * (g.lo + g.hi);
-    n.center = make_vec3(c.x, c.y, c.z);
-    n.radius = 0.5f * glm::length(g.hi - g.lo);
-    n.power = g.power;
-    n.axis = make_vec3(g.cone.axis.x, g.cone.axis.y, g.cone.axis.z);
-    n.cos_theta_o = std::cos(g.cone.theta_o);
-    n.sin_theta_o = std::sin(g.cone.theta_o);
-    n.cos_theta_e = std::cos(std::min(g.cone.theta_e, kPiF));
-    n.flags = g.two_sided ? kLightTreeTwoSided : 0u;
-    return n;
+    if (shape_) shape_->resize(nodes_.size());
   }
 
   // Where [begin, end) splits: the cheapest of 12 buckets on each axis by
@@ -220,24 +274,102 @@ class Builder {
   }
 
   std::vector<LightTreeInput>& lights_;
-  LightTree& out_;
+  std::vector<KLightTreeNode>& nodes_;
+  std::vector<uint64_t>& trails_;
+  LightTreeShape* shape_;
 };
 
 }  // namespace
 
-LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_count) {
-  LightTree tree;
-  tree.trails.assign(light_count, 0);
+uint32_t append_light_tree(std::vector<LightTreeInput> lights, std::vector<KLightTreeNode>& nodes,
+                           std::vector<uint64_t>& trails, LightTreeShape* shape) {
   lights.erase(std::remove_if(lights.begin(), lights.end(),
                               [&](const LightTreeInput& l) {
                                 return !(l.power > 0.0f) || !std::isfinite(l.power) ||
-                                       l.light >= light_count;
+                                       l.light >= trails.size();
                               }),
                lights.end());
-  if (lights.empty()) return tree;
-  tree.nodes.reserve(2 * lights.size());
-  Builder(lights, tree).build(0, lights.size(), 0, 0);
+  if (shape) *shape = LightTreeShape{uint32_t(nodes.size())};
+  if (lights.empty()) return 0xffffffffu;
+  nodes.reserve(nodes.size() + 2 * lights.size());
+  return Builder(lights, nodes, trails, shape).build(0, lights.size(), 0, 0, 0xffffffffu);
+}
+
+LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_count) {
+  LightTree tree;
+  tree.trails.assign(light_count, 0);
+  append_light_tree(std::move(lights), tree.nodes, tree.trails);
   return tree;
+}
+
+void refit_light_tree(std::vector<KLightTreeNode>& nodes, uint32_t root,
+                      const LightTreeInputOf& input, glm::vec3* lo, glm::vec3* hi) {
+  const Group g = refit_subtree(nodes, root, input);
+  *lo = g.lo;
+  *hi = g.hi;
+}
+
+void refit_light_tree_paths(std::vector<KLightTreeNode>& nodes, LightTreeShape& shape,
+                            const std::vector<uint32_t>& leaves, const LightTreeInputOf& input,
+                            std::vector<uint32_t>* rewritten) {
+  std::vector<uint32_t> above;
+  for (uint32_t leaf : leaves) {
+    const Group g = refit_leaf(nodes, leaf, input);
+    shape.lo[leaf - shape.base] = g.lo;
+    shape.hi[leaf - shape.base] = g.hi;
+    rewritten->push_back(leaf);
+    if (shape.parent[leaf - shape.base] != 0xffffffffu)
+      above.push_back(shape.parent[leaf - shape.base]);
+  }
+  // Level by level from the deepest: a parent's index is below its
+  // children's (depth first), so the largest pending index has none of its
+  // descendants pending; each node is rewritten once.
+  std::sort(above.begin(), above.end());
+  above.erase(std::unique(above.begin(), above.end()), above.end());
+  while (!above.empty()) {
+    const uint32_t node = above.back();
+    above.pop_back();
+    Group g;
+    for (const uint32_t child : {node + 1, nodes[node].index}) {
+      Group c;
+      c.lo = shape.lo[child - shape.base];
+      c.hi = shape.hi[child - shape.base];
+      c.cone = cone_of(nodes[child]);
+      c.power = nodes[child].power;
+      c.two_sided = (nodes[child].flags & kLightTreeTwoSided) != 0;
+      g.add(c);
+    }
+    rewrite_node(nodes[node], g);
+    shape.lo[node - shape.base] = g.lo;
+    shape.hi[node - shape.base] = g.hi;
+    rewritten->push_back(node);
+    const uint32_t parent = shape.parent[node - shape.base];
+    if (parent != 0xffffffffu) {
+      // Keep `above` sorted and unique.
+      const auto at = std::lower_bound(above.begin(), above.end(), parent);
+      if (at == above.end() || *at != parent) above.insert(at, parent);
+    }
+  }
+}
+
+void light_tree_leaves(const std::vector<KLightTreeNode>& nodes, uint32_t root,
+                       std::vector<uint32_t>& leaf_of) {
+  if (root >= nodes.size()) return;
+  std::vector<uint32_t> stack{root};
+  while (!stack.empty()) {
+    const uint32_t node = stack.back();
+    stack.pop_back();
+    const KLightTreeNode& n = nodes[node];
+    if (!(n.flags & kLightTreeLeaf)) {
+      stack.push_back(node + 1);
+      stack.push_back(n.index);
+    } else if (n.count <= 1) {
+      leaf_of[n.index] = node;
+    } else {
+      for (uint32_t k = 1; k <= n.count; ++k)
+        leaf_of[nodes[node + k].index] = node;
+    }
+  }
 }
 
 }  // namespace tandem

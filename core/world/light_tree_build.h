@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -33,5 +34,48 @@ struct LightTree {
 
 // `light_count`: the size of the light list the inputs index into.
 LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_count);
+
+// What refit_light_tree_paths needs of a tree besides its nodes, per node
+// from `base`, its root (entries included, whose values mean nothing).
+struct LightTreeShape {
+  uint32_t base = 0;
+  std::vector<glm::vec3> lo, hi;  // the box of each node's lights
+  std::vector<uint32_t> parent;   // 0xffffffff: the root or an entry
+  void resize(size_t node_count) {
+    lo.resize(node_count - base, glm::vec3(0.0f));
+    hi.resize(node_count - base, glm::vec3(0.0f));
+    parent.resize(node_count - base, 0xffffffffu);
+  }
+};
+
+// Appends the tree over `lights` to `nodes` (its child indices those of the
+// whole array: several trees share one), writing each light's trail to
+// trails[light] (the caller sizes `trails`); returns its root, or
+// 0xffffffff when no light has power. With `shape`, its boxes and parents
+// too (resized to the nodes).
+uint32_t append_light_tree(std::vector<LightTreeInput> lights, std::vector<KLightTreeNode>& nodes,
+                           std::vector<uint64_t>& trails, LightTreeShape* shape = nullptr);
+
+// A light's current LightTreeInput, by its index.
+using LightTreeInputOf = std::function<LightTreeInput(uint32_t light)>;
+
+// The bounds, cones and powers of the tree at nodes[root] recomputed from
+// its lights as they are now, its shape kept: what a deformed mesh's tree
+// pays, O(its nodes), instead of a build. Returns the root's box.
+void refit_light_tree(std::vector<KLightTreeNode>& nodes, uint32_t root,
+                      const LightTreeInputOf& input, glm::vec3* lo, glm::vec3* hi);
+
+// Only the leaves `leaves` (of a tree appended with `shape`) and the nodes
+// above them recomputed, each from its children's boxes (kept in `shape`)
+// and cones: O(leaves x depth), what a moved instance or light costs. The
+// nodes rewritten go to *rewritten.
+void refit_light_tree_paths(std::vector<KLightTreeNode>& nodes, LightTreeShape& shape,
+                            const std::vector<uint32_t>& leaves, const LightTreeInputOf& input,
+                            std::vector<uint32_t>* rewritten);
+
+// The nodes of the leaves of the tree at `root` by light: leaf_of[light]
+// (sized by the caller) for each of its lights.
+void light_tree_leaves(const std::vector<KLightTreeNode>& nodes, uint32_t root,
+                       std::vector<uint32_t>& leaf_of);
 
 }  // namespace tandem

@@ -76,17 +76,26 @@ SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& sett
     if (needs.full) {
       delta = SceneDelta{};
       compile_full(scene, out, delta);
-    } else if (needs.light_list || (needs.light_powers && triangle_powers_stale_)) {
+    } else if (needs.light_list) {
       compile_lights(scene, out, delta);
-    } else if (!needs.emissive_deformed.empty()) {
-      // Deformed emissive meshes: their triangle powers only, unless the
-      // light list changes.
-      if (!update_triangle_light_powers(scene, out, delta, needs.emissive_deformed,
-                                        needs.light_powers)) {
+    } else if (!needs.emissive_deformed.empty() || !needs.emissive_moved.empty() ||
+               needs.light_powers) {
+      // What changed, in place: deformed meshes' triangles, then the lights
+      // of their instances and of moved ones, then punctual lights; the
+      // light list keeps its order, or is built anew.
+      std::vector<uint32_t> instances = needs.emissive_moved, changed;
+      bool in_place = update_mesh_lights(out, delta, needs.emissive_deformed, instances);
+      std::sort(instances.begin(), instances.end());
+      instances.erase(std::unique(instances.begin(), instances.end()), instances.end());
+      in_place = in_place && update_instance_lights(out, delta, instances, changed);
+      // The powers that follow the scene's size with the rest: the tables
+      // are rebuilt anyway, and then are a fresh compile's.
+      if (in_place) update_light_powers(scene, out, delta, changed);
+      if (in_place) {
+        refresh_light_tables(out, delta, std::move(changed));
+      } else {
         compile_lights(scene, out, delta);
       }
-    } else if (needs.light_powers) {
-      update_light_powers(scene, out, delta);
     }
   }
   // Constants after everything: any change above may move the bounds.
