@@ -43,13 +43,22 @@ int run_info(const std::vector<std::string>& argv) {
   request.load.gltf_summary = &gltf;
   const Scene scene = load_requested_scene(request, "tandem");
 
-  size_t emissive_triangles = 0;
-  for (const Instance& inst : scene.instances()) {
-    const Mesh& mesh = scene.meshes()[inst.mesh];
-    for (uint32_t mat : mesh.triangle_materials) {
-      if (mat < scene.materials().size() && material_emits(scene.materials()[mat]))
-        ++emissive_triangles;
+  // Emissive triangles placed, and the lights the renderer keeps for them:
+  // each emissive mesh's triangles once, one per instance of one.
+  size_t emissive_triangles = 0, emissive_instances = 0, mesh_lights = 0;
+  std::vector<size_t> per_mesh(scene.meshes().size(), 0);
+  for (size_t m = 0; m < scene.meshes().size(); ++m) {
+    for (uint32_t mat : scene.meshes()[m].triangle_materials) {
+      if (mat < scene.materials().size() && material_emits(scene.materials()[mat])) ++per_mesh[m];
     }
+  }
+  std::vector<bool> counted(per_mesh.size(), false);
+  for (const Instance& inst : scene.instances()) {
+    if (inst.mesh >= per_mesh.size() || per_mesh[inst.mesh] == 0) continue;
+    emissive_triangles += per_mesh[inst.mesh];
+    ++emissive_instances;
+    if (!counted[inst.mesh]) mesh_lights += per_mesh[inst.mesh];
+    counted[inst.mesh] = true;
   }
   size_t vertices = 0;
   for (const Mesh& m : scene.meshes())
@@ -76,6 +85,10 @@ int run_info(const std::vector<std::string>& argv) {
   std::printf("textures:   %zu\n", scene.textures().size());
   std::printf("lights:     %zu punctual, %zu emissive triangles%s\n", scene.lights().size(),
               emissive_triangles, scene.environment().texels.empty() ? "" : ", environment map");
+  if (emissive_instances > 0) {
+    std::printf("            (%zu triangle lights in the meshes, %zu emissive instances)\n",
+                mesh_lights, emissive_instances);
+  }
   if (b.empty) {
     std::printf("bounds:     empty\n");
   } else {

@@ -42,8 +42,8 @@ uint64_t Context::limit(Budget budget) const {
       return limits.max_texture_bytes;
     case Budget::kNameBytes:
       return limits.max_name_bytes;
-    case Budget::kEmissiveTriangles:
-      return limits.max_emissive_triangles;
+    case Budget::kEmissiveLights:
+      return limits.max_emissive_lights;
   }
   return 0;
 }
@@ -77,12 +77,12 @@ void Context::charge(Budget budget, uint64_t amount, const std::string& what) co
       case Budget::kNameBytes:
         kind = "instance names";
         break;
-      case Budget::kEmissiveTriangles:
-        kind = "emissive triangles (one light for each triangle of each instance)";
+      case Budget::kEmissiveLights:
+        kind = "lights (one for each emissive triangle of a mesh, one for each instance of one)";
         break;
     }
     const bool counts = budget == Budget::kZeroFilledElements || budget == Budget::kInstances ||
-                        budget == Budget::kEmissiveTriangles;
+                        budget == Budget::kEmissiveLights;
     auto size = [&](uint64_t v) { return counts ? std::to_string(v) : format_bytes(v); };
     fail(what + " needs " + size(amount) + " more " + (counts ? "" : "of ") + kind + " (" +
          size(used) + " already used), over this loader's limit of " + size(cap) +

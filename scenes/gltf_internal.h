@@ -42,8 +42,8 @@ enum class Budget {
   kGeometryBytes,
   kInstances,
   kTextureBytes,
-  kNameBytes,          // instance names (a node's name is copied to each of its instances)
-  kEmissiveTriangles,  // emissive triangles times instances: one light record each
+  kNameBytes,       // instance names (a node's name is copied to each of its instances)
+  kEmissiveLights,  // each emissive mesh's triangles once, and its instances: a light record each
 };
 constexpr int kBudgetCount = 7;
 

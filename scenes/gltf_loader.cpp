@@ -211,8 +211,8 @@ class SceneBuilder {
     return node.name.substr(0, kMaxNameBytes - 3) + "...";
   }
 
-  // Emissive triangles of tandem mesh `id`: each becomes a light record
-  // for every instance of it.
+  // Emissive triangles of tandem mesh `id`: each becomes a light record,
+  // once for all the instances of it.
   uint64_t emissive_triangles(int id) {
     if (emissive_counts_.size() <= size_t(id)) emissive_counts_.resize(size_t(id) + 1, -1);
     int64_t& n = emissive_counts_[size_t(id)];
@@ -235,7 +235,12 @@ class SceneBuilder {
                     " named '" + name.substr(0, 40) + (name.size() > 40 ? "...'" : "'") + ")");
     const uint64_t lights = emissive_triangles(mesh);
     if (lights > 0) {
-      ctx_.charge(gltf::Budget::kEmissiveTriangles, count * lights,
+      // The mesh's triangles the first time it is placed, a light for
+      // each instance every time.
+      if (emissive_charged_.size() <= size_t(mesh)) emissive_charged_.resize(size_t(mesh) + 1, 0);
+      const uint64_t once = emissive_charged_[size_t(mesh)] ? 0 : lights;
+      emissive_charged_[size_t(mesh)] = 1;
+      ctx_.charge(gltf::Budget::kEmissiveLights, once + count,
                   who + " (" + std::to_string(count) + " instance" + (count == 1 ? "" : "s") +
                       " of mesh '" + new_meshes_[size_t(mesh)].name.substr(0, 40) + "' with " +
                       std::to_string(lights) + " emissive triangles)");
@@ -467,7 +472,8 @@ class SceneBuilder {
   const std::vector<Material>& materials_;
   std::vector<int64_t> emissive_counts_;  // by tandem mesh; -1: not counted yet
   std::vector<int> mesh_ids_;
-  std::vector<bool> deformed_use_;  // by glTF mesh: some node deforms it
+  std::vector<uint8_t> emissive_charged_;  // charge_instances: the mesh's lights charged
+  std::vector<bool> deformed_use_;         // by glTF mesh: some node deforms it
   std::vector<gltf::DeformedNode> deformed_;
   std::map<std::string, int> mesh_by_key_;
   std::vector<Mesh> new_meshes_;

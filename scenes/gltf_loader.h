@@ -46,9 +46,10 @@ struct GltfLimits {
   // Instance names: a node's name is copied to each of its instances (and
   // EXT_mesh_gpu_instancing makes many); names are cut to 256 bytes.
   uint64_t max_name_bytes = uint64_t(64) << 20;
-  // Emissive triangles times the instances that place them: the renderer
-  // keeps one light record (about 100 bytes) for each.
-  uint64_t max_emissive_triangles = uint64_t(1) << 21;
+  // Light records: the renderer keeps one (64 bytes) for each emissive
+  // triangle of a mesh, once however often the mesh is placed, and one for
+  // each instance of an emissive mesh.
+  uint64_t max_emissive_lights = uint64_t(1) << 21;
 };
 
 struct GltfOptions {

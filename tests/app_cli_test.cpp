@@ -123,6 +123,12 @@ TEST(CliTest, InfoPrintsCounts) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("triangles:  38"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("2 emissive triangles"), std::string::npos) << r.output;
+  // The many-light scene's bulbs: four meshes of two triangles, instanced.
+  const RunResult many = run_tandem("info builtin:many-lights");
+  ASSERT_EQ(many.exit_code, 0) << many.output;
+  EXPECT_NE(many.output.find("triangle lights in the meshes, 1537 emissive instances"),
+            std::string::npos)
+      << many.output;
 }
 
 TEST(CliTest, InfoListsTheFilesExtensionsAndWhatBecomesOfThem) {

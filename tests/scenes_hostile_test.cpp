@@ -397,27 +397,27 @@ TEST(GltfHostile, InstanceNamesAreCutAndBudgeted) {
   EXPECT_NE(error.find("limit of 4.9 KiB"), std::string::npos) << error;
 }
 
-// One light record per emissive triangle and instance: 5.6 KB of glTF
-// asked for 1.4 GB. The product is charged before any instance is made.
-TEST(GltfHostile, EmissiveTrianglesTimesInstancesAreBudgeted) {
+// One light record per emissive triangle and instance was 1.4 GB for 5.6
+// KB of glTF; now a mesh's triangles are lights once and each instance is
+// one, and the file is still charged for them before any instance is made.
+TEST(GltfHostile, EmissiveLightsAreBudgeted) {
   TempDir dir("tandem_hostile");
   const fs::path file = dir.path() / "glow.gltf";
   write_text(file, instanced_gltf("lamp", 100, true));
   GltfOptions options;
-  options.limits.max_emissive_triangles = 99;
+  options.limits.max_emissive_lights = 100;
   const std::string error = load_error(file, options);
   EXPECT_EQ(error.rfind(file.string() + ": node 0 EXT_mesh_gpu_instancing (100 instances of mesh "
-                                        "'glow' with 1 emissive triangles) needs 100 more "
-                                        "emissive triangles",
+                                        "'glow' with 1 emissive triangles) needs 101 more lights",
                         0),
             0u)
       << error;
-  EXPECT_NE(error.find("limit of 99"), std::string::npos) << error;
-  options.limits.max_emissive_triangles = 100;
+  EXPECT_NE(error.find("limit of 100"), std::string::npos) << error;
+  options.limits.max_emissive_lights = 101;
   EXPECT_EQ(load_error(file, options), "");
   // Not emissive: nothing is charged.
   write_text(file, instanced_gltf("lamp", 100, false));
-  options.limits.max_emissive_triangles = 0;
+  options.limits.max_emissive_lights = 0;
   EXPECT_EQ(load_error(file, options), "");
 }
 
