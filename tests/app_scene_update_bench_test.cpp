@@ -31,14 +31,16 @@ TEST(BenchSceneUpdate, JsonListsEveryCaseOfEveryScene) {
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const json_test::Node n = json_test::parse(text);
   ASSERT_EQ(n.type, json_test::Node::Type::kArray);
-  const char* cases[] = {"move_1", "move_100", "material_1", "light_1"};
+  // Both scenes have emissive instances: the moving-light cases too.
+  const char* cases[] = {"move_1",  "move_100",     "material_1",
+                         "light_1", "move_light_1", "move_light_100"};
   const char* scenes[] = {"builtin:cornell", "builtin:arena"};
-  ASSERT_EQ(n.items.size(), 8u);
+  ASSERT_EQ(n.items.size(), 12u);
   for (size_t i = 0; i < n.items.size(); ++i) {
     const json_test::Node& e = n[i];
     ASSERT_EQ(e.members.size(), 3u) << i;
-    EXPECT_EQ(e["scene"].string, scenes[i / 4]) << i;
-    EXPECT_EQ(e["case"].string, cases[i % 4]) << i;
+    EXPECT_EQ(e["scene"].string, scenes[i / 6]) << i;
+    EXPECT_EQ(e["case"].string, cases[i % 6]) << i;
     ASSERT_TRUE(e["median_ms"].is_number()) << i;
     EXPECT_GE(e["median_ms"].number, 0.0) << i;
   }

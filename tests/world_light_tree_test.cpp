@@ -247,6 +247,13 @@ Scene all_lights_scene() {
   s.add_instance({"d", 0,
                   glm::scale(glm::translate(glm::mat4(1.0f), glm::vec3(-3.0f, 1.0f, 2.0f)),
                              glm::vec3(1.5f, 0.5f, 1.0f))});
+  // Mirrored and sheared: the front (the winding's side) flips with the
+  // handedness, which the tree's object-space tests must follow.
+  glm::mat4 shear(1.0f);
+  shear[1][0] = 0.4f;
+  s.add_instance({"e", 0,
+                  glm::translate(glm::mat4(1.0f), glm::vec3(2.0f, 3.0f, -2.0f)) * shear *
+                      glm::scale(glm::mat4(1.0f), glm::vec3(-1.0f, 1.0f, 1.0f))});
   // A flat lamp off to the side: its two triangles a leaf of two.
   Mesh lamp;
   append_quad(lamp, {4.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 4.0f}, {5.0f, 3.0f, 5.0f}, {4.0f, 3.0f, 5.0f},

@@ -28,8 +28,9 @@ namespace {
 const std::vector<OptionSpec>& scene_update_options() {
   static const std::vector<OptionSpec> specs = {
       {"scene-update", false,
-       "measure SyncScene + UpdateAccStruc for one instance, 100 instances, one material and one "
-       "light changed (default scenes: builtin:procedural builtin:arena)"},
+       "measure SyncScene + UpdateAccStruc for one instance, 100 instances, one and 100 emissive "
+       "instances (lights), one material and one light changed (default scenes: "
+       "builtin:procedural builtin:arena builtin:many-lights)"},
       {"repeats", true, "timed updates per case (default 31)", "N"},
       {"threads", true, "CPU worker threads (default: all cores)", "N"},
       {"json", true, "also write a list of {scene, case, median_ms} to FILE as JSON", "FILE"},
@@ -45,20 +46,36 @@ struct UpdateCase {
   std::function<void(Scene&, uint32_t repeat)> edit;
 };
 
-// `count` instances spread evenly over the scene (all of them when fewer).
-std::vector<uint32_t> spread_instances(const Scene& scene, uint32_t count) {
-  const uint32_t n = uint32_t(scene.instances().size());
+// `count` of `among` spread evenly over it (all of them when fewer).
+std::vector<uint32_t> spread_instances(const std::vector<uint32_t>& among, uint32_t count) {
+  const uint32_t n = uint32_t(among.size());
   std::vector<uint32_t> picked;
   if (n == 0) return picked;
   count = std::min(count, n);
   for (uint32_t i = 0; i < count; ++i)
-    picked.push_back(uint32_t(uint64_t(i) * n / count));
+    picked.push_back(among[uint64_t(i) * n / count]);
   return picked;
 }
 
+bool material_glows(const Material& m) {
+  return m.emissive_strength > 0.0f && glm::length(m.emissive) > 0.0f;
+}
+
 std::vector<UpdateCase> update_cases(const Scene& scene) {
-  auto mover = [&scene](uint32_t count) {
-    const std::vector<uint32_t> picked = spread_instances(scene, count);
+  // Every instance, and those of a mesh that emits (a light each).
+  std::vector<uint32_t> all, emissive;
+  for (uint32_t i = 0; i < scene.instances().size(); ++i) {
+    all.push_back(i);
+    const Mesh& mesh = scene.mesh(scene.instances()[i].mesh);
+    if (std::any_of(mesh.triangle_materials.begin(), mesh.triangle_materials.end(),
+                    [&](uint32_t m) {
+                      return m < scene.materials().size() && material_glows(scene.materials()[m]);
+                    })) {
+      emissive.push_back(i);
+    }
+  }
+  auto mover = [&scene](const std::vector<uint32_t>& among, uint32_t count) {
+    const std::vector<uint32_t> picked = spread_instances(among, count);
     std::vector<glm::mat4> rest;
     for (uint32_t i : picked)
       rest.push_back(scene.instances()[i].transform);
@@ -73,15 +90,14 @@ std::vector<UpdateCase> update_cases(const Scene& scene) {
   // not a light-table rebuild.
   uint32_t material = 0;
   for (uint32_t i = 0; i < scene.materials().size(); ++i) {
-    const Material& m = scene.materials()[i];
-    if (!(m.emissive_strength > 0.0f && glm::length(m.emissive) > 0.0f)) {
+    if (!material_glows(scene.materials()[i])) {
       material = i;
       break;
     }
   }
-  return {
-      {"move_1", mover(1)},
-      {"move_100", mover(100)},
+  std::vector<UpdateCase> cases = {
+      {"move_1", mover(all, 1)},
+      {"move_100", mover(all, 100)},
       {"material_1",
        [material](Scene& s, uint32_t repeat) {
          s.edit_material(material).roughness = (repeat % 2) ? 0.5f : 0.6f;
@@ -89,6 +105,13 @@ std::vector<UpdateCase> update_cases(const Scene& scene) {
       {"light_1",
        [](Scene& s, uint32_t repeat) { s.edit_light(0).intensity *= (repeat % 2) ? 1.25f : 0.8f; }},
   };
+  // Moving lights: each moved instance's light and the light tree's path
+  // to it follow (only where the scene has some).
+  if (!emissive.empty()) {
+    cases.push_back({"move_light_1", mover(emissive, 1)});
+    cases.push_back({"move_light_100", mover(emissive, 100)});
+  }
+  return cases;
 }
 
 }  // namespace
@@ -106,11 +129,11 @@ int run_scene_update_bench(const std::vector<std::string>& argv) {
   const BenchThreads threads(args);
   const std::optional<std::string> json_path = checked_json_path(args);
   std::vector<std::string> specs = args.positionals();
-  if (specs.empty()) specs = {"builtin:procedural", "builtin:arena"};
+  if (specs.empty()) specs = {"builtin:procedural", "builtin:arena", "builtin:many-lights"};
 
   JsonValue report = JsonValue::array();
   RenderSettings settings;
-  std::printf("%-24s %-12s %12s\n", "scene", "case", "median ms");
+  std::printf("%-24s %-16s %12s\n", "scene", "case", "median ms");
   for (const std::string& spec : specs) {
     Scene scene = load_scene(spec);
     // light_1 needs a light to change.
@@ -129,7 +152,7 @@ int run_scene_update_bench(const std::vector<std::string>& argv) {
         if (r > 0) ms.push_back(t);
       }
       const double m = median(ms);
-      std::printf("%-24s %-12s %12.3f\n", spec.c_str(), c.name, m);
+      std::printf("%-24s %-16s %12.3f\n", spec.c_str(), c.name, m);
       report.push(JsonValue::object().set("scene", spec).set("case", c.name).set("median_ms", m));
     }
   }
