@@ -9,6 +9,7 @@ namespace tandem {
 
 int run_render(const std::vector<std::string>& args);
 int run_info(const std::vector<std::string>& args);
+int run_export(const std::vector<std::string>& args);
 int run_compare(const std::vector<std::string>& args);
 int run_bench(const std::vector<std::string>& args);
 void print_render_help();

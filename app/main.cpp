@@ -20,17 +20,19 @@ void print_usage() {
       "commands:\n"
       "  render SCENE   render a .gltf/.glb file or builtin:NAME to an image\n"
       "  info SCENE     print what a scene contains\n"
+      "  export SCENE   write a scene (a file or builtin:NAME) as one self-contained .gltf\n"
       "  compare A B    check that two linear renders agree up to Monte Carlo noise\n"
       "  bench [SCENE]  measure throughput against a plain Embree loop in the same run\n\n"
       "Run 'tandem <command> --help' (or -h) for the options of a command; 'tandem --version'\n"
       "prints the version.\n"
       "Built-in scenes: builtin:cornell, builtin:cornell-spheres, builtin:furnace, "
       "builtin:sky-plane,\n"
-      "builtin:arena, builtin:procedural\n");
+      "builtin:arena, builtin:procedural, builtin:many-lights\n");
 }
 
 bool is_subcommand(const std::string& name) {
-  return name == "render" || name == "info" || name == "compare" || name == "bench";
+  return name == "render" || name == "info" || name == "export" || name == "compare" ||
+         name == "bench";
 }
 
 }  // namespace
@@ -50,6 +52,7 @@ int main(int argc, char** argv) {
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (args[0] == "render") return tandem::run_render(rest);
     if (args[0] == "info") return tandem::run_info(rest);
+    if (args[0] == "export") return tandem::run_export(rest);
     if (args[0] == "compare") return tandem::run_compare(rest);
     if (args[0] == "bench") return tandem::run_bench(rest);
     throw tandem::UsageError("unknown command '" + args[0] + "'");

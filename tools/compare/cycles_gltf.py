@@ -17,6 +17,18 @@
 # keeps aside is not used by either renderer. Render settings are those of
 # cycles_common.py (unbiased path tracing, box filter, no denoising).
 #
+# With --gltf-camera the file's own camera is used, with --sky none the world
+# is black, and the file's punctual lights (KHR_lights_punctual, whose
+# intensity Tandem reads as radiometric: W/sr) become Cycles lights of the
+# same intensity: a Cycles point or spot light of power P watts has
+# intensity P / (4 pi) W/sr (measured: 100 W at 1 m over a white diffuse
+# plane gives radiance 2.533 = 100 / (4 pi) / pi), so P = 4 pi I. Cycles'
+# spot falls off by a smoothstep over the blend band (and the cosine to its
+# axis), Tandem's by t^2 over [cos outer, cos inner]: the band is matched,
+# not the shape. A material that is not double-sided emits from its front
+# only in Tandem; Cycles emits from both sides, so its emission is masked
+# on back faces (Cycles still samples them: its cost, not Tandem's).
+#
 # Prints `CYCLES_RENDER_SECONDS <s>` like cycles_cornell.py.
 import argparse
 import math
@@ -120,6 +132,90 @@ def add_sky_world(sky_path):
     bpy.context.scene.world = world
 
 
+def use_file_camera(gltf_path, aspect):
+    """The file's first camera, with Tandem's reading of its field of view
+    (yfov vertical, whatever the image's aspect)."""
+    import json
+    with open(gltf_path, encoding="utf-8") as f:
+        doc = json.load(f)
+    cams = [o for o in bpy.context.scene.objects if o.type == "CAMERA"]
+    if not cams or not doc.get("cameras"):
+        raise RuntimeError("--gltf-camera: the file has no camera")
+    cam = cams[0]
+    yfov = doc["cameras"][0]["perspective"]["yfov"]
+    cam.data.sensor_fit = "VERTICAL"
+    cam.data.sensor_height = 24.0
+    cam.data.sensor_width = 24.0 * aspect
+    cam.data.lens = 12.0 / math.tan(0.5 * yfov)
+    cam.data.shift_x = cam.data.shift_y = 0.0
+    cam.data.dof.use_dof = False
+    bpy.context.scene.camera = cam
+    return cam
+
+
+def set_punctual_lights(gltf_path):
+    """Each KHR_lights_punctual light at Tandem's radiometric intensity."""
+    import json
+    with open(gltf_path, encoding="utf-8") as f:
+        doc = json.load(f)
+    lights = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+    by_name = {l.get("name"): l for l in lights}
+    count = 0
+    for light in bpy.data.lights:
+        src = by_name.get(light.name)
+        if src is None:
+            continue
+        color = src.get("color", [1.0, 1.0, 1.0])
+        light.color = color
+        intensity = src.get("intensity", 1.0)
+        if light.type == "SUN":
+            light.energy = intensity  # W/m^2
+            light.angle = 0.0
+        else:
+            light.energy = 4.0 * math.pi * intensity
+            light.shadow_soft_size = 0.0
+        if light.type == "SPOT":
+            spot = src.get("spot", {})
+            outer = spot.get("outerConeAngle", math.pi / 4)
+            inner = spot.get("innerConeAngle", 0.0)
+            light.spot_size = 2.0 * outer
+            light.spot_blend = (math.cos(inner) - math.cos(outer)) / max(1.0 - math.cos(outer), 1e-6)
+        light.cycles.max_bounces = 1024
+        count += 1
+    return count
+
+
+def emit_from_front_only(gltf_path):
+    """Masks the emission of single-sided glTF materials on back faces."""
+    import json
+    with open(gltf_path, encoding="utf-8") as f:
+        doc = json.load(f)
+    double = {m.get("name"): m.get("doubleSided", False) for m in doc.get("materials", [])}
+    masked = 0
+    for mat in bpy.data.materials:
+        if not mat.use_nodes or double.get(mat.name, True):
+            continue
+        tree = mat.node_tree
+        for node in tree.nodes:
+            if node.type != "BSDF_PRINCIPLED":
+                continue
+            strength = node.inputs["Emission Strength"]
+            if strength.is_linked or strength.default_value == 0.0:
+                continue
+            color = node.inputs["Emission"]
+            if not color.is_linked and max(color.default_value[:3]) == 0.0:
+                continue
+            geometry = tree.nodes.new("ShaderNodeNewGeometry")
+            front = tree.nodes.new("ShaderNodeMath")
+            front.operation = "MULTIPLY_ADD"  # strength * (-backfacing) + strength
+            front.inputs[1].default_value = -strength.default_value
+            front.inputs[2].default_value = strength.default_value
+            tree.links.new(geometry.outputs["Backfacing"], front.inputs[0])
+            tree.links.new(front.outputs[0], strength)
+            masked += 1
+    return masked
+
+
 def pin_principled_to_tandem():
     """Sets the Principled inputs glTF has no value for to Tandem's BSDF."""
     pinned = {
@@ -213,7 +309,8 @@ def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     p = argparse.ArgumentParser(prog="cycles_gltf.py", description="Cycles reference render of a glTF model")
     p.add_argument("--gltf", required=True, help="the .gltf or .glb file")
-    p.add_argument("--sky", required=True, help="Tandem's built-in sky (data/env/sky.hdr)")
+    p.add_argument("--sky", required=True, help="Tandem's built-in sky (data/env/sky.hdr), or none")
+    p.add_argument("--gltf-camera", action="store_true", help="the file's camera, not one framing the bounds")
     p.add_argument("--spp", type=int, default=256)
     p.add_argument("--max-depth", type=int, default=16, help="Tandem's convention: 1 = direct light only")
     p.add_argument("--width", type=int, default=256)
@@ -227,7 +324,7 @@ def parse_args():
     if min(args.spp, args.width, args.height, args.threads) < 1:
         p.error("--spp, --width, --height and --threads must be >= 1")
     for path in (args.gltf, args.sky):
-        if not os.path.isfile(path):
+        if path != "none" and not os.path.isfile(path):
             p.error(f"{path}: no such file")
     return args
 
@@ -252,11 +349,23 @@ def main():
     if dropped:
         print(f"CYCLES_MISSING_TEXTURES {' '.join(dropped)}", flush=True)
     pinned = pin_principled_to_tandem()
-    position, fwd, distance = add_bounds_camera(args.width / args.height)
-    add_sky_world(args.sky)
+    lights = set_punctual_lights(args.gltf)
+    masked = emit_from_front_only(args.gltf)
+    if args.gltf_camera:
+        cam = use_file_camera(args.gltf, args.width / args.height)
+        where = f"camera=file ({cam.name})"
+    else:
+        position, fwd, distance = add_bounds_camera(args.width / args.height)
+        where = f"camera=({position.x:.4f},{position.y:.4f},{position.z:.4f}) distance={distance:.4f}"
+    if args.sky == "none":
+        world = bpy.data.worlds.new("black")
+        world.use_nodes = True
+        world.node_tree.nodes.get("Background").inputs["Strength"].default_value = 0.0
+        bpy.context.scene.world = world
+    else:
+        add_sky_world(args.sky)
     configure_render(args)
-    render_and_save(args, f"materials={pinned} camera=({position.x:.4f},{position.y:.4f},{position.z:.4f}) "
-                          f"distance={distance:.4f}")
+    render_and_save(args, f"materials={pinned} lights={lights} front-only emitters={masked} {where}")
 
 
 if __name__ == "__main__":

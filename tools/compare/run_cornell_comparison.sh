@@ -24,6 +24,12 @@
 #                 a 1-spp render; Cycles: the log's first "Sample" line) and
 #                 report samples/s of the sampling alone; default 1 for
 #                 helmet (image loading and BVH build are seconds), else 0
+#   VARIANT=many-lights  Tandem's builtin:many-lights (1,537 emissive
+#                 instances, 8 points and spots), written by `tandem export`
+#                 and imported into Cycles with its own camera, lights at
+#                 Tandem's intensities and a black world (cycles_gltf.py);
+#                 the noise is also compared relative to each image's mean,
+#                 as the two BSDF models do not give the same brightness
 # MAX_DEPTH uses Tandem's convention (1 = direct light only); the Cycles
 # script maps it to max_bounces = MAX_DEPTH - 1.
 set -euo pipefail
@@ -53,7 +59,12 @@ case "$variant" in
     cycles_scene_args=(--gltf "$scene" --sky "$root/data/env/sky.hdr")
     default_extra=1
     ;;
-  *) echo "error: VARIANT must be cornell, spheres or helmet" >&2; exit 2 ;;
+  many-lights)
+    scene=builtin:many-lights
+    cycles_script=$here/cycles_gltf.py
+    default_extra=1
+    ;;
+  *) echo "error: VARIANT must be cornell, spheres, helmet or many-lights" >&2; exit 2 ;;
 esac
 cycles_control=${CYCLES_CONTROL:-$default_extra}
 setup=${SETUP:-$default_extra}
@@ -82,6 +93,10 @@ os._exit(0)' >/dev/null 2>&1 || probe=$?
   esac
 fi
 mkdir -p "$out"
+if [[ "$variant" == many-lights ]]; then
+  "$tandem" export "$scene" --output "$out/many-lights.gltf" >/dev/null
+  cycles_scene_args=(--gltf "$out/many-lights.gltf" --sky none --gltf-camera)
+fi
 tag="${variant}_${width}x${height}_${spp}spp_d${depth}"
 echo "settings: ${width}x${height}, $spp spp, max depth $depth (Cycles max_bounces $((depth - 1))), $threads threads"
 echo "output:   $out"
@@ -194,7 +209,13 @@ if [[ "$control" != 0 ]]; then
   [[ "$cycles_control" != 0 ]] && rmse_cc=$(rmse_of "$cycles_exr" "$out/cycles_${tag}_seed1.exr")
   echo
   echo "== per-pixel noise, $spp spp =="
+  # Each image's mean over its channels: the noise relative to it compares
+  # renderers whose materials differ in brightness.
+  means=$(sed -n 's/.*"mean_a": \[\([^]]*\)\], "mean_b": \[\([^]]*\)\].*/\1,\2/p' "$out/compare.json" |
+    awk -F, '{ printf "%.9g %.9g", ($1 + $2 + $3) / 3, ($4 + $5 + $6) / 3 }')
+  read -r mean_t mean_c <<<"$means"
   awk -v tt="$rmse_tt" -v tc="$rmse_tc" -v cc="$rmse_cc" -v ts="$tandem_s" -v cs="$cycles_s" \
+    -v mt="${mean_t:-nan}" -v mc="${mean_c:-nan}" \
     -v tcpu="$tandem_cpu" -v ccpu="$cycles_cpu" -v tsu="$tandem_setup_s" -v csu="$cycles_setup_s" 'BEGIN {
     st = tt / sqrt(2)
     if (cc != "nan") { sc = cc / sqrt(2); how = "two Cycles seeds" }
@@ -213,5 +234,12 @@ if [[ "$control" != 0 ]]; then
     if (tcpu + 0 > 0 && ccpu + 0 > 0) printf ", process CPU %.2fx", ccpu / tcpu * r
     if (tsu != "nan" && csu != "nan") printf ", sampling alone %.2fx", (cs - csu) / (ts - tsu) * r
     printf "\n"
+    if (mt + 0 > 0 && mc + 0 > 0) {
+      rr = (sc / mc) * (sc / mc) / ((st / mt) * (st / mt))
+      printf "image means: Tandem %.6g, Cycles %.6g; relative sigma: Tandem %.6g, Cycles %.6g\n", mt, mc, st / mt, sc / mc
+      printf "to equal relative noise (Cycles / Tandem time): render %.2fx", cs / ts * rr
+      if (tsu != "nan" && csu != "nan") printf ", sampling alone %.2fx", (cs - csu) / (ts - tsu) * rr
+      printf "\n"
+    }
   }' | tee "$out/noise.txt"
 fi
