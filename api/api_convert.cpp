@@ -447,6 +447,8 @@ void check_options(const RendererOptions& o, const char* what) {
     default:
       invalid(std::string(what) + ": unknown backend");
   }
+  if (o.light_sampling != LightSampling::kTree && o.light_sampling != LightSampling::kPower)
+    invalid(std::string(what) + ": unknown light_sampling");
   // Only a GPU-only renderer has the whole image on the GPU.
   if (o.cuda_image && o.backend != BackendChoice::kCuda)
     invalid(std::string(what) + ": cuda_image needs BackendChoice::kCuda");

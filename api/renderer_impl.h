@@ -152,6 +152,9 @@ struct Renderer::Impl {
     s.render.height = options.height;
     s.render.max_depth = options.max_depth;
     s.render.seed = options.seed;
+    s.render.light_sampler = options.light_sampling == LightSampling::kPower
+                                 ? tandem::LightSampler::kPower
+                                 : tandem::LightSampler::kTree;
     s.samples_per_frame = options.samples_per_frame;
     return s;
   }

@@ -320,6 +320,43 @@ TEST(ApiRenderer, BadMaterialsLightsAndCamerasAreInvalidArguments) {
             Error::Kind::kInvalidArgument);
 }
 
+// Both light samplers render the same scene (their estimates agree, their
+// samples differ); a value outside the enum is refused.
+TEST(ApiRenderer, LightSamplingChoosesTheSampler) {
+  tandem::RendererOptions o = small_options();
+  o.samples_per_frame = 64;
+  // Two more point lights, one near the floor: the samplers then choose
+  // among three lights differently.
+  const auto lights = [](tandem::Renderer& r) {
+    build_scene(r);
+    tandem::LightDesc near, far;
+    near.position[0] = -1.5f;
+    near.position[1] = 0.4f;
+    near.intensity = 2.0f;
+    far.position[0] = 3.0f;
+    far.position[1] = 6.0f;
+    far.intensity = 40.0f;
+    r.add_light(near);
+    r.add_light(far);
+  };
+  tandem::Renderer tree(o);
+  lights(tree);
+  tree.render_frame();
+  o.light_sampling = tandem::LightSampling::kPower;
+  tandem::Renderer power(o);
+  lights(power);
+  power.render_frame();
+  const std::vector<float> a = tree.image_linear(), b = power.image_linear();
+  EXPECT_GT(mean_abs_difference(a, b), 0.0);
+  EXPECT_NEAR(mean(a), mean(b), 0.05 * mean(a));
+  // Switched on a live renderer: accumulation restarts with the other.
+  tree.set_options(o);
+  EXPECT_EQ(tree.render_frame().accumulated_spp, 64u);
+  EXPECT_NEAR(mean(tree.image_linear()), mean(b), 0.05 * mean(b));
+  o.light_sampling = static_cast<tandem::LightSampling>(7);
+  EXPECT_EQ(thrown_kind([&] { tandem::Renderer bad(o); }), Error::Kind::kInvalidArgument);
+}
+
 TEST(ApiRenderer, ZeroSizeOrOversizedImagesAreRefused) {
   tandem::RendererOptions o = small_options();
   o.width = 0;

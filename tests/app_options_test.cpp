@@ -87,8 +87,9 @@ TEST(OptionTables, SharedOptionsReadTheSameInEveryCommand) {
   const std::string render = run_tandem("render --help").output;
   const std::string bench = run_tandem("bench --help").output;
   const std::string frames = run_tandem("bench --frames 1 --help").output;
-  for (const char* option : {"--env", "--env-color", "--env-intensity", "--env-rotation",
-                             "--gltf-scene", "--allow-outside-uris", "--threads"}) {
+  for (const char* option :
+       {"--env", "--env-color", "--env-intensity", "--env-rotation", "--gltf-scene",
+        "--allow-outside-uris", "--threads", "--light-sampler"}) {
     const std::string expected = line_of(render, option);
     EXPECT_NE(expected, "(missing)") << option;
     EXPECT_EQ(line_of(bench, option), expected) << option;
@@ -123,7 +124,7 @@ TEST(OptionTables, RenderSettingsCompareEveryField) {
 TEST(CliSurface, EverySubcommandHasHelpWithDashHAndDashDashHelp) {
   EXPECT_EQ(run_tandem("--help").exit_code, 0);
   EXPECT_NE(run_tandem("render --help").output.find("--spp"), std::string::npos);
-  for (const char* command : {"render", "info", "compare", "bench"}) {
+  for (const char* command : {"render", "info", "export", "compare", "bench"}) {
     for (const char* flag : {"-h", "--help"}) {
       const RunResult r = run_tandem(std::string(command) + " " + flag);
       EXPECT_EQ(r.exit_code, 0) << command << " " << flag << "\n" << r.output;

@@ -239,12 +239,20 @@ enum class BackendChoice {
   kHetero,  // the GPU and the CPU together, each frame split between them
 };
 
+// How each bounce chooses the light it samples (`tandem render
+// --light-sampler`).
+enum class LightSampling {
+  kTree,   // a light BVH: the lights near the point and facing it (many lights)
+  kPower,  // by power alone (an alias table), blind to where the point is
+};
+
 struct RendererOptions {
   BackendChoice backend = BackendChoice::kAuto;
   uint32_t width = 1280, height = 720;  // pixels, each in [1, 16384]
   uint32_t samples_per_frame = 1;       // per pixel and frame, [1, 4096]
   uint32_t max_depth = 8;               // scattering events per path; 1 = direct light only
   uint32_t seed = 0;                    // same seed and scene: same image, bit for bit
+  LightSampling light_sampling = LightSampling::kTree;
   // The CPU threads the renderer may use (BVH builds, the CPU backend's
   // tiles, texture decoding, the film): `threads` (0 = one per core) less
   // `reserve_cores` left to the host (its game loop), at least 1; each in

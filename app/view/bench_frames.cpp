@@ -39,6 +39,7 @@ const std::vector<OptionSpec>& frame_bench_options() {
         "left out of the other figures)",
         "N"}},
       path_depth_options("4"),
+      light_sampler_options(),
       backend_options(false),
       thread_options(),
       scene_options(),
@@ -76,6 +77,7 @@ int run_frame_bench(const std::vector<std::string>& argv) {
   o.height = args.get_u32("height", 8, 16384);
   o.fixed_scale = 1.0f;  // measure the loop itself, not the adaptation
   o.max_depth = args.get_u32("max-depth", 1, 1024);
+  o.light_sampler = parse_light_sampler(args);
   o.backend = parse_backend_kind(args.get_string("backend"));
   o.backend_options = parse_kernel_option(args.value("kernel"), {o.backend});
   o.denoise = false;

@@ -43,6 +43,7 @@ const std::vector<OptionSpec>& view_options() {
            "S", "0.15"},
       },
       path_depth_options("4"),
+      light_sampler_options(),
       {{"max-spp", true, "most samples per pixel per frame when still", "N", "16"},
        {"target-spp", true, "a still image is done at N samples per pixel", "N", "1024"}},
       display_options(false),
@@ -136,6 +137,7 @@ int run(const std::vector<std::string>& argv) {
   o.fixed_scale = args.get_float("scale", 0.0f, 0.01f, 1.0f);
   o.min_scale = args.get_float("min-scale", o.min_scale, 0.01f, 1.0f);
   o.max_depth = args.get_u32("max-depth", 1, 1024);
+  o.light_sampler = parse_light_sampler(args);
   o.max_spp_per_frame = args.get_u32("max-spp", 1, 4096);
   o.target_spp = args.get_u32("target-spp", 1, 1u << 24);
   o.exposure = args.get_float("exposure", -20.0f, 20.0f);

@@ -58,6 +58,7 @@ TracerSettings ViewSession::tracer_settings() const {
   s.render.width = std::max(8u, uint32_t(std::lround(float(options_.width) * scale)));
   s.render.height = std::max(8u, uint32_t(std::lround(float(options_.height) * scale)));
   s.render.max_depth = options_.max_depth;
+  s.render.light_sampler = options_.light_sampler;
   s.samples_per_frame = options_.fixed_samples_per_frame > 0 && options_.fixed_scale > 0.0f
                             ? options_.fixed_samples_per_frame
                             : quality_.samples_per_frame;

@@ -41,6 +41,7 @@ struct ViewOptions {
   // viewer stops rendering it until something changes.
   uint32_t target_spp = 1024;
   uint32_t max_depth = 4;
+  LightSampler light_sampler = RenderSettings{}.light_sampler;
   float exposure = 0.0f;  // stops
   // SVGF on every frame until the accumulated image takes over
   // (app/view/denoise_view.h says what is shown when).
