@@ -116,10 +116,8 @@ TEST(LightSamplers, TreeAndPowerTableAgreeOnTheManyLightScene) {
   settings.height = 30;
   settings.max_depth = 3;
   // 96 spp: at 48 the difference's standard error was 1.6-2.0 % of the
-  // mean over eight seed pairs, at the bound below, and one near-emitter
-  // sample in the ASan build (whose -O1 rounds instance inverses differently,
-  // so its paths differ from the release build's) took it
-  // over; at 96 it is 1.0-1.3 %.
+  // mean over eight seed pairs, at the bound below (the directly seen bulbs'
+  // pixel coverage is most of it); at 96 it is 1.0-1.3 %.
   settings.light_sampler = LightSampler::kPower;
   const ImageRGB power = render_scene(scene, settings, 96);
   settings.light_sampler = LightSampler::kTree;

@@ -54,6 +54,13 @@ TEST(ManyLights, ThousandsOfEmittersMostOfThemInstancesFacingEveryWay) {
     hi = std::max(hi, c.ks.light_alias[i].pdf);
   }
   EXPECT_GT(hi / lo, 100.0f);
+  // The same room whatever the compiler: every random draw in a fixed order
+  // (an -O1 build once evaluated a position's arguments in the other
+  // order). The first ceiling bulb's place, as every build must make it:
+  const glm::vec4 first_bulb = s.instances()[1].transform[3];
+  EXPECT_NEAR(first_bulb.x, 7.32685661f, 1e-5f);
+  EXPECT_NEAR(first_bulb.y, 4.98999977f, 1e-5f);
+  EXPECT_NEAR(first_bulb.z, -4.45767975f, 1e-5f);
   // Built twice: the same scene.
   Scene again = make_many_lights_scene();
   ASSERT_EQ(again.instances().size(), s.instances().size());
