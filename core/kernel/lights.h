@@ -76,11 +76,6 @@ TANDEM_HD float triangle_world_area(const KernelData& kd, const KInstance& inst,
   return 0.5f * length(cross(e1, e2));
 }
 
-// Whether lights are chosen by the light tree (see the top of this file).
-TANDEM_HD_INLINE bool light_tree_on(const KernelData& kd) {
-  return kd.constants.light_tree_fraction > 0.0f;
-}
-
 // Point p and receiver normal n (unit, or zero) in the object space of
 // `inst`, where its mesh's light tree is: n goes by the transpose of the
 // instance's linear part, which keeps the sign of its dot product with any

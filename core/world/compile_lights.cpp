@@ -117,12 +117,10 @@ void gram(const Mat34& m, double g[3][3]) {
   }
 }
 
-// Whether the linear part of `m` scales every direction alike (a rotation,
-// a mirror and a uniform scale): its Gram matrix is s^2 times the identity,
+// Whether a linear part of Gram matrix `g` scales every direction alike (a
+// rotation, a mirror and a uniform scale): `g` is s^2 times the identity,
 // s^2 into *scale2.
-bool similarity(const Mat34& m, double* scale2) {
-  double g[3][3];
-  gram(m, g);
+bool similarity(const double g[3][3], double* scale2) {
   const double trace = g[0][0] + g[1][1] + g[2][2];
   *scale2 = trace / 3.0;
   const double tolerance = 1e-5 * trace;
@@ -136,10 +134,9 @@ bool similarity(const Mat34& m, double* scale2) {
 // at most this times the sine of theirs (the squared condition number,
 // bounded by trace(G)^3 / det(G) of the Gram matrix G); 1 for a similarity.
 double normal_angle_widening(const Mat34& m) {
-  double scale2 = 0.0;
-  if (similarity(m, &scale2)) return 1.0;
-  double g[3][3];
+  double g[3][3], scale2 = 0.0;
   gram(m, g);
+  if (similarity(g, &scale2)) return 1.0;
   const double trace = g[0][0] + g[1][1] + g[2][2];
   const double det = g[0][0] * (g[1][1] * g[2][2] - g[1][2] * g[2][1]) -
                      g[0][1] * (g[1][0] * g[2][2] - g[1][2] * g[2][0]) +
@@ -153,8 +150,9 @@ double instance_light_power(const KernelData& kd, const KInstance& inst) {
   if (inst.flags & kInstanceHidden) return 0.0;
   const KMeshLights& ml = kd.mesh_lights[inst.mesh];
   if (inst.flags & kInstanceIdentity) return double(ml.power);
-  double scale2 = 0.0;
-  if (similarity(inst.object_to_world, &scale2)) return double(ml.power) * scale2;
+  double g[3][3], scale2 = 0.0;
+  gram(inst.object_to_world, g);
+  if (similarity(g, &scale2)) return double(ml.power) * scale2;
   double power = 0.0;
   for (uint32_t t = ml.first; t < ml.first + ml.count; ++t) {
     const KTriangleLight& tl = kd.triangle_lights[t];
@@ -268,7 +266,6 @@ void SceneCompiler::finish_light_tables(KernelScene& out, SceneDelta& delta) {
   // The meshes' trees stay; the lights' tree after them is built anew.
   out.light_tree_nodes.resize(mesh_light_tree_nodes_);
   out.light_tree_trails.assign(out.lights.size(), 0);
-  top_leaf_of_.assign(out.lights.size(), kInvalidIndex);
   out.constants.light_tree_root = kInvalidIndex;
   if (tree_sampler()) {
     const KernelData kd = out.view();
@@ -279,7 +276,6 @@ void SceneCompiler::finish_light_tables(KernelScene& out, SceneDelta& delta) {
     }
     out.constants.light_tree_root = append_light_tree(std::move(inputs), out.light_tree_nodes,
                                                       out.light_tree_trails, &top_shape_);
-    light_tree_leaves(out.light_tree_nodes, out.constants.light_tree_root, top_leaf_of_);
   }
   compile_light_alias(out, out.constants.light_tree_root != kInvalidIndex);
   delta.light_tree_nodes.reallocated = true;
@@ -299,7 +295,7 @@ void SceneCompiler::refresh_light_tables(KernelScene& out, SceneDelta& delta,
   // light without one gained some: then only the changed lights' paths.
   for (uint32_t i : changed) {
     if (tree && !light_at_infinity(out.lights[i]) &&
-        (top_leaf_of_[i] != kInvalidIndex) != (light_power_[i] > 0.0)) {
+        (top_shape_.leaf_of[i] != kInvalidIndex) != (light_power_[i] > 0.0)) {
       finish_light_tables(out, delta);
       return;
     }
@@ -310,7 +306,7 @@ void SceneCompiler::refresh_light_tables(KernelScene& out, SceneDelta& delta,
   if (!tree) return;
   std::vector<uint32_t> leaves;
   for (uint32_t i : changed) {
-    if (top_leaf_of_[i] != kInvalidIndex) leaves.push_back(top_leaf_of_[i]);
+    if (top_shape_.leaf_of[i] != kInvalidIndex) leaves.push_back(top_shape_.leaf_of[i]);
   }
   std::sort(leaves.begin(), leaves.end());
   leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());

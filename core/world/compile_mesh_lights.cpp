@@ -144,10 +144,8 @@ bool SceneCompiler::update_mesh_lights(KernelScene& out, SceneDelta& delta,
     mesh_light_tables(out, m);
     if (tree_sampler()) {
       const KernelData kd = out.view();
-      glm::vec3 lo, hi;
-      refit_light_tree(
-          out.light_tree_nodes, ml.tree_root,
-          [&](uint32_t light) { return triangle_light_input(kd, light); }, &lo, &hi);
+      refit_light_tree(out.light_tree_nodes, ml.tree_root,
+                       [&](uint32_t light) { return triangle_light_input(kd, light); });
       // A mesh's tree is every node from its root to the next mesh's.
       uint32_t end = mesh_light_tree_nodes_;
       for (uint32_t next = m + 1; next < out.meshes.size(); ++next) {

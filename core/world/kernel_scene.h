@@ -258,7 +258,6 @@ class SceneCompiler {
   std::vector<glm::vec3> mesh_light_lo_, mesh_light_hi_;
   uint32_t mesh_light_tree_nodes_ = 0;
   LightTreeShape top_shape_;
-  std::vector<uint32_t> top_leaf_of_;
   // The instances of each mesh, for update_instances; and per instance the
   // state it was last noted hidden in (kVisible: never), so that each is
   // said once, and singular ones once for all.

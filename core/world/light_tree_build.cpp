@@ -115,20 +115,22 @@ void rewrite_node(KLightTreeNode& node, const Group& g) {
   node = n;
 }
 
-// A leaf's group from its lights as they are now, its entries' shares
-// rewritten.
+// A leaf's group from its lights as they are now (each asked once), its
+// entries' shares rewritten.
 Group refit_leaf(std::vector<KLightTreeNode>& nodes, uint32_t leaf, const LightTreeInputOf& input) {
   Group g;
   const uint32_t count = nodes[leaf].count;
   if (count <= 1) {
     g.add(input(nodes[leaf].index));
   } else {
-    for (uint32_t k = 1; k <= count; ++k)
-      g.add(input(nodes[leaf + k].index));
+    float power[kLightTreeMaxLeafLights];
     for (uint32_t k = 1; k <= count; ++k) {
-      const float power = input(nodes[leaf + k].index).power;
-      nodes[leaf + k].power = g.power > 0.0f ? power / g.power : 1.0f / float(count);
+      const LightTreeInput light = input(nodes[leaf + k].index);
+      power[k - 1] = light.power;
+      g.add(light);
     }
+    for (uint32_t k = 1; k <= count; ++k)
+      nodes[leaf + k].power = g.power > 0.0f ? power[k - 1] / g.power : 1.0f / float(count);
   }
   rewrite_node(nodes[leaf], g);
   return g;
@@ -168,6 +170,7 @@ class Builder {
       nodes_[index].index = lights_[begin].light;
       nodes_[index].count = 1;
       trails_[lights_[begin].light] = trail;
+      if (shape_) shape_->leaf_of[lights_[begin].light] = index;
       return index;
     }
     float split_cost = INFINITY;
@@ -199,6 +202,7 @@ class Builder {
       entry.power = lights_[i].power / all.power;
       nodes_.push_back(entry);
       trails_[lights_[i].light] = trail;
+      if (shape_) shape_->leaf_of[lights_[i].light] = index;
     }
     if (shape_) shape_->resize(nodes_.size());
   }
@@ -289,7 +293,11 @@ uint32_t append_light_tree(std::vector<LightTreeInput> lights, std::vector<KLigh
                                        l.light >= trails.size();
                               }),
                lights.end());
-  if (shape) *shape = LightTreeShape{uint32_t(nodes.size())};
+  if (shape) {
+    *shape = LightTreeShape{};
+    shape->base = uint32_t(nodes.size());
+    shape->leaf_of.assign(trails.size(), 0xffffffffu);
+  }
   if (lights.empty()) return 0xffffffffu;
   nodes.reserve(nodes.size() + 2 * lights.size());
   return Builder(lights, nodes, trails, shape).build(0, lights.size(), 0, 0, 0xffffffffu);
@@ -303,10 +311,8 @@ LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_co
 }
 
 void refit_light_tree(std::vector<KLightTreeNode>& nodes, uint32_t root,
-                      const LightTreeInputOf& input, glm::vec3* lo, glm::vec3* hi) {
-  const Group g = refit_subtree(nodes, root, input);
-  *lo = g.lo;
-  *hi = g.hi;
+                      const LightTreeInputOf& input) {
+  refit_subtree(nodes, root, input);
 }
 
 void refit_light_tree_paths(std::vector<KLightTreeNode>& nodes, LightTreeShape& shape,
@@ -348,26 +354,6 @@ void refit_light_tree_paths(std::vector<KLightTreeNode>& nodes, LightTreeShape& 
       // Keep `above` sorted and unique.
       const auto at = std::lower_bound(above.begin(), above.end(), parent);
       if (at == above.end() || *at != parent) above.insert(at, parent);
-    }
-  }
-}
-
-void light_tree_leaves(const std::vector<KLightTreeNode>& nodes, uint32_t root,
-                       std::vector<uint32_t>& leaf_of) {
-  if (root >= nodes.size()) return;
-  std::vector<uint32_t> stack{root};
-  while (!stack.empty()) {
-    const uint32_t node = stack.back();
-    stack.pop_back();
-    const KLightTreeNode& n = nodes[node];
-    if (!(n.flags & kLightTreeLeaf)) {
-      stack.push_back(node + 1);
-      stack.push_back(n.index);
-    } else if (n.count <= 1) {
-      leaf_of[n.index] = node;
-    } else {
-      for (uint32_t k = 1; k <= n.count; ++k)
-        leaf_of[nodes[node + k].index] = node;
     }
   }
 }

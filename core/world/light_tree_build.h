@@ -36,11 +36,13 @@ struct LightTree {
 LightTree build_light_tree(std::vector<LightTreeInput> lights, uint32_t light_count);
 
 // What refit_light_tree_paths needs of a tree besides its nodes, per node
-// from `base`, its root (entries included, whose values mean nothing).
+// from `base`, its root (entries included, whose values mean nothing), and
+// per light the leaf that holds it.
 struct LightTreeShape {
   uint32_t base = 0;
   std::vector<glm::vec3> lo, hi;  // the box of each node's lights
   std::vector<uint32_t> parent;   // 0xffffffff: the root or an entry
+  std::vector<uint32_t> leaf_of;  // by light index; 0xffffffff: not in the tree
   void resize(size_t node_count) {
     lo.resize(node_count - base, glm::vec3(0.0f));
     hi.resize(node_count - base, glm::vec3(0.0f));
@@ -61,9 +63,9 @@ using LightTreeInputOf = std::function<LightTreeInput(uint32_t light)>;
 
 // The bounds, cones and powers of the tree at nodes[root] recomputed from
 // its lights as they are now, its shape kept: what a deformed mesh's tree
-// pays, O(its nodes), instead of a build. Returns the root's box.
+// pays, O(its nodes), instead of a build.
 void refit_light_tree(std::vector<KLightTreeNode>& nodes, uint32_t root,
-                      const LightTreeInputOf& input, glm::vec3* lo, glm::vec3* hi);
+                      const LightTreeInputOf& input);
 
 // Only the leaves `leaves` (of a tree appended with `shape`) and the nodes
 // above them recomputed, each from its children's boxes (kept in `shape`)
@@ -72,10 +74,5 @@ void refit_light_tree(std::vector<KLightTreeNode>& nodes, uint32_t root,
 void refit_light_tree_paths(std::vector<KLightTreeNode>& nodes, LightTreeShape& shape,
                             const std::vector<uint32_t>& leaves, const LightTreeInputOf& input,
                             std::vector<uint32_t>* rewritten);
-
-// The nodes of the leaves of the tree at `root` by light: leaf_of[light]
-// (sized by the caller) for each of its lights.
-void light_tree_leaves(const std::vector<KLightTreeNode>& nodes, uint32_t root,
-                       std::vector<uint32_t>& leaf_of);
 
 }  // namespace tandem

@@ -88,10 +88,10 @@ SceneDelta SceneCompiler::compile(const Scene& scene, const RenderSettings& sett
       std::sort(instances.begin(), instances.end());
       instances.erase(std::unique(instances.begin(), instances.end()), instances.end());
       in_place = in_place && update_instance_lights(out, delta, instances, changed);
-      // The powers that follow the scene's size with the rest: the tables
-      // are rebuilt anyway, and then are a fresh compile's.
-      if (in_place) update_light_powers(scene, out, delta, changed);
       if (in_place) {
+        // The powers that follow the scene's size with the rest: the tables
+        // are rebuilt anyway, and then are a fresh compile's.
+        update_light_powers(scene, out, delta, changed);
         refresh_light_tables(out, delta, std::move(changed));
       } else {
         compile_lights(scene, out, delta);
